@@ -1,0 +1,110 @@
+"""Parameters of the defocus-estimation pipeline, with the paper's defaults.
+
+One frozen dataclass; every field carries its unit and the paper section it comes from.
+Images are floats in [0, 1]; every blur quantity is a Gaussian σ in pixels of the input image.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+__all__ = ["DefocusParams"]
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class DefocusParams:
+    """Paper defaults for Bae & Durand 2007 (Sec. 3–5, Appendix B)."""
+
+    # --- 3.1 multiscale edge detection (Elder & Zucker 1998, Appendix B) -------------------
+    sigma1_scales: tuple[float, ...] = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0)
+    # σ1 of the steerable 1st-derivative filters, px (Sec. 3.1); searched smallest first.
+    sigma2_scales: tuple[float, ...] = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
+    # σ2 of the steerable 2nd-derivative filters, px (Sec. 3.1); searched smallest first.
+    noise_std: float = 2.5 / 255.0
+    # sensor noise s_n in image units ([0, 1] scale): 2.5 grey levels of 8 bits (Sec. 3.1).
+    false_positive_rate: float = 1e-6
+    # image-wide false-positive tolerance α_I = 0.0001 % (Sec. 3.1, Eq. 9).
+
+    # --- 3.2 blur at edges ----------------------------------------------------------------
+    estimator: str = "model_fit"
+    # key of method.BLUR_ESTIMATORS: "model_fit" (paper), "zero_crossing" (Elder–Zucker),
+    # "gradient_ratio" (Zhuo & Sim 2011 baseline).
+    fit_window_min: int = 3
+    # smallest model-fit window, px (Sec. 3.2: "window sizes from 3×3 to 71×71").
+    fit_window_max: int = 71
+    # largest model-fit window, px (Sec. 3.2).
+    max_sigma: float = 64.0
+    # largest blur σ reported, px; estimates are clipped to [0, max_sigma].
+
+    # --- 3.3 biased cross-bilateral refinement (Eq. 3) ------------------------------------
+    bilateral_sigma_spatial: float = 0.10
+    # σs as a fraction of the image size max(H, W) (Sec. 3.3: "10 % of the image size").
+    bilateral_sigma_range: float = 0.10
+    # σr as a fraction of the reference image's value range (Sec. 3.3: "10 % of the image range").
+    sharpness_bias: bool = True
+    # apply b(BM) = exp(−BM / bias_scale) (Eq. 3); False gives the plain cross-bilateral ablation.
+    bias_scale: float = 2.0
+    # denominator of the sharpness bias exp(−BM/2), px (Sec. 3.3).
+    bilateral_method: str = "grid"
+    # "grid" (fast bilateral grid) or "brute_force" (O(N·M) reference oracle).
+
+    # --- 4 propagation (Eq. 4) -------------------------------------------------------------
+    alpha: float = 0.5
+    # data-term weight α_p at edge pixels; 0 elsewhere (Sec. 4.1, Fig. 6 sweeps 0.1–1).
+    propagation_window: int = 7
+    # side of the square window, px, that defines both N(p) and the σ_ip statistics (Sec. 4.1).
+    propagation_tol: float = 1e-6
+    # relative residual at which the preconditioned CG solve of the normal equations stops.
+    propagation_solver: str = "amg_pcg"
+    # "amg_pcg" (multigrid-preconditioned CG) or "direct" (sparse LU; small images / tests only).
+
+    # --- 5 magnification ------------------------------------------------------------------
+    map_clip_percent: float = 5.0
+    # clip the lower and upper percentile of the defocus map before blurring, % (Sec. 5).
+    map_smoothing: float = 0.005
+    # Gaussian blur radius (σ) of the map as a fraction of the image size max(H, W) (Sec. 5).
+
+    def __post_init__(self):
+        def bad(name, allowed):
+            raise ValueError(f"DefocusParams.{name}={getattr(self, name)!r} is invalid; allowed: {allowed}")
+
+        for name in ("sigma1_scales", "sigma2_scales"):
+            scales = tuple(float(s) for s in getattr(self, name))
+            if not scales or any(not (s > 0) for s in scales):
+                bad(name, "non-empty tuple of positive scales (px)")
+            object.__setattr__(self, name, tuple(sorted(scales)))
+        if not self.noise_std > 0:
+            bad("noise_std", "> 0")
+        if not 0 < self.false_positive_rate < 1:
+            bad("false_positive_rate", "0 < α_I < 1")
+        if not (isinstance(self.fit_window_min, int) and self.fit_window_min >= 3):
+            bad("fit_window_min", "integer >= 3")
+        if not (isinstance(self.fit_window_max, int) and self.fit_window_max >= self.fit_window_min):
+            bad("fit_window_max", "integer >= fit_window_min")
+        if not self.max_sigma > 0:
+            bad("max_sigma", "> 0")
+        if not self.bilateral_sigma_spatial > 0:
+            bad("bilateral_sigma_spatial", "> 0")
+        if not self.bilateral_sigma_range > 0:
+            bad("bilateral_sigma_range", "> 0")
+        if not self.bias_scale > 0:
+            bad("bias_scale", "> 0")
+        if self.bilateral_method not in ("grid", "brute_force"):
+            bad("bilateral_method", "'grid' or 'brute_force'")
+        if not self.alpha > 0:
+            bad("alpha", "> 0")
+        if not (isinstance(self.propagation_window, int) and self.propagation_window >= 3
+                and self.propagation_window % 2 == 1):
+            bad("propagation_window", "odd integer >= 3")
+        if not 0 < self.propagation_tol < 1:
+            bad("propagation_tol", "0 < tol < 1")
+        if self.propagation_solver not in ("amg_pcg", "direct"):
+            bad("propagation_solver", "'amg_pcg' or 'direct'")
+        if not 0 <= self.map_clip_percent < 50:
+            bad("map_clip_percent", "0 <= p < 50")
+        if not self.map_smoothing >= 0:
+            bad("map_smoothing", ">= 0")
+
+    def replace(self, **changes) -> "DefocusParams":
+        """A validated copy with some fields changed."""
+        return dataclasses.replace(self, **changes)

@@ -1,0 +1,16 @@
+"""Shared pytest configuration."""
+
+import os
+
+import pytest
+
+# Keep CI's caches inside the project unless the caller chose another place.
+os.environ.setdefault("DEFOCUS_CACHE_DIR", os.path.join(os.path.dirname(os.path.dirname(__file__)), ".cache"))
+
+
+@pytest.fixture
+def rng():
+    """A seeded generator: tests are deterministic."""
+    import numpy as np
+
+    return np.random.default_rng(20070101)

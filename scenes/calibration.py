@@ -82,12 +82,19 @@ def _disk_esf_antiderivative(t):
     return np.where(t <= -1.0, 0.0, np.where(t >= 1.0, t, inside))
 
 
+def _disk_esf_correction(t):
+    # h(t) = H(t) − max(t, 0): bounded, zero outside (−1, 1); avoids cancellation of large H.
+    t = np.asarray(t, dtype=np.float64)
+    return np.where(np.abs(t) < 1.0, _disk_esf_antiderivative(t) - np.maximum(t, 0.0), 0.0)
+
+
 def _disk_edge_profile(x, edge, coc):
-    # Box-averaged disk ESF: (1/1px)·∫_{x−½}^{x+½} F((u − x0)/r) du = r·[H(b) − H(a)].
+    # Box-averaged disk ESF: (1/1px)·∫_{x−½}^{x+½} F((u − x0)/r) du = r·[H(b) − H(a)],
+    # split as [max(u, 0)] over the pixel (a ramp in px, exact) + r·[h(b) − h(a)].
     r = max(float(coc) / 2.0, 1e-9)
-    a = (x - 0.5 - edge) / r
-    b = (x + 0.5 - edge) / r
-    return r * (_disk_esf_antiderivative(b) - _disk_esf_antiderivative(a))
+    lo, hi = x - 0.5 - edge, x + 0.5 - edge
+    ramp = np.maximum(hi, 0.0) - np.maximum(lo, 0.0)
+    return ramp + r * (_disk_esf_correction(hi / r) - _disk_esf_correction(lo / r))
 
 
 def disk_edge_profile(x_px, *, edge_px, coc_px):

@@ -1,0 +1,232 @@
+"""Figure registry and cached compute (showyourwork style).
+
+Every reproduced figure is a :class:`Figure`: a name (``"fig10"``), a title, a ``compute(config)``
+function returning a dict of numpy arrays plus a ``"metrics"`` dict, a ``plot`` function (in
+:mod:`experiments.plotting`, imported lazily so compute workers never load matplotlib), and one
+frozen config dataclass per mode (``"quick"`` and ``"full"``). Every parameter of an experiment is
+a field of that one dataclass, with a comment giving its meaning and unit.
+
+Compute results are cached in ``<cache>/figures`` through :class:`scenes.storage.Cache`, keyed by
+the figure name, the figure's code ``version`` (bump it whenever compute's output changes) and the
+config's fields, as ``arrays.npz`` + ``metrics.json``.
+
+Adding a figure: write ``experiments/figN_topic.py`` defining ``FIGURE = Figure(...)`` and
+``experiments/plotting/figN.py`` defining ``plot(data, config, out_stem)``, then add the module
+name to :data:`FIGURE_MODULES`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import json
+import time
+from collections.abc import Callable, Iterator, Mapping
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "FIGURES",
+    "FIGURE_MODULES",
+    "Figure",
+    "FigureResult",
+    "cache_key",
+    "compute_cached",
+    "library_versions",
+    "to_jsonable",
+]
+
+#: Modules (under ``experiments``) that each define ``FIGURE``; order = listing order.
+FIGURE_MODULES = ("fig10_coc_vs_distance",)
+
+#: Folder under the project cache holding figure compute results.
+CACHE_SUBDIR = "figures"
+
+
+@dataclasses.dataclass(frozen=True)
+class Figure:
+    """One reproduced paper figure.
+
+    Attributes
+    ----------
+    name : str
+        CLI name, e.g. ``"fig10"``; output files are ``<name>.png/.pdf/.metrics.json``.
+    title : str
+        One-line description (shown by ``repro.figures --list``).
+    compute : callable
+        ``compute(config) -> dict``: numpy arrays plus a ``"metrics"`` dict of JSON-able numbers.
+    plot : str
+        ``"module:function"`` of the plot function ``plot(data, config, out_stem) -> list[Path]``
+        (resolved lazily; it writes ``out_stem.png`` and ``out_stem.pdf`` atomically).
+    configs : Mapping[str, object]
+        Frozen dataclass instances for the modes ``"quick"`` and ``"full"``.
+    version : int
+        Code version of ``compute``; part of the cache key.
+    sigma_convention : str
+        How the figure's blur quantities relate to Gaussian σ (written to the metrics file).
+    """
+
+    name: str
+    title: str
+    compute: Callable[[object], dict]
+    plot: str
+    configs: Mapping[str, object]
+    version: int = 1
+    sigma_convention: str = "line_spread: sigma = sqrt((c/4)^2 + sigma_filter^2), px"
+
+    def __post_init__(self):
+        for mode in ("quick", "full"):
+            cfg = self.configs.get(mode)
+            if cfg is None or not dataclasses.is_dataclass(cfg):
+                raise ValueError(f"figure {self.name!r}: configs[{mode!r}] must be a dataclass instance")
+            if not getattr(type(cfg), "__dataclass_params__").frozen:
+                raise ValueError(f"figure {self.name!r}: config {type(cfg).__name__} must be frozen")
+
+    def config(self, mode: str = "full"):
+        """The config of ``mode`` (``"quick"`` or ``"full"``)."""
+        try:
+            return self.configs[mode]
+        except KeyError:
+            raise ValueError(f"mode={mode!r} is invalid; allowed: {sorted(self.configs)}") from None
+
+    def plot_function(self) -> Callable:
+        """Import and return the plot function."""
+        module, _, func = self.plot.partition(":")
+        return getattr(importlib.import_module(module), func)
+
+
+@dataclasses.dataclass(frozen=True)
+class FigureResult:
+    """A cached compute result: arrays, metrics, and whether it came from the cache."""
+
+    arrays: dict
+    metrics: dict
+    cached: bool
+    seconds: float
+    folder: Path
+
+    def as_data(self) -> dict:
+        """The compute dict again (arrays plus ``"metrics"``), as the plot functions take it."""
+        return {**self.arrays, "metrics": self.metrics}
+
+
+class _LazyFigures(Mapping):
+    """``name → Figure``, importing the figure modules on first use (avoids import cycles)."""
+
+    def __init__(self):
+        self._figures: dict[str, Figure] | None = None
+
+    def _load(self) -> dict[str, Figure]:
+        if self._figures is None:
+            figures = {}
+            for mod in FIGURE_MODULES:
+                fig = importlib.import_module(f"{__package__}.{mod}").FIGURE
+                if fig.name in figures:
+                    raise ValueError(f"duplicate figure name {fig.name!r}")
+                figures[fig.name] = fig
+            self._figures = figures
+        return self._figures
+
+    def __getitem__(self, name: str) -> Figure:
+        return self._load()[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._load())
+
+    def __len__(self) -> int:
+        return len(self._load())
+
+
+#: Registered figures by name.
+FIGURES: Mapping[str, Figure] = _LazyFigures()
+
+
+def to_jsonable(obj):
+    """Recursively convert numpy scalars/arrays, tuples and dataclasses to JSON types."""
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return to_jsonable(dataclasses.asdict(obj))
+    if isinstance(obj, Mapping):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return to_jsonable(obj.tolist())
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, float) and not np.isfinite(obj):
+        return None if np.isnan(obj) else ("inf" if obj > 0 else "-inf")
+    return obj
+
+
+def cache_key(figure: Figure, config) -> dict:
+    """JSON-able key of a compute result: figure name, code version, config type and fields."""
+    return {
+        "figure": figure.name,
+        "version": figure.version,
+        "config_type": type(config).__qualname__,
+        "config": to_jsonable(config),
+    }
+
+
+def compute_cached(figure: Figure, config, *, force=False, cache_dir=None) -> FigureResult:
+    """Run ``figure.compute(config)`` unless a valid cached result exists.
+
+    Parameters
+    ----------
+    figure : Figure
+    config : dataclass instance
+        One of ``figure.configs`` (or any instance of the same frozen dataclass).
+    force : bool, keyword-only
+        Recompute even when cached.
+    cache_dir : path, optional, keyword-only
+        Cache folder (default ``<cache>/figures``).
+
+    Returns
+    -------
+    FigureResult
+    """
+    from scenes.backend import cache_root
+    from scenes.storage import Cache
+
+    if not dataclasses.is_dataclass(config) or not type(config).__dataclass_params__.frozen:
+        raise ValueError(f"config {config!r} is invalid; allowed: a frozen dataclass instance")
+    cache = Cache(Path(cache_dir) if cache_dir is not None else cache_root() / CACHE_SUBDIR)
+    key = cache_key(figure, config)
+    if force:
+        cache.invalidate(key)
+    cached = cache.is_valid(key)
+    t0 = time.perf_counter()
+
+    def build(folder: Path):
+        data = figure.compute(config)
+        if not isinstance(data, Mapping) or not isinstance(data.get("metrics"), Mapping):
+            raise TypeError(f"{figure.name}.compute must return a dict with a 'metrics' dict")
+        arrays = {k: np.asarray(v) for k, v in data.items() if k != "metrics"}
+        for k, v in arrays.items():
+            if v.dtype == object:
+                raise TypeError(f"{figure.name}.compute: array {k!r} has dtype object")
+        with open(folder / "arrays.npz", "wb") as fh:
+            np.savez_compressed(fh, **arrays)
+        (folder / "metrics.json").write_text(json.dumps(to_jsonable(data["metrics"]), indent=1, sort_keys=True))
+
+    folder = cache.get_or_build(key, build)
+    with np.load(folder / "arrays.npz", allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    metrics = json.loads((folder / "metrics.json").read_text())
+    return FigureResult(arrays=arrays, metrics=metrics, cached=cached, seconds=time.perf_counter() - t0,
+                        folder=folder)
+
+
+def library_versions() -> dict:
+    """Versions of Python and the libraries a figure depends on (for the metrics files)."""
+    import platform
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {"python": platform.python_version()}
+    for pkg in ("numpy", "scipy", "matplotlib", "mitsuba", "drjit", "scikit-image"):
+        try:
+            out[pkg] = version(pkg)
+        except PackageNotFoundError:
+            out[pkg] = None
+    return out

@@ -1,0 +1,136 @@
+"""Reproduce the paper's figures: compute (cached), plot, and write metrics.
+
+``python -m repro.figures [NAMES...] [--list] [--quick] [--jobs N] [--out DIR] [--force]``
+
+For each figure (default: all registered in :data:`experiments.registry.FIGURES`) this renders
+whatever is missing (render and compute results are cached under ``$DEFOCUS_CACHE_DIR``), runs the
+experiment, and writes ``<out>/<name>.png``, ``<name>.pdf`` and ``<name>.metrics.json`` (metrics,
+the config, the σ convention, library versions). ``--jobs N`` runs independent figures in N
+parallel processes. Unknown names or bad values: one line on stderr, exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+PROG = "python -m repro.figures"
+DEFAULT_OUT = Path("report") / "figures"
+
+
+def _run_cli(main, argv=None) -> int:
+    # Minimal local stand-in for repro/_cli.py's run_cli (not present when this was written):
+    # ValueError → one line on stderr and exit status 2.
+    try:
+        return main(argv)
+    except ValueError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
+    p.add_argument("names", nargs="*", metavar="NAME", help="figures to make (default: all), e.g. fig10")
+    p.add_argument("--list", action="store_true", help="list the registered figures and exit")
+    p.add_argument("--quick", action="store_true", help="quick mode: fewer points, fewer samples per pixel")
+    p.add_argument("--jobs", type=int, default=1, metavar="N", help="figures computed in parallel (processes)")
+    p.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="DIR",
+                   help=f"output folder (default: {DEFAULT_OUT})")
+    p.add_argument("--force", action="store_true", help="recompute even when a cached result exists")
+    return p
+
+
+def make_figure(name: str, mode: str, out_dir: str, force: bool) -> dict:
+    """Compute (cached), plot and write the metrics of one figure; returns a summary dict.
+
+    Top-level so that worker processes can run it.
+    """
+    from experiments.registry import FIGURES, compute_cached, library_versions, to_jsonable
+    from scenes.storage import atomic_write_text
+
+    t0 = time.perf_counter()
+    fig = FIGURES[name]
+    config = fig.config(mode)
+    result = compute_cached(fig, config, force=force)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    stem = out / fig.name
+    paths = fig.plot_function()(result.as_data(), config, stem)
+    info = {
+        "figure": fig.name,
+        "title": fig.title,
+        "mode": mode,
+        "metrics": result.metrics,
+        "config_type": type(config).__qualname__,
+        "config": to_jsonable(config),
+        "code_version": fig.version,
+        "sigma_convention": fig.sigma_convention,
+        "versions": library_versions(),
+        "cache": {"hit": result.cached, "entry": result.folder.name},
+        "outputs": [p.name for p in paths],
+    }
+    metrics_path = out / f"{fig.name}.metrics.json"
+    atomic_write_text(metrics_path, json.dumps(to_jsonable(info), indent=1, sort_keys=True) + "\n")
+    return {"name": name, "cached": result.cached, "seconds": time.perf_counter() - t0,
+            "files": [str(p) for p in [*paths, metrics_path]], "metrics": result.metrics}
+
+
+def _headline(metrics: dict) -> str:
+    keys = [k for k in metrics if k.startswith("max_rel_err") or k.endswith("_ratio_rel_err")]
+    parts = [f"{k}={metrics[k]:.4g}" for k in keys if isinstance(metrics[k], (int, float))]
+    return ", ".join(parts)
+
+
+def main(argv=None) -> int:
+    """Entry point; returns the exit status."""
+    args = _parser().parse_args(argv)
+    from experiments.registry import FIGURES
+
+    if args.list:
+        for name, fig in FIGURES.items():
+            print(f"{name:<8} {fig.title}")
+        return 0
+    names = list(dict.fromkeys(args.names)) or list(FIGURES)
+    unknown = [n for n in names if n not in FIGURES]
+    if unknown:
+        raise ValueError(f"unknown figure(s) {', '.join(map(repr, unknown))}; choose from {', '.join(FIGURES)}")
+    if args.jobs < 1:
+        raise ValueError(f"--jobs={args.jobs} is invalid; allowed: integer >= 1")
+    mode = "quick" if args.quick else "full"
+    args.out.mkdir(parents=True, exist_ok=True)
+
+    from tqdm import tqdm
+
+    summaries = []
+    bar = tqdm(total=len(names), desc=f"figures ({mode})", unit="fig", file=sys.stderr)
+    if args.jobs == 1 or len(names) == 1:
+        for name in names:
+            bar.set_postfix_str(name)
+            summaries.append(make_figure(name, mode, str(args.out), args.force))
+            bar.update()
+    else:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        # spawn, not fork: Dr.Jit/LLVM state does not survive a fork safely.
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=min(args.jobs, len(names)), mp_context=ctx) as pool:
+            futures = {pool.submit(make_figure, n, mode, str(args.out), args.force): n for n in names}
+            for fut in as_completed(futures):
+                summaries.append(fut.result())
+                bar.set_postfix_str(futures[fut])
+                bar.update()
+    bar.close()
+    for s in sorted(summaries, key=lambda s: names.index(s["name"])):
+        how = "cached" if s["cached"] else "computed"
+        print(f"{s['name']}: {how}, {s['seconds']:.1f} s; {_headline(s['metrics'])}")
+        for f in s["files"]:
+            print(f"  {f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(_run_cli(main))

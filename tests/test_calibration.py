@@ -14,7 +14,6 @@ import pytest
 
 from tests import tolerances as tol
 
-pytestmark = pytest.mark.render
 
 
 # --- model and fitters (no rendering) -----------------------------------------------------------
@@ -104,6 +103,7 @@ def calibration():
     return {"rows": rows, "ratios": ratios, "seconds": elapsed}
 
 
+@pytest.mark.render
 def test_sixteen_cases_span_both_sides_of_focus(calibration):
     rows = calibration["rows"]
     assert len(rows) == 16
@@ -115,6 +115,7 @@ def test_sixteen_cases_span_both_sides_of_focus(calibration):
     assert sum(r["coc_eq5_px"] >= tol.CALIB_MIN_COC_PX for r in rows) >= 8
 
 
+@pytest.mark.render
 def test_fitted_coc_matches_eq5(calibration):
     bad = [
         (r["label"], r["f_number"], r["depth_m"], round(r["coc_eq5_px"], 3), round(r["coc_fit_px"], 3))
@@ -124,17 +125,20 @@ def test_fitted_coc_matches_eq5(calibration):
     assert not bad, f"rendered blur differs from Eq. (5) by > {tol.CALIB_COC_RTOL:.0%}: {bad}"
 
 
+@pytest.mark.render
 def test_edge_on_optical_axis(calibration):
     for r in calibration["rows"]:
         assert abs(r["edge_offset_px"]) <= tol.CALIB_EDGE_POSITION_PX, r
 
 
+@pytest.mark.render
 def test_second_moment_sigma_is_c_over_4(calibration):
     for r in calibration["rows"]:
         if r["coc_eq5_px"] >= 4.0:
             assert r["sigma_2nd_px"] == pytest.approx(r["sigma_2nd_pred_px"], rel=tol.CALIB_SIGMA_2ND_RTOL), r
 
 
+@pytest.mark.render
 def test_sensor_ratio_matches_eq6(calibration):
     ratios = calibration["ratios"]
     assert len(ratios) == 8
@@ -146,6 +150,7 @@ def test_sensor_ratio_matches_eq6(calibration):
     assert 4.5 < np.median([q["ratio_measured"] for q in checked]) < 5.8
 
 
+@pytest.mark.render
 def test_naive_fov_mapping_fails_and_project_mapping_passes(calibration):
     """fov = 2·atan(W/2f) renders the blur (D − f)/D too small; the project's v-based mapping does not."""
     from scenes.calibration import CALIBRATION_DEFAULTS, calibration_cases, default_renderer, measure_edge
@@ -167,5 +172,6 @@ def test_naive_fov_mapping_fails_and_project_mapping_passes(calibration):
         assert naive["coc_fit_px"] / naive["coc_eq5_px"] == pytest.approx(factor, rel=tol.CALIB_NAIVE_FACTOR_RTOL)
 
 
+@pytest.mark.render
 def test_calibration_time_budget(calibration):
     assert calibration["seconds"] <= tol.CALIB_TIME_BUDGET_S

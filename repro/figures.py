@@ -6,7 +6,9 @@ For each figure (default: all registered in :data:`experiments.registry.FIGURES`
 whatever is missing (render and compute results are cached under ``$DEFOCUS_CACHE_DIR``), runs the
 experiment, and writes ``<out>/<name>.png``, ``<name>.pdf`` and ``<name>.metrics.json`` (metrics,
 the config, the σ convention, library versions). ``--jobs N`` runs independent figures in N
-parallel processes. Unknown names or bad values: one line on stderr, exit status 2.
+parallel processes. Unknown names or bad values: one line on stderr, exit status 2. A figure
+whose computation fails is reported (traceback, then one summary line) and the others still run;
+the exit status is then 1.
 """
 
 from __future__ import annotations
@@ -78,6 +80,17 @@ def make_figure(name: str, mode: str, out_dir: str, force: bool) -> dict:
             "files": [str(p) for p in [*paths, metrics_path]], "metrics": result.metrics}
 
 
+def _make_figure_safe(name: str, mode: str, out_dir: str, force: bool) -> dict:
+    # One failing figure must not stop the others: report it and carry on.
+    try:
+        return make_figure(name, mode, out_dir, force)
+    except Exception as exc:  # noqa: BLE001 - reported to the user, exit status 1
+        import traceback
+
+        return {"name": name, "error": f"{type(exc).__name__}: {exc}",
+                "traceback": "".join(traceback.format_exception(exc))}
+
+
 def _headline(metrics: dict) -> str:
     keys = [k for k in metrics if k.startswith("max_rel_err") or k.endswith("_ratio_rel_err")]
     parts = [f"{k}={metrics[k]:.4g}" for k in keys if isinstance(metrics[k], (int, float))]
@@ -109,7 +122,7 @@ def main(argv=None) -> int:
     if args.jobs == 1 or len(names) == 1:
         for name in names:
             bar.set_postfix_str(name)
-            summaries.append(make_figure(name, mode, str(args.out), args.force))
+            summaries.append(_make_figure_safe(name, mode, str(args.out), args.force))
             bar.update()
     else:
         import multiprocessing
@@ -118,18 +131,25 @@ def main(argv=None) -> int:
         # spawn, not fork: Dr.Jit/LLVM state does not survive a fork safely.
         ctx = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(max_workers=min(args.jobs, len(names)), mp_context=ctx) as pool:
-            futures = {pool.submit(make_figure, n, mode, str(args.out), args.force): n for n in names}
+            futures = {pool.submit(_make_figure_safe, n, mode, str(args.out), args.force): n for n in names}
             for fut in as_completed(futures):
                 summaries.append(fut.result())
                 bar.set_postfix_str(futures[fut])
                 bar.update()
     bar.close()
+    failed = []
     for s in sorted(summaries, key=lambda s: names.index(s["name"])):
+        if "error" in s:
+            failed.append(s)
+            print(s["traceback"], file=sys.stderr)
+            continue
         how = "cached" if s["cached"] else "computed"
         print(f"{s['name']}: {how}, {s['seconds']:.1f} s; {_headline(s['metrics'])}")
         for f in s["files"]:
             print(f"  {f}")
-    return 0
+    for s in failed:
+        print(f"{PROG}: {s['name']} failed: {s['error']}", file=sys.stderr)
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":

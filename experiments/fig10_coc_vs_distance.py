@@ -137,6 +137,6 @@ FIGURE = Figure(
     compute=compute,
     plot="experiments.plotting.fig10:plot",
     configs={"quick": QUICK, "full": FULL},
-    version=1,
+    version=2,  # 2: multijitter sampler in scenes.calibration
     sigma_convention="none: the figure reports the CoC diameter c itself (disk fit), not a Gaussian sigma",
 )

@@ -301,6 +301,9 @@ class StepEdgeRenderer:
         Width of the rendered centred crop, px (even); must exceed c + 16 px of every case.
     seed : int, keyword-only
         Sampler seed.
+    sampler : str, keyword-only
+        Mitsuba sampler type. ``"multijitter"`` (default, as the scene library uses) measured
+        ~2× smaller fit scatter than ``"independent"`` on 3-px edges.
     variant : str, optional, keyword-only
         Mitsuba variant (default: :func:`scenes.backend.select_variant`).
 
@@ -311,14 +314,17 @@ class StepEdgeRenderer:
     crop_width/2 in profile coordinates. The camera's ``resolution[1]`` is ignored.
     """
 
-    def __init__(self, *, spp=4096, rows=8, crop_width=256, seed=0, variant=None):
+    def __init__(self, *, spp=4096, rows=8, crop_width=256, seed=0, sampler="multijitter", variant=None):
         if not (isinstance(spp, int) and spp > 0):
             raise ValueError(f"spp={spp!r} is invalid; allowed: integer > 0")
         if not (isinstance(rows, int) and rows > 0):
             raise ValueError(f"rows={rows!r} is invalid; allowed: integer > 0")
         if not (isinstance(crop_width, int) and crop_width >= 16 and crop_width % 2 == 0):
             raise ValueError(f"crop_width={crop_width!r} is invalid; allowed: even integer >= 16")
+        if sampler not in ("independent", "multijitter", "stratified", "ldsampler"):
+            raise ValueError(f"sampler={sampler!r} is invalid; allowed: independent, multijitter, stratified, ldsampler")
         self.spp, self.rows, self.crop_width, self.seed = spp, rows, crop_width, int(seed)
+        self.sampler = sampler
         self._variant = variant
         self._scenes: dict[int, tuple] = {}
         self._profiles: dict[tuple, np.ndarray] = {}
@@ -347,6 +353,7 @@ class StepEdgeRenderer:
         sensor = thinlens_sensor_dict(
             camera.replace(resolution=(width, self.rows)), spp=self.spp, seed=self.seed, pixel_filter="box"
         )
+        sensor["sampler"]["type"] = self.sampler
         sensor["film"].update(
             crop_offset_x=width // 2 - self.crop_width // 2, crop_offset_y=0,
             crop_width=self.crop_width, crop_height=self.rows,

@@ -1,0 +1,136 @@
+"""Defocus magnification (Sec. 5): identities, measured σ growth, never sharpens, range."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from scipy import ndimage
+
+from method.magnification import MAGNIFICATION_KERNELS, magnify_defocus, preprocess_defocus_map
+from tests.tolerances import MAGNIFY_GRADIENT_ENERGY_RTOL, MAGNIFY_SIGMA_RTOL
+
+
+def _edge_sigma(profile):
+    """Std of the derivative of a monotone edge profile, px (second moment)."""
+    d = np.diff(profile)
+    x = np.arange(len(d)) + 0.5
+    mu = np.sum(d * x) / np.sum(d)
+    return float(np.sqrt(np.sum(d * (x - mu) ** 2) / np.sum(d)))
+
+
+def _blurred_step(sigma, n=240):
+    x = np.zeros((48, n))
+    x[:, n // 2:] = 1.0
+    return ndimage.gaussian_filter1d(x, sigma, axis=1, mode="nearest")
+
+
+def test_kernels_registered():
+    assert set(MAGNIFICATION_KERNELS) == {"gaussian", "disk"}
+
+
+@pytest.mark.parametrize("kernel", ["gaussian", "disk"])
+def test_kernel_variances(kernel):
+    for s in (0.5, 1.3, 4.0, 11.0):
+        k, var = MAGNIFICATION_KERNELS[kernel](s)
+        assert k.min() >= 0 and abs(k.sum() - 1) < 1e-12
+        # sampled kernels match σ once they span a few pixels (disk R = 2σ has σ = R/2); below that the
+        # measured variance (e.g. 0.215 px² for σ = 0.5) is what the variance interpolation uses.
+        if (kernel == "gaussian" and s >= 1.3) or s >= 4:
+            assert abs(np.sqrt(var) - s) / s < 0.02
+
+
+def test_factor_one_and_zero_map_are_exact_identities(rng):
+    img = rng.random((20, 30, 3))
+    m = rng.random((20, 30)) * 4
+    assert np.array_equal(magnify_defocus(img, m, factor=1.0), img)
+    assert np.array_equal(magnify_defocus(img, np.zeros((20, 30)), factor=3.0), img)
+    assert np.array_equal(magnify_defocus(img[..., 0], np.zeros((20, 30)), factor=2.0), img[..., 0])
+
+
+def test_zero_region_kept_bit_exact(rng):
+    img = rng.random((40, 40, 3))
+    m = np.zeros((40, 40))
+    m[:, 25:] = 3.0
+    out = magnify_defocus(img, m, factor=2.0, preprocess=False)
+    assert np.array_equal(out[:, :25], img[:, :25])
+    assert not np.allclose(out[:, 30:], img[:, 30:])
+
+
+@pytest.mark.parametrize("kernel", ["gaussian", "disk"])
+@pytest.mark.parametrize("sigma, factor", [(1.0, 2.0), (2.0, 2.0), (1.5, 3.0), (3.0, 1.5)])
+def test_blurred_step_total_sigma_scales_by_factor(kernel, sigma, factor):
+    img = _blurred_step(sigma)
+    s0 = _edge_sigma(img[24])
+    out = magnify_defocus(img, np.full(img.shape, s0), factor=factor, kernel=kernel, preprocess=False)
+    measured = _edge_sigma(out[24])
+    assert abs(measured - factor * s0) <= MAGNIFY_SIGMA_RTOL * factor * s0
+
+
+def test_preprocessed_constant_map_unchanged():
+    np.testing.assert_allclose(preprocess_defocus_map(np.full((30, 40), 2.0)), 2.0)
+
+
+def test_preprocess_clips_percentiles_and_clamps(rng):
+    m = rng.normal(1.0, 2.0, size=(100, 100))
+    out = preprocess_defocus_map(m, clip_percent=5.0, smoothing=0.0)
+    lo, hi = np.percentile(m, [5, 95])
+    assert out.min() >= max(lo, 0.0) - 1e-12 and out.max() <= hi + 1e-12
+    assert out.min() >= 0.0
+    smooth = preprocess_defocus_map(m, clip_percent=5.0, smoothing=0.02)
+    assert smooth.std() < out.std()
+
+
+def _gradient_energy(img):
+    return float(np.sum(np.diff(img, axis=0) ** 2) + np.sum(np.diff(img, axis=1) ** 2))
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    img=arrays(np.float64, st.tuples(st.integers(8, 24), st.integers(8, 24)), elements=st.floats(0, 1)),
+    level=st.floats(0.0, 6.0),
+    factor=st.floats(1.0, 4.0),
+    kernel=st.sampled_from(["gaussian", "disk"]),
+)
+def test_constant_map_never_sharpens_and_stays_in_range(img, level, factor, kernel):
+    out = magnify_defocus(img, np.full(img.shape, level), factor=factor, kernel=kernel)
+    assert out.shape == img.shape and np.all(np.isfinite(out))
+    assert out.min() >= 0.0 and out.max() <= 1.0
+    assert _gradient_energy(out) <= _gradient_energy(img) * (1 + MAGNIFY_GRADIENT_ENERGY_RTOL) + 1e-12
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), factor=st.floats(1.0, 4.0), kernel=st.sampled_from(["gaussian", "disk"]))
+def test_varying_map_reduces_local_contrast(seed, factor, kernel):
+    """Spatially varying maps (after the paper's preprocessing): no NaN, in range, gradient energy
+    does not increase, and local contrast (std in 5×5 windows) does not increase on average."""
+    r = np.random.default_rng(seed)
+    img = ndimage.gaussian_filter(r.random((32, 32, 3)), (1, 1, 0))
+    m = ndimage.zoom(r.random((4, 4)) * 5, 8, order=1)
+    out = magnify_defocus(img, m, factor=factor, kernel=kernel)
+    assert np.all(np.isfinite(out)) and out.min() >= 0 and out.max() <= 1
+    assert _gradient_energy(out) <= _gradient_energy(img) * (1 + MAGNIFY_GRADIENT_ENERGY_RTOL) + 1e-12
+
+    def local_std(a):
+        mu = ndimage.uniform_filter(a, (5, 5, 1))
+        return np.sqrt(np.maximum(ndimage.uniform_filter(a * a, (5, 5, 1)) - mu * mu, 0))
+
+    assert local_std(out).mean() <= local_std(img).mean() + 1e-12
+
+
+@pytest.mark.parametrize("bad", [dict(factor=0.5), dict(factor=np.nan), dict(factor=np.inf), dict(kernel="box")])
+def test_bad_options_raise(rng, bad):
+    with pytest.raises(ValueError):
+        magnify_defocus(rng.random((10, 10)), np.ones((10, 10)), **bad)
+
+
+def test_bad_inputs_raise(rng):
+    img = rng.random((10, 12, 3))
+    with pytest.raises(ValueError, match="shape"):
+        magnify_defocus(img, np.ones((12, 10)))
+    with pytest.raises(ValueError, match="NaN"):
+        magnify_defocus(img, np.full((10, 12), np.nan))
+    with pytest.raises(ValueError, match=">= 0"):
+        magnify_defocus(img, -np.ones((10, 12)), preprocess=False)
+    with pytest.raises(ValueError, match=r"\[0, 1\]"):
+        magnify_defocus(img * 2, np.ones((10, 12)))

@@ -52,7 +52,10 @@ class DefocusParams:
     alpha: float = 0.5
     # data-term weight α_p at edge pixels; 0 elsewhere (Sec. 4.1, Fig. 6 sweeps 0.1–1).
     propagation_window: int = 7
-    # side of the square window, px, that defines both N(p) and the σ_ip statistics (Sec. 4.1).
+    # side of the square window, px, over which σ_ip (per-channel std) is computed (Sec. 4.1: "7×7").
+    propagation_neighborhood: int = 3
+    # side of the square neighbourhood N(p), px (not given by the paper; 3 = Levin et al. 2004;
+    # 7 = the "one 7×7 window defines both" reading). See method/propagation.py.
     propagation_tol: float = 1e-6
     # relative residual at which the preconditioned CG solve of the normal equations stops.
     propagation_solver: str = "amg_pcg"
@@ -96,6 +99,9 @@ class DefocusParams:
         if not (isinstance(self.propagation_window, int) and self.propagation_window >= 3
                 and self.propagation_window % 2 == 1):
             bad("propagation_window", "odd integer >= 3")
+        if not (isinstance(self.propagation_neighborhood, int) and self.propagation_neighborhood >= 3
+                and self.propagation_neighborhood % 2 == 1):
+            bad("propagation_neighborhood", "odd integer >= 3")
         if not 0 < self.propagation_tol < 1:
             bad("propagation_tol", "0 < tol < 1")
         if self.propagation_solver not in ("amg_pcg", "direct"):

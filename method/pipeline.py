@@ -163,8 +163,10 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
         refined, rgb,
         alpha=params.alpha,
         window=params.propagation_window,
+        neighborhood=params.propagation_neighborhood,
         tol=params.propagation_tol,
         solver=params.propagation_solver,
+        downsample=params.propagation_downsample,
     )
     dense = np.clip(np.asarray(dense, dtype=np.float64), 0.0, params.max_sigma)
     timings["propagation"] = time.perf_counter() - t

@@ -1,0 +1,34 @@
+"""Ground truth for the defocus-magnification harness: optics, cameras, scenes, renders.
+
+Importing this package does not import Mitsuba; :func:`render_scene` selects a variant when first
+called (:mod:`scenes.backend`).
+
+Main entry points
+-----------------
+SCENES : mapping of str to SceneDefinition
+    The procedural test scenes (:mod:`scenes.library`).
+render_scene(scene, camera=None, *, preset="small", f_number=None, ...) -> Render
+    Render with per-pixel ground truth (depth, CoC, σ_gt, occlusion mask), cached.
+load_render(path) -> Render
+    Read a render's EXR + JSON sidecar back.
+"""
+
+from .camera import CAMERA_PRESETS, SENSORS, ThinLensCamera, camera_preset, same_field_of_view
+from .library import DEFAULT_F_NUMBERS, PRESETS, SCENES, SceneDefinition, get_scene
+from .render import Render, load_render, render_scene
+
+__all__ = [
+    "CAMERA_PRESETS",
+    "DEFAULT_F_NUMBERS",
+    "PRESETS",
+    "SCENES",
+    "SENSORS",
+    "Render",
+    "SceneDefinition",
+    "ThinLensCamera",
+    "camera_preset",
+    "get_scene",
+    "load_render",
+    "render_scene",
+    "same_field_of_view",
+]

@@ -1,0 +1,412 @@
+"""Render a scene with its ground truth, cached on disk.
+
+:func:`render_scene` renders a :data:`scenes.library.SCENES` entry with Mitsuba 3 (thin-lens camera,
+``box`` pixel filter), computes per-pixel ground truth (:mod:`scenes.ground_truth`: camera-space
+depth from lens-centre rays, CoC by Eq. (5), σ_gt, occlusion-boundary mask), writes everything to one
+float32 EXR (:mod:`scenes.exr`) plus a JSON sidecar, and returns a :class:`Render`.
+
+Renders are cached under ``scenes.backend.cache_root() / "renders"`` (:class:`scenes.storage.Cache`)
+keyed by everything that changes the output: scene name and version, camera (incl. resolution), spp,
+seed, Mitsuba variant and version, σ convention and filter σ, and :data:`RENDER_FORMAT`. Entries are
+checksummed; a truncated entry is rebuilt; concurrent processes build an entry once.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import json
+import math
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .backend import cache_root, import_mitsuba
+from .camera import ThinLensCamera
+from .display import camera_image
+from .exr import read_exr, write_exr
+from .ground_truth import camera_space_depth, ground_truth_from_depth
+from .library import SceneDefinition, get_scene
+from .library.base import SAMPLER
+from .storage import Cache, atomic_write_text
+from .thin_lens import BOX_FILTER_SIGMA_PX, SIGMA_CONVENTIONS
+
+__all__ = [
+    "CHUNK_SAMPLES",
+    "EXR_NAME",
+    "RENDER_FORMAT",
+    "Render",
+    "load_render",
+    "render_cache",
+    "render_key",
+    "render_scene",
+    "sidecar_path",
+    "validate_render_options",
+]
+
+#: Version of the render file layout and ground-truth algorithm; part of the cache key.
+RENDER_FORMAT = 1
+#: File names inside a cache entry.
+EXR_NAME = "render.exr"
+#: Samples (pixels x spp) per ``mitsuba.render`` call; renders are split into chunks with
+#: different seeds, averaged, so progress can be shown.
+CHUNK_SAMPLES = 1 << 23
+#: σ of the ``box`` pixel filter every scene uses, px (1/√12).
+FILTER_SIGMA_PX = float(BOX_FILTER_SIGMA_PX)
+
+_CHANNELS = {"rgb": "RGB", "depth": "Z", "coc_px": "coc", "sigma_px": "sigma", "occlusion_boundary": "occlusion_boundary"}
+_UNITS = {
+    "RGB": "linear radiance (float32, unclamped)",
+    "Z": "camera-space depth z, metres; inf = the pixel-centre lens-centre ray missed",
+    "coc": "circle-of-confusion diameter, px (Eq. 5 / pixel pitch)",
+    "sigma": "ground-truth Gaussian blur sigma, px (convention + box filter in quadrature)",
+    "occlusion_boundary": "1 within a CoC radius + 1 px of a depth discontinuity, else 0",
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class Render:
+    """One rendered image with its per-pixel ground truth.
+
+    Attributes
+    ----------
+    rgb : ndarray, HxWx3 float32
+        Linear radiance (unclamped).
+    depth : ndarray, HxW float32
+        Camera-space depth z, metres (``inf`` where the pixel-centre ray missed).
+    coc_px : ndarray, HxW float32
+        Circle-of-confusion diameter, px, Eq. (5).
+    sigma_px : ndarray, HxW float32
+        σ_gt, px; convention in ``metadata["sigma_convention"]``.
+    occlusion_boundary : ndarray, HxW bool
+        Pixels within a CoC radius of a depth discontinuity (mixed blur; see
+        :func:`scenes.ground_truth.occlusion_boundary_mask`).
+    metadata : dict
+        The JSON sidecar: scene, version, camera, resolution, spp, seed, variant, versions, timings.
+    path : Path or None
+        The EXR file (None for an uncached in-memory render).
+    """
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    coc_px: np.ndarray
+    sigma_px: np.ndarray
+    occlusion_boundary: np.ndarray
+    metadata: dict
+    path: Path | None = None
+
+    def image(self, *, encoding="srgb", exposure=1.0, quantize_bits=None) -> np.ndarray:
+        """The image the method sees (:func:`scenes.display.camera_image`).
+
+        Parameters
+        ----------
+        encoding : {"srgb", "linear"}, keyword-only
+        exposure : float, keyword-only
+            Multiplier on the linear radiance before clipping to [0, 1].
+        quantize_bits : int or None, keyword-only
+            Round to this many bits per channel (8 for a JPEG-like input).
+
+        Returns
+        -------
+        ndarray, HxWx3 float64 in [0, 1]
+        """
+        return camera_image(self.rgb, exposure=exposure, quantize_bits=quantize_bits, encoding=encoding)
+
+    @property
+    def camera(self) -> ThinLensCamera:
+        """The camera that rendered this image."""
+        d = dict(self.metadata["camera"])
+        fields = {f.name for f in dataclasses.fields(ThinLensCamera)}
+        return ThinLensCamera(**{k: (tuple(v) if k == "resolution" else v) for k, v in d.items() if k in fields})
+
+    def save(self, path) -> Path:
+        """Write the EXR and its JSON sidecar (``path`` with suffix ``.json``), atomically.
+
+        Parameters
+        ----------
+        path : str or Path
+            Destination ``.exr``; its folder must exist.
+
+        Returns
+        -------
+        Path
+            The EXR path.
+        """
+        path = Path(path)
+        write_exr(path, {_CHANNELS[k]: getattr(self, k) for k in _CHANNELS})
+        atomic_write_text(sidecar_path(path), json.dumps(self.metadata, indent=1, sort_keys=True, default=_json_default))
+        return path
+
+
+def sidecar_path(exr_path) -> Path:
+    """The JSON sidecar next to an EXR file (same name, suffix ``.json``)."""
+    return Path(exr_path).with_suffix(".json")
+
+
+def _json_default(o):
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, (np.floating,)):
+        return float(o)
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    return str(o)
+
+
+def load_render(path) -> Render:
+    """Read a render written by :func:`render_scene` or :meth:`Render.save`.
+
+    Parameters
+    ----------
+    path : str or Path
+        The EXR file, or a cache-entry folder holding ``render.exr``.
+
+    Returns
+    -------
+    Render
+
+    Raises
+    ------
+    FileNotFoundError
+        If the EXR or its sidecar is missing.
+    ValueError
+        If a ground-truth channel is missing.
+    """
+    path = Path(path)
+    if path.is_dir():
+        path = path / EXR_NAME
+    channels = read_exr(path)
+    missing = [c for c in _CHANNELS.values() if c not in channels]
+    if missing:
+        raise ValueError(f"{path} lacks channels {missing}; has {sorted(channels)}")
+    side = sidecar_path(path)
+    if not side.is_file():
+        raise FileNotFoundError(f"no JSON sidecar next to {path}: {side}")
+    metadata = json.loads(side.read_text())
+    return Render(
+        rgb=channels["RGB"],
+        depth=channels["Z"],
+        coc_px=channels["coc"],
+        sigma_px=channels["sigma"],
+        occlusion_boundary=channels["occlusion_boundary"] > 0.5,
+        metadata=metadata,
+        path=path,
+    )
+
+
+def validate_render_options(scene, camera=None, *, preset="small", f_number=None, spp=None, seed=0,
+                            sigma_convention="line_spread"):
+    """Check and complete the options of :func:`render_scene` without rendering anything.
+
+    Returns
+    -------
+    (SceneDefinition, ThinLensCamera, int, int)
+        Scene, camera, spp, seed.
+
+    Raises
+    ------
+    ValueError
+        Naming the bad value and the allowed range.
+    """
+    sdef = get_scene(scene)
+    if camera is None:
+        camera = sdef.camera(preset, f_number=f_number)
+    else:
+        if not isinstance(camera, ThinLensCamera):
+            raise ValueError(f"camera={camera!r} is invalid; allowed: a scenes.camera.ThinLensCamera or None")
+        sdef.spp(preset)  # validates the preset
+        if f_number is not None:
+            camera = camera.replace(f_number=f_number)
+    if spp is None:
+        spp = sdef.spp(preset)
+    if isinstance(spp, bool) or not isinstance(spp, (int, np.integer)) or spp <= 0:
+        raise ValueError(f"spp={spp!r} is invalid; allowed: integer > 0")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed < 2**32:
+        raise ValueError(f"seed={seed!r} is invalid; allowed: integer in [0, 2**32)")
+    if sigma_convention not in SIGMA_CONVENTIONS:
+        raise ValueError(f"sigma_convention={sigma_convention!r} is invalid; allowed: {sorted(SIGMA_CONVENTIONS)}")
+    return sdef, camera, int(spp), int(seed)
+
+
+def render_key(sdef: SceneDefinition, camera: ThinLensCamera, *, spp, seed, variant, mitsuba_version,
+               sigma_convention) -> dict:
+    """The cache key: everything that changes a render's pixels or ground truth."""
+    return {
+        "kind": "render",
+        "format": RENDER_FORMAT,
+        "scene": sdef.name,
+        "scene_version": int(sdef.version),
+        "camera": camera.to_dict(),
+        "spp": int(spp),
+        "seed": int(seed),
+        "variant": variant,
+        "mitsuba": mitsuba_version,
+        "sigma_convention": sigma_convention,
+        "filter_sigma_px": FILTER_SIGMA_PX,
+    }
+
+
+def render_cache() -> Cache:
+    """The render cache, ``cache_root() / "renders"``."""
+    return Cache(cache_root() / "renders")
+
+
+def _chunks(spp: int, pixels: int) -> list[int]:
+    n = max(1, min(spp, math.ceil(spp * pixels / CHUNK_SAMPLES)))
+    base, extra = divmod(spp, n)
+    return [base + (1 if i < extra else 0) for i in range(n)]
+
+
+def _versions(mi) -> dict:
+    import drjit
+
+    return {
+        "mitsuba": mi.__version__,
+        "drjit": drjit.__version__,
+        "numpy": np.__version__,
+        "python": platform.python_version(),
+    }
+
+
+def _compute(sdef, camera, *, spp, seed, mi, variant, sigma_convention, progress):
+    from tqdm.auto import tqdm
+
+    width, height = camera.resolution
+    t0 = time.perf_counter()
+    scene = mi.load_dict(sdef.build(camera, spp=spp, seed=seed))
+    t_load = time.perf_counter() - t0
+    chunks = _chunks(spp, width * height)
+    acc = np.zeros((height, width, 3), np.float64)
+    t0 = time.perf_counter()
+    desc = f"{sdef.name} {width}x{height} f/{camera.f_number:g}"
+    with tqdm(total=spp, unit="spp", desc=desc, disable=not progress, leave=False) as bar:
+        for i, k in enumerate(chunks):
+            chunk_seed = (seed * 1_000_003 + i) % (2**32)
+            img = np.asarray(mi.render(scene, spp=k, seed=chunk_seed), dtype=np.float64)
+            acc += img[:, :, :3] * k
+            bar.update(k)
+    rgb = (acc / spp).astype(np.float32)
+    t_render = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    depth = camera_space_depth(scene, mi=mi)
+    gt = ground_truth_from_depth(depth, camera, sigma_convention=sigma_convention, filter_sigma_px=FILTER_SIGMA_PX)
+    t_gt = time.perf_counter() - t0
+    finite = np.isfinite(depth)
+    sig = gt["sigma_px"].astype(np.float64)
+    metadata = {
+        "format": RENDER_FORMAT,
+        "scene": sdef.name,
+        "scene_version": int(sdef.version),
+        "description": sdef.description,
+        "camera": camera.to_dict(),
+        "resolution": [width, height],
+        "spp": spp,
+        "seed": seed,
+        "chunks_spp": chunks,
+        "variant": variant,
+        "integrator": dict(sdef.integrator),
+        "sampler": SAMPLER,
+        "pixel_filter": "box",
+        "versions": _versions(mi),
+        "sigma_convention": sigma_convention,
+        "filter_sigma_px": FILTER_SIGMA_PX,
+        "depth_method": "lens-centre ray through each pixel centre; z = (p - camera position) . forward; inf on miss",
+        "channels": _UNITS,
+        "load_time_s": t_load,
+        "render_time_s": t_render,
+        "ground_truth_time_s": t_gt,
+        "created_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "stats": {
+            "sigma_px_min": float(sig.min()),
+            "sigma_px_p05": float(np.percentile(sig, 5)),
+            "sigma_px_median": float(np.median(sig)),
+            "sigma_px_p95": float(np.percentile(sig, 95)),
+            "sigma_px_max": float(sig.max()),
+            "depth_min_m": float(depth[finite].min()) if finite.any() else None,
+            "depth_max_m": float(depth[finite].max()) if finite.any() else None,
+            "miss_fraction": float(1.0 - finite.mean()),
+            "occlusion_boundary_fraction": float(gt["occlusion_boundary"].mean()),
+        },
+    }
+    return Render(rgb=rgb, depth=depth, metadata=metadata, path=None, **gt)
+
+
+def render_scene(
+    scene,
+    camera: ThinLensCamera | None = None,
+    *,
+    preset: str = "small",
+    f_number: float | None = None,
+    spp: int | None = None,
+    seed: int = 0,
+    variant: str | None = None,
+    sigma_convention: str = "line_spread",
+    use_cache: bool = True,
+    progress: bool = True,
+) -> Render:
+    """Render a scene and its ground truth (cached).
+
+    Parameters
+    ----------
+    scene : str or SceneDefinition
+        A key of :data:`scenes.library.SCENES` or a definition.
+    camera : ThinLensCamera, optional
+        Default: ``scene.camera(preset, f_number=f_number)`` (full frame, 50 mm, the scene's focus).
+    preset : {"small", "full"}, keyword-only
+        Resolution preset (160x120 / 640x480) of the default camera, and the default spp.
+    f_number : float, optional, keyword-only
+        N; overrides the camera's (default f/8).
+    spp : int, optional, keyword-only
+        Samples per pixel (default: the scene's for ``preset``).
+    seed : int, keyword-only
+        Base sampler seed, in [0, 2**32).
+    variant : str, optional, keyword-only
+        Mitsuba variant (default: ``$DEFOCUS_MITSUBA_VARIANT`` or the fastest that works).
+    sigma_convention : {"line_spread", "erf_fit"}, keyword-only
+        CoC → σ convention of ``sigma_px`` (c/4 or 0.273·c, in quadrature with the box filter's σ).
+    use_cache : bool, keyword-only
+        Read/write the render cache. ``False`` renders in memory (``Render.path`` is None).
+    progress : bool, keyword-only
+        Show a tqdm progress bar (spp chunks).
+
+    Returns
+    -------
+    Render
+
+    Raises
+    ------
+    ValueError
+        On a bad scene, preset, camera, spp, seed or convention (before anything is rendered).
+    scenes.backend.BackendError
+        If the requested Mitsuba variant does not work here.
+
+    Notes
+    -----
+    1. Validate every option; select and set the Mitsuba variant.
+    2. Look the key up in the cache; if absent or invalid, under a file lock:
+    3. build the scene dictionary, render in chunks of ≤ :data:`CHUNK_SAMPLES` samples with seeds
+       ``seed·1000003 + i`` and average them (weighted by spp),
+    4. cast lens-centre rays through the pixel centres for depth; CoC (Eq. 5), σ_gt, mask,
+    5. write ``render.exr`` + ``render.json`` into the entry; checksum; rename into place.
+    """
+    sdef, camera, spp, seed = validate_render_options(
+        scene, camera, preset=preset, f_number=f_number, spp=spp, seed=seed, sigma_convention=sigma_convention
+    )
+    mi, chosen = import_mitsuba(variant)
+    kwargs = dict(spp=spp, seed=seed, mi=mi, variant=chosen, sigma_convention=sigma_convention, progress=progress)
+    if not use_cache:
+        return _compute(sdef, camera, **kwargs)
+    key = render_key(sdef, camera, spp=spp, seed=seed, variant=chosen, mitsuba_version=mi.__version__,
+                     sigma_convention=sigma_convention)
+    cache = render_cache()
+
+    def build(folder: Path) -> None:
+        _compute(sdef, camera, **kwargs).save(folder / EXR_NAME)
+
+    folder = cache.get_or_build(key, build)
+    return load_render(folder / EXR_NAME)
+

@@ -1,0 +1,81 @@
+"""Registry of blur estimators at edge pixels (Sec. 3.2 and baselines), chosen by name.
+
+Every estimator has the signature ``fn(gray, edge_map, *, params) -> ndarray`` and returns a
+float64 (H, W) map of the Gaussian blur σ in px at edge pixels, NaN elsewhere and NaN where that
+estimator fails at an edge pixel.
+
+Adding an estimator is one new function plus one registry line, e.g.::
+
+    # method/blur_my_idea.py
+    def estimate_blur_my_idea(gray, edge_map, *, params):
+        out = np.full(gray.shape, np.nan)
+        out[edge_map.edges] = ...          # σ in px
+        return out
+
+    # here, in BLUR_ESTIMATORS:
+    "my_idea": estimate_blur_my_idea,
+
+and then ``DefocusParams(estimator="my_idea")`` or ``estimate_blur(..., method="my_idea")``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from .blur_gradient_ratio import estimate_blur_gradient_ratio
+from .blur_model_fit import estimate_blur_model_fit
+from .blur_zero_crossing import estimate_blur_zero_crossing
+from .elder_zucker_edges import check_edge_inputs
+
+__all__ = ["BLUR_ESTIMATORS", "estimate_blur"]
+
+#: name -> estimator fn(gray, edge_map, *, params) -> (H, W) float64 σ in px, NaN off edges.
+BLUR_ESTIMATORS: dict[str, Callable[..., np.ndarray]] = {
+    "model_fit": estimate_blur_model_fit,          # the paper's brute-force fit of Eq. (2c)
+    "zero_crossing": estimate_blur_zero_crossing,  # Elder & Zucker: 3rd-derivative zero crossings
+    "gradient_ratio": estimate_blur_gradient_ratio,  # Zhuo & Sim 2011 re-blur gradient ratio
+}
+
+
+def estimate_blur(gray, edge_map, *, params, method=None):
+    """Blur σ at edge pixels with a registered estimator (sparse blur measure BM, Sec. 3.2).
+
+    Parameters
+    ----------
+    gray : ndarray, shape (H, W), float
+        Luminance in [0, 1] (the image given to ``detect_edges``).
+    edge_map : EdgeMap
+        Output of :func:`method.elder_zucker_edges.detect_edges` for ``gray``.
+    params : DefocusParams, keyword-only
+        Pipeline parameters (window sizes, max_sigma, default estimator).
+    method : str or None, keyword-only
+        Key of :data:`BLUR_ESTIMATORS`; None uses ``params.estimator``.
+
+    Returns
+    -------
+    ndarray, shape (H, W), float64
+        σ in px at edge pixels; NaN elsewhere and where the estimator fails.
+
+    Raises
+    ------
+    ValueError
+        Unknown method name (the message lists the registered names), or bad inputs.
+
+    Notes
+    -----
+    1. Resolve the name; 2. validate (gray, edge_map); 3. call the estimator; 4. force NaN off
+    the edge pixels and check the output shape.
+    """
+    name = params.estimator if method is None else method
+    fn = BLUR_ESTIMATORS.get(name)
+    if fn is None:
+        raise ValueError(f"unknown blur estimator {name!r}; allowed: {sorted(BLUR_ESTIMATORS)}")
+    img = check_edge_inputs(gray, edge_map)
+    out = np.asarray(fn(img, edge_map, params=params), dtype=np.float64)
+    if out.shape != img.shape:
+        raise ValueError(f"estimator {name!r} returned shape {out.shape}; expected {img.shape}")
+    out = out.copy()
+    out[~np.asarray(edge_map.edges, dtype=bool)] = np.nan
+    return out

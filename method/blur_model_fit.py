@@ -45,6 +45,7 @@ COARSE_STRIDE = 8
 FIT_KAPPA = 2.0
 
 
+
 def response_model(t, *, s, amplitude=1.0):
     """The 2nd-derivative response across a blurred step, Eq. (2c).
 
@@ -170,11 +171,20 @@ def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
         kb = 1
         while kb + 1 <= kmax and r[kb + 1 + K] <= r[kb + K]:
             kb += 1
-        ext = max(-kd, kb)
-        half = int(math.ceil(kappa * ext))
-        half = max(w_min, min(w_max, half))
-        a = max(-half, kmin)
-        b = min(half, kmax)
+        # walk on past each extremum while the response keeps decaying with the same sign: the
+        # first local minimum of |r| is where a neighbouring edge's response takes over
+        ed = kd
+        while ed - 1 >= kmin and r[ed - 1 + K] > 0.0 and r[ed - 1 + K] <= r[ed + K]:
+            ed -= 1
+        eb = kb
+        while eb + 1 <= kmax and r[eb + 1 + K] < 0.0 and r[eb + 1 + K] >= r[eb + K]:
+            eb += 1
+        ha = int(math.ceil(kappa * max(-kd, kb)))
+        hb = ha
+        ha = max(w_min, min(w_max, ha, -ed))
+        hb = max(w_min, min(w_max, hb, eb))
+        a = max(-ha, kmin)
+        b = min(hb, kmax)
         if b - a + 1 < 3:
             continue
         energy_r = 0.0
@@ -241,7 +251,9 @@ def estimate_blur_model_fit(gray, edge_map, *, params):
     3. Window: walk outward to the first discrete local maximum (dark side, k < 0) and minimum
        (bright side, k > 0) of r; half-width = ⌈FIT_KAPPA · farther extremum⌉, clipped to
        [(fit_window_min − 1)/2, (fit_window_max − 1)/2] (the paper's 3…71 px windows; they grow
-       with the response width s ≥ σ2, i.e. with scale) and to the image. Both sides are used.
+       with the response width s ≥ σ2, i.e. with scale) and to the image. On each side the window
+       also stops where |r| stops decaying past the extremum (first local minimum of |r| or sign
+       change): beyond it a neighbouring edge's response dominates. Both sides are used.
     4. Brute force over d = 2s (Eq. 2c): templates m_{s'}(k − t0) on a geometric s' grid (ratio
        :data:`S_GRID_RATIO`) × a t0 grid (step :data:`T0_GRID_STEP`), coarse pass then fine pass.
        For each template the amplitude A is the closed-form least-squares value

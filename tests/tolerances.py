@@ -78,9 +78,10 @@ SCENE_SMALL_RENDER_BUDGET_S = 30.0
 
 # --- photo I/O, working resolution, photo CLIs (scenes/photo_io.py, method/upsampling.py,
 #     repro/estimate.py, repro/magnify.py) ------------------------------------------------------
-#: JPEG written at quality 95, 4:4:4, then read back: max |difference| on a smooth test image
-#: (measured ≤ 2/255; quantisation of DCT coefficients).
-PHOTO_JPEG_ROUNDTRIP_ATOL = 4.0 / 255.0
+#: JPEG written at quality 95, 4:4:4, then read back, smooth saturated ramp: max and mean |difference|
+#: (measured 5.4/255 and < 1/255; quantisation of DCT coefficients, worst at saturated corners).
+PHOTO_JPEG_ROUNDTRIP_ATOL = 8.0 / 255.0
+PHOTO_JPEG_ROUNDTRIP_MEAN_ATOL = 1.5 / 255.0
 #: EXR round trip of an sRGB image: sRGB → linear float32 → sRGB (float32 mantissa, 2^-24 relative,
 #: amplified by the sRGB curve's slope ≤ 12.92).
 PHOTO_EXR_ROUNDTRIP_ATOL = 1e-5

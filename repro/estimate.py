@@ -1,0 +1,454 @@
+"""Estimate the defocus map of a photo (Bae & Durand 2007) and write it.
+
+``python -m repro.estimate PHOTO [-o MAP.exr|MAP.png|MAP.npy] [--estimator NAME] [--alpha A]``
+
+Output (``-o``; default ``<photo folder>/<photo stem>.defocus.exr``):
+
+* ``.exr`` — float32 channel ``sigma``: blur σ in px of the photo (opens in Krita, GIMP, Photoshop,
+  Nuke; lossless);
+* ``.png`` — a colour-mapped preview with a colour bar labelled "blur σ (px)";
+* ``.npy`` — the raw float64 array for NumPy.
+
+Large photos are estimated at a reduced working resolution (``--max-working-pixels``, default
+1.5 MP) and the map is brought back to full resolution with a guided filter guided by the photo;
+σ is converted to full-resolution px. Maps are cached (``$DEFOCUS_CACHE_DIR/maps``), keyed by the
+photo's bytes, the parameters, the working size and the code version, so ``repro.magnify`` reuses
+them. Bad input: one line on stderr, exit status 2. A photo without edges: a warning, an all-zero
+map, exit status 0.
+
+This module also holds the pieces ``repro.magnify`` shares (argument parsing, cached estimation).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import hashlib
+import json
+import math
+import os
+import sys
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from repro._cli import ArgumentParser, CLIError, run_cli
+
+PROG = "python -m repro.estimate"
+
+#: Map output extensions.
+MAP_OUTPUT_SUFFIXES = (".exr", ".png", ".npy")
+
+#: Version of the map-cache layout (bump when the entry's files or their meaning change).
+MAP_CACHE_VERSION = 1
+
+
+# ------------------------------------------------------------------------------------------------
+# CLI plumbing shared with repro.magnify
+# ------------------------------------------------------------------------------------------------
+
+
+def _run_cli(main, argv=None, *, prog=PROG) -> int:
+    """Run ``main`` under the shared runner: user errors → one stderr line, exit status 2."""
+    return run_cli(_as_user_errors(main), argv, prog=prog)
+
+
+def _as_user_errors(main):
+    """Report the OS-level failures a user can cause (unwritable cache or output folder, disk full,
+    out of memory) through the shared runner's one-line path instead of a traceback."""
+
+    def wrapped(argv=None):
+        try:
+            return main(argv)
+        except MemoryError:
+            raise CLIError("out of memory (lower --max-working-pixels or --tile-pixels)") from None
+        except OSError as exc:
+            where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+            raise CLIError(f"{exc.strerror or exc}{where}") from None
+
+    return wrapped
+
+
+class OneLineParser(ArgumentParser):
+    """The shared one-line-error argparse parser (kept under this name for repro.magnify)."""
+
+
+def _pixel_count(text: str) -> int:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a pixel count (e.g. 1500000 or 1.5e6)") from None
+    if not math.isfinite(value) or value < 1:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a positive pixel count")
+    return int(value)
+
+
+def add_estimation_arguments(p: argparse.ArgumentParser) -> None:
+    """Options shared by repro.estimate and repro.magnify."""
+    from method.upsampling import DEFAULT_MAX_WORKING_PIXELS
+    from scenes.photo_io import DEFAULT_MAX_PIXELS
+
+    p.add_argument("--estimator", default="model_fit", metavar="NAME",
+                   help="blur estimator at edges: model_fit (the paper's, default), zero_crossing "
+                        "(Elder–Zucker), gradient_ratio")
+    p.add_argument("--alpha", default=None, metavar="A",
+                   help="propagation data weight α > 0 (Eq. 4; default 0.5, Fig. 6 sweeps 0.1–1)")
+    p.add_argument("--max-working-pixels", type=_pixel_count, default=DEFAULT_MAX_WORKING_PIXELS,
+                   metavar="N",
+                   help=f"estimate at most N pixels (default {DEFAULT_MAX_WORKING_PIXELS:,}); a bigger "
+                        "photo is estimated downscaled and its map upsampled edge-aware (guided filter) "
+                        "to full resolution. Estimation costs about 5 s and 3 GiB per megapixel")
+    p.add_argument("--max-pixels", type=_pixel_count, default=DEFAULT_MAX_PIXELS, metavar="N",
+                   help=f"refuse photos over N pixels, checked from the header before decoding "
+                        f"(default {DEFAULT_MAX_PIXELS:,})")
+    p.add_argument("--repair-nonfinite", action="store_true",
+                   help="EXR input: set NaN/-Inf to 0 and +Inf to 1 instead of refusing the file")
+    p.add_argument("--no-cache", action="store_true", help="neither read nor write the map cache")
+    p.add_argument("--overwrite", action="store_true", help="allow an output path equal to the input photo")
+    p.add_argument("-q", "--quiet", action="store_true", help="no notes and no progress display")
+
+
+def defocus_params(args):
+    """DefocusParams from --estimator / --alpha, validated (ValueError naming the bad value)."""
+    from method.blur_estimators import BLUR_ESTIMATORS
+    from method.params import DefocusParams
+
+    if args.estimator not in BLUR_ESTIMATORS:
+        raise ValueError(f"--estimator {args.estimator!r} is unknown; choose one of {', '.join(sorted(BLUR_ESTIMATORS))}")
+    changes = {"estimator": args.estimator}
+    if args.alpha is not None:
+        try:
+            alpha = float(args.alpha)
+        except ValueError:
+            raise ValueError(f"--alpha {args.alpha!r} is not a number; allowed: a number > 0") from None
+        if not (math.isfinite(alpha) and alpha > 0):
+            raise ValueError(f"--alpha {args.alpha} is invalid; allowed: a finite number > 0")
+        changes["alpha"] = alpha
+    return DefocusParams().replace(**changes)
+
+
+def check_output_path(path, *, photo, overwrite, allowed, what="output") -> Path:
+    """Refuse an output path before any work: bad extension, missing/unwritable folder, the input.
+
+    Parameters
+    ----------
+    path : str or Path
+        Where the output will be written.
+    photo : Path
+        The input photo (an output may replace it only with ``overwrite``).
+    overwrite : bool
+        Allow ``path`` to be the input photo.
+    allowed : tuple of str
+        Allowed extensions.
+    what : str
+        Name of the output in messages.
+    """
+    path = Path(path)
+    if path.suffix.lower() not in allowed:
+        raise ValueError(f"{what} {path}: extension {path.suffix or '(none)'!r} not supported; allowed: {', '.join(allowed)}")
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.exists():
+        raise ValueError(f"{what} {path}: folder {folder} does not exist")
+    if not folder.is_dir():
+        raise ValueError(f"{what} {path}: {folder} is not a folder")
+    if path.is_dir():
+        raise ValueError(f"{what} {path} is a directory")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ValueError(f"{what} {path}: folder {folder} is not writable")
+    if path.exists() and Path(photo).exists() and os.path.samefile(path, photo) and not overwrite:
+        raise ValueError(f"{what} {path} is the input photo; refusing to replace it (pass --overwrite to allow)")
+    try:  # a real probe: read-only mounts and ACLs that os.access does not see
+        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.probe.", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise ValueError(f"{what} {path}: cannot write in {folder} ({exc.strerror or exc})") from None
+    return path
+
+
+class StageProgress:
+    """Per-stage progress on stderr (tqdm), shown only for runs longer than a second on a terminal."""
+
+    def __init__(self, prog, *, quiet=False):
+        from tqdm import tqdm
+
+        self.prog = prog
+        self.bar = tqdm(total=None, file=sys.stderr, delay=1.0, leave=False, disable=True if quiet else None,
+                        bar_format="{desc} [{elapsed}]", dynamic_ncols=True)
+
+    def __call__(self, stage: str) -> None:
+        self.bar.set_description_str(f"{self.prog}: {stage}")
+        self.bar.update(1)
+
+    def close(self) -> None:
+        self.bar.close()
+
+
+def note(prog, message, *, quiet=False) -> None:
+    """One informational line on stderr."""
+    if not quiet:
+        print(f"{prog}: {message}", file=sys.stderr)
+
+
+def load_photo(args, *, prog):
+    """Probe (size limits before decoding) and read the photo named by ``args.photo``."""
+    from method.validation import MIN_IMAGE_SIDE
+    from scenes.photo_io import probe_photo, read_photo
+
+    header = probe_photo(args.photo)
+    if min(header.width, header.height) < MIN_IMAGE_SIDE:
+        raise ValueError(f"{header.path}: {header.width}x{header.height} px is too small; "
+                         f"the smallest supported side is {MIN_IMAGE_SIDE} px")
+    return read_photo(header.path, max_pixels=args.max_pixels, repair_nonfinite=args.repair_nonfinite)
+
+
+def _code_version() -> str:
+    """Hash of the sources that determine a map: every method/*.py and the photo decoder."""
+    import method
+    import scenes
+
+    h = hashlib.sha256()
+    files = sorted(Path(method.__file__).parent.glob("*.py"))
+    files += [Path(scenes.__file__).parent / n for n in ("photo_io.py", "display.py")]
+    for f in files:
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _versions() -> dict:
+    import numpy
+    import scipy
+
+    out = {"numpy": numpy.__version__, "scipy": scipy.__version__}
+    with contextlib.suppress(ImportError):
+        import pyamg
+
+        out["pyamg"] = pyamg.__version__
+    return out
+
+
+def map_cache_key(photo, params, working_shape_) -> dict:
+    """Everything that determines a working-resolution map (JSON-able)."""
+    import dataclasses
+
+    from scenes.storage import sha256_file
+
+    return {
+        "kind": "defocus_map",
+        "layout": MAP_CACHE_VERSION,
+        "photo_sha256": sha256_file(photo.path),
+        "decoded": {"shape": list(photo.image.shape), "repaired": any("repaired" in n for n in photo.notes)},
+        "params": dataclasses.asdict(params),
+        "working_shape": list(working_shape_),
+        "code": _code_version(),
+        "versions": _versions(),
+    }
+
+
+def _build_map(folder: Path, working, params, progress) -> None:
+    from method.pipeline import NoEdgesWarning, estimate_defocus_map
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", NoEdgesWarning)
+        result = estimate_defocus_map(working, params, progress=progress)
+    no_edges = any(issubclass(w.category, NoEdgesWarning) for w in caught)
+    for w in caught:  # anything else is re-raised as a normal warning
+        if not issubclass(w.category, NoEdgesWarning):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    with open(folder / "map.npy", "wb") as fh:
+        np.save(fh, np.ascontiguousarray(result.defocus_map, dtype=np.float64), allow_pickle=False)
+    meta = {"no_edges": no_edges, "edge_pixels": int(result.edges.sum()),
+            "timings_s": {k: float(v) for k, v in result.timings.items()}}
+    (folder / "meta.json").write_text(json.dumps(meta, indent=1, sort_keys=True))
+
+
+def _load_entry(folder: Path, shape):
+    m = np.load(folder / "map.npy", allow_pickle=False)
+    meta = json.loads((folder / "meta.json").read_text())
+    if m.shape != tuple(shape) or not np.all(np.isfinite(m)) or (m.size and m.min() < 0):
+        raise ValueError("bad cached map")
+    return m, meta
+
+
+def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, progress=None,
+                       log=lambda msg: None):
+    """Defocus map of a photo at full resolution, estimated at the working resolution, cached.
+
+    Parameters
+    ----------
+    photo : scenes.photo_io.Photo
+    params : DefocusParams
+    max_working_pixels : int, keyword-only
+    use_cache : bool, keyword-only
+        Read/write ``cache_root()/"maps"`` (:class:`scenes.storage.Cache`, checksummed, locked).
+    progress : callable, optional, keyword-only
+        ``progress(stage_name)``.
+    log : callable, keyword-only
+        Receives one-line notes (working resolution, cache reuse).
+
+    Returns
+    -------
+    sigma : ndarray, HxW, float64
+        σ in px of the full-resolution photo.
+    info : dict
+        ``scale``, ``working_shape``, ``no_edges``, ``cached`` (reused an existing entry).
+    """
+    from method.upsampling import downscale_image, upsample_defocus_map, working_shape
+    from scenes.backend import cache_root
+    from scenes.storage import Cache
+
+    image = photo.image
+    H, W = image.shape[:2]
+    (h, w), scale = working_shape(image.shape, max_working_pixels=max_working_pixels)
+    if scale < 1:
+        log(f"{W}x{H} px ({H * W / 1e6:.1f} MP) is over --max-working-pixels {max_working_pixels:,}: "
+            f"estimating at {w}x{h} (scale {scale:.3g}), map upsampled edge-aware (guided filter) "
+            "to full resolution")
+        if progress:
+            progress("downscale")
+        working = downscale_image(image, (h, w))
+    else:
+        working = image
+    built = []
+
+    def build(folder):
+        built.append(True)
+        _build_map(Path(folder), working, params, progress)
+
+    if use_cache:
+        cache = Cache(cache_root() / "maps")
+        key = map_cache_key(photo, params, (h, w))
+        folder = cache.get_or_build(key, build)
+        try:
+            m, meta = _load_entry(folder, (h, w))
+        except (OSError, ValueError):  # checksummed yet unreadable: rebuild once
+            cache.invalidate(key)
+            folder = cache.get_or_build(key, build)
+            m, meta = _load_entry(folder, (h, w))
+        if not built:
+            log(f"defocus map reused from the cache ({folder})")
+    else:
+        with tempfile.TemporaryDirectory() as tmp:
+            build(tmp)
+            m, meta = _load_entry(Path(tmp), (h, w))
+    if scale < 1:
+        if progress:
+            progress("upsample")
+        sigma = upsample_defocus_map(m, working, image, scale=scale)
+    else:
+        sigma = m
+    return sigma, {"scale": scale, "working_shape": (h, w), "no_edges": bool(meta["no_edges"]),
+                   "cached": not built}
+
+
+def write_map_preview(path, sigma) -> Path:
+    """Colour-mapped PNG of a defocus map with a colour bar labelled "blur σ (px)", atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.png`` destination.
+    sigma : ndarray, HxW, float
+        σ in px, ≥ 0.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    from scenes.storage import atomic_write
+
+    sigma = np.asarray(sigma, dtype=np.float64)
+    h, w = sigma.shape
+    vmax = float(sigma.max()) if sigma.size and sigma.max() > 0 else 1.0
+    width_in = 8.0
+    fig = Figure(figsize=(width_in, max(2.0, width_in * h / w * 0.85)), dpi=150)
+    ax = fig.add_subplot()
+    im = ax.imshow(sigma, cmap="magma", vmin=0.0, vmax=vmax, interpolation="antialiased")
+    ax.set_axis_off()
+    fig.colorbar(im, ax=ax, label="blur σ (px)", fraction=0.046, pad=0.02)
+    path = Path(path)
+    with atomic_write(path) as tmp:
+        fig.savefig(tmp, format="png", bbox_inches="tight", metadata={"Software": None})
+    return path
+
+
+def write_map(path, sigma) -> Path:
+    """Write a defocus map by extension: .exr (float32 σ), .png (preview), .npy (raw)."""
+    from scenes.photo_io import write_defocus_map
+
+    path = Path(path)
+    if path.suffix.lower() == ".png":
+        return write_map_preview(path, sigma)
+    return write_defocus_map(path, sigma)
+
+
+def map_summary(sigma) -> str:
+    """'σ 0.42–7.9 px (median 1.3)'."""
+    return (f"σ {float(np.min(sigma)):.3g}–{float(np.max(sigma)):.3g} px "
+            f"(median {float(np.median(sigma)):.3g})")
+
+
+# ------------------------------------------------------------------------------------------------
+# repro.estimate
+# ------------------------------------------------------------------------------------------------
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = OneLineParser(
+        prog=PROG,
+        description="Estimate the defocus map (blur σ in px at every pixel) of a photo, "
+                    "Bae & Durand 2007.",
+        epilog="Without -o the map goes next to the photo as <stem>.defocus.exr (float σ in px; "
+               "-o map.png gives a colour-mapped preview instead). Reads JPEG, PNG, TIFF (8/16-bit) "
+               "and OpenEXR (linear). Exit status 2 on bad input, with one line on stderr.",
+    )
+    p.add_argument("photo", help="the photo (JPEG, PNG, TIFF or EXR)")
+    p.add_argument("-o", "--output", default=None, metavar="MAP",
+                   help="output map: .exr (float32 σ, default), .png (preview with colour bar) or .npy")
+    add_estimation_arguments(p)
+    return p
+
+
+def default_map_path(photo: Path) -> Path:
+    """``<folder>/<stem>.defocus.exr`` next to the photo."""
+    photo = Path(photo)
+    return photo.with_name(f"{photo.stem}.defocus.exr")
+
+
+def main(argv=None) -> int:
+    """Entry point; returns the exit status (errors raise; see :func:`_run_cli`)."""
+    args = _parser().parse_args(argv)
+    params = defocus_params(args)
+    photo_path = Path(args.photo)
+    out = Path(args.output) if args.output else default_map_path(photo_path)
+    from scenes.photo_io import probe_photo
+
+    probe_photo(photo_path)  # a missing/bad photo is reported before anything about the output
+    check_output_path(out, photo=photo_path, overwrite=args.overwrite, allowed=MAP_OUTPUT_SUFFIXES,
+                      what="output map")
+    photo = load_photo(args, prog=PROG)
+    for n in photo.notes:
+        note(PROG, n, quiet=args.quiet)
+    progress = StageProgress(PROG, quiet=args.quiet)
+    try:
+        sigma, info = estimate_photo_map(photo, params, max_working_pixels=args.max_working_pixels,
+                                         use_cache=not args.no_cache, progress=progress,
+                                         log=lambda m: note(PROG, m, quiet=args.quiet))
+        progress("write")
+        write_map(out, sigma)
+    finally:
+        progress.close()
+    if info["no_edges"]:
+        print(f"{PROG}: warning: no edges found above the noise thresholds; the defocus map is all zeros",
+              file=sys.stderr)
+    note(PROG, f"{map_summary(sigma)}", quiet=args.quiet)
+    print(out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(_run_cli(main, prog=PROG))

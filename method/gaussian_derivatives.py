@@ -61,8 +61,8 @@ def _validate_image(image, name="image", min_size=2):
     img = np.asarray(image)
     if img.ndim != 2:
         raise ValueError(f"{name} must be a 2-D (H, W) array; got ndim={img.ndim}, shape={img.shape}")
-    if not (np.issubdtype(img.dtype, np.floating) or np.issubdtype(img.dtype, np.integer)):
-        raise ValueError(f"{name} must be a real numeric array; got dtype={img.dtype}")
+    if not np.issubdtype(img.dtype, np.floating):
+        raise ValueError(f"{name} must be a floating-point array (values in [0, 1]); got dtype={img.dtype}")
     if min(img.shape) < min_size:
         raise ValueError(f"{name} must be at least {min_size}x{min_size} px; got shape={img.shape}")
     img = img.astype(np.float64, copy=False)
@@ -86,7 +86,7 @@ class GaussianDerivativeBank:
 
     Parameters
     ----------
-    image : ndarray, shape (H, W)
+    image : ndarray, shape (H, W), float
         Real image (any units; the method uses [0, 1]).
     max_sigma : float
         Largest σ (px) that will be requested.

@@ -47,8 +47,9 @@ class Fig2Config:
     # samples per pixel of the scene renders; None = the scene's default for the preset.
     seed: int = 0
     # sampler seed.
-    edge_depth_factors: tuple[float, ...] = (0.6, 0.8, 1.5, 3.0)
-    # step-edge object distances as multiples of the scene's focus distance D, dimensionless.
+    edge_depth_factors: tuple[float, ...] = (0.5, 0.8, 2.4, 6.0)
+    # step-edge object distances as multiples of the scene's focus distance D, dimensionless;
+    # for the portrait (D = 0.25 m): 0.125 m foreground card, 0.2 m, 0.6 m shelf, 1.5 m background.
     edge_width_px: int = 4096
     # film width of the step-edge measurement, px (sets the pitch; ratios c/X do not depend on it).
     edge_crop_width: int = 384
@@ -60,7 +61,7 @@ class Fig2Config:
 
 
 FULL = Fig2Config()
-QUICK = Fig2Config(preset="small", edge_spp=1024, edge_depth_factors=(0.6, 3.0))
+QUICK = Fig2Config(preset="small", edge_spp=1024, edge_depth_factors=(0.5, 6.0))
 
 
 def _cameras(config: Fig2Config, scene_def):
@@ -86,7 +87,8 @@ def compute(config: Fig2Config) -> dict:
         (H, W) ground-truth CoC maps (Eq. 5, px, NaN where no surface); ``edge_depth_m`` (m,);
         ``edge_coc_px_large`` / ``edge_coc_px_small`` (m,) fitted step-edge c (px of the wide film);
         ``edge_eq5_px_large`` / ``_small`` (m,); ``edge_ratio`` (m,) measured c'_L/c'_S;
-        ``edge_ratio_eq6`` (m,); ``metrics``.
+        ``edge_ratio_eq6`` (m,); ``curve_s_m`` (n,) and ``curve_eq5_px_large`` / ``_small`` (n,):
+        Eq. (5) on the wide film, for the plot; ``metrics``.
     """
     from scenes import SCENES
     from scenes.calibration import StepEdgeRenderer, measure_edge
@@ -98,7 +100,7 @@ def compute(config: Fig2Config) -> dict:
     spp = config.spp
     renders = {}
     for key, cam in (("large", big), ("small", small)):
-        r = render_scene(config.scene, cam, preset=config.preset, spp=spp, seed=config.seed)
+        r = render_scene(config.scene, cam, preset=config.preset, spp=spp, seed=config.seed, progress=False)
         renders[key] = r
     coc_l = np.asarray(renders["large"].coc_px, dtype=np.float64)
     coc_s = np.asarray(renders["small"].coc_px, dtype=np.float64)
@@ -114,6 +116,10 @@ def compute(config: Fig2Config) -> dict:
             row = measure_edge(renderer, cam.replace(resolution=(config.edge_width_px, config.edge_rows)),
                                float(s), label=tag)
             out["c" + tag][j], out["e" + tag][j] = row["coc_fit_px"], row["coc_eq5_px"]
+    curve_s = np.geomspace(0.4 * big.focus_distance_m, 8.0 * big.focus_distance_m, 400)
+    wide = config.edge_width_px
+    curve_l = big.replace(resolution=(wide, config.edge_rows)).coc_px(curve_s)
+    curve_s_px = small.replace(resolution=(wide, config.edge_rows)).coc_px(curve_s)
     # equal film widths: the ratio of c/X equals the ratio of c in pixels
     ratio = out["cl"] / out["cs"]
     ratio_eq6 = out["el"] / out["es"]
@@ -147,6 +153,9 @@ def compute(config: Fig2Config) -> dict:
         "edge_eq5_px_small": out["es"],
         "edge_ratio": ratio,
         "edge_ratio_eq6": ratio_eq6,
+        "curve_s_m": curve_s,
+        "curve_eq5_px_large": curve_l,
+        "curve_eq5_px_small": curve_s_px,
         "metrics": metrics,
     }
 
@@ -157,6 +166,6 @@ FIGURE = Figure(
     compute=compute,
     plot="experiments.plotting.fig2:plot",
     configs={"quick": QUICK, "full": FULL},
-    version=1,
+    version=2,  # 2: Eq. (5) curves for the plot
     sigma_convention="none: CoC diameters c (disk fit and Eq. 5 maps), not Gaussian sigmas",
 )

@@ -65,6 +65,9 @@ class Figure:
         Code version of ``compute``; part of the cache key.
     sigma_convention : str
         How the figure's blur quantities relate to Gaussian σ (written to the metrics file).
+    renders : bool
+        Whether compute renders with Mitsuba; if so the Mitsuba variant is part of the cache key
+        (variants draw different sample streams).
     """
 
     name: str
@@ -74,6 +77,7 @@ class Figure:
     configs: Mapping[str, object]
     version: int = 1
     sigma_convention: str = "line_spread: sigma = sqrt((c/4)^2 + sigma_filter^2), px"
+    renders: bool = True
 
     def __post_init__(self):
         for mode in ("quick", "full"):
@@ -160,13 +164,21 @@ def to_jsonable(obj):
 
 
 def cache_key(figure: Figure, config) -> dict:
-    """JSON-able key of a compute result: figure name, code version, config type and fields."""
-    return {
+    """JSON-able key of a compute result: figure name, code version, config type and fields
+    (and, for figures that render, the Mitsuba variant and version)."""
+    key = {
         "figure": figure.name,
         "version": figure.version,
         "config_type": type(config).__qualname__,
         "config": to_jsonable(config),
     }
+    if figure.renders:
+        from importlib.metadata import version
+
+        from scenes.backend import select_variant
+
+        key["mitsuba"] = {"variant": select_variant(), "version": version("mitsuba")}
+    return key
 
 
 def compute_cached(figure: Figure, config, *, force=False, cache_dir=None) -> FigureResult:

@@ -23,22 +23,15 @@ PROG = "python -m repro.figures"
 DEFAULT_OUT = Path("report") / "figures"
 
 
-def _run_cli(main, argv=None) -> int:
-    # Minimal local stand-in for repro/_cli.py's run_cli (not present when this was written):
-    # ValueError → one line on stderr and exit status 2.
-    try:
-        return main(argv)
-    except ValueError as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
-
-
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
+    from repro._cli import ArgumentParser, add_variant_option, int_type
+
+    p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
+    add_variant_option(p)
     p.add_argument("names", nargs="*", metavar="NAME", help="figures to make (default: all), e.g. fig10")
     p.add_argument("--list", action="store_true", help="list the registered figures and exit")
     p.add_argument("--quick", action="store_true", help="quick mode: fewer points, fewer samples per pixel")
-    p.add_argument("--jobs", type=int, default=1, metavar="N", help="figures computed in parallel (processes)")
+    p.add_argument("--jobs", type=int_type("--jobs"), default=1, metavar="N", help="figures computed in parallel (processes)")
     p.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="DIR",
                    help=f"output folder (default: {DEFAULT_OUT})")
     p.add_argument("--force", action="store_true", help="recompute even when a cached result exists")
@@ -110,9 +103,14 @@ def main(argv=None) -> int:
     unknown = [n for n in names if n not in FIGURES]
     if unknown:
         raise ValueError(f"unknown figure(s) {', '.join(map(repr, unknown))}; choose from {', '.join(FIGURES)}")
-    if args.jobs < 1:
-        raise ValueError(f"--jobs={args.jobs} is invalid; allowed: integer >= 1")
     mode = "quick" if args.quick else "full"
+    if args.variant:
+        import os
+
+        from scenes.backend import VARIANT_ENV, select_variant
+
+        select_variant(args.variant)  # fails early (one line, exit 2) if it does not work here
+        os.environ[VARIANT_ENV] = args.variant  # inherited by worker processes
     args.out.mkdir(parents=True, exist_ok=True)
 
     from tqdm import tqdm
@@ -153,4 +151,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(_run_cli(main))
+    from repro._cli import run_cli
+
+    sys.exit(run_cli(main, prog=PROG))

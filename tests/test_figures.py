@@ -47,7 +47,7 @@ def _toy_figure():
     from experiments.registry import Figure
 
     return Figure(name="toy", title="toy", compute=_toy_compute, plot="none:none",
-                  configs={"quick": _ToyConfig(n=3), "full": _ToyConfig()})
+                  configs={"quick": _ToyConfig(n=3), "full": _ToyConfig()}, renders=False)
 
 
 def test_compute_cached_roundtrip_and_force(tmp_path):
@@ -124,7 +124,7 @@ def fig10_quick(tmp_path_factory):
     seconds = time.perf_counter() - t0
     assert second.returncode == 0, second.stderr[-3000:]
     m2 = json.loads((out / "fig10.metrics.json").read_text())
-    return {"out": out, "m1": m1, "m2": m2, "second_seconds": seconds}
+    return {"out": out, "m1": m1, "m2": m2, "second_seconds": seconds, "cache": cache}
 
 
 @pytest.mark.render
@@ -147,3 +147,19 @@ def test_fig10_second_run_uses_cache(fig10_quick):
     assert m2["cache"]["hit"] is True
     assert m2["metrics"] == m1["metrics"]
     assert fig10_quick["second_seconds"] < tol.FIGURES_CACHED_RUN_S
+
+
+@pytest.mark.render
+def test_fig2_and_fig10_in_parallel(fig10_quick, tmp_path):
+    """``--jobs 2``: fig2 computed in one worker while fig10 comes from the cache in another."""
+    proc = _cli("fig2", "fig10", "--quick", "--jobs", "2", "--out", tmp_path, cache_dir=fig10_quick["cache"])
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    for stem in ("fig2", "fig10"):
+        for ext in (".png", ".pdf", ".metrics.json"):
+            assert (tmp_path / f"{stem}{ext}").is_file()
+    m10 = json.loads((tmp_path / "fig10.metrics.json").read_text())
+    assert m10["cache"]["hit"] is True and m10["metrics"] == fig10_quick["m1"]["metrics"]
+    m2 = json.loads((tmp_path / "fig2.metrics.json").read_text())["metrics"]
+    assert m2["max_ratio_rel_err"] < tol.FIG2_RATIO_RTOL
+    # the small sensor blurs ~3× less at the same field of view and f-number (Eq. 6)
+    assert 2.5 < m2["measured_ratio_median"] < 4.0

@@ -16,9 +16,10 @@ Pure numerics: arrays in, arrays out. No file I/O.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 from scipy import ndimage
@@ -30,6 +31,7 @@ __all__ = [
     "GUIDED_EPS",
     "GUIDED_RADIUS",
     "ScaledDefocusResult",
+    "deterministic_global_rng",
     "downscale_image",
     "estimate_defocus_map_at_scale",
     "guided_upsample",
@@ -81,6 +83,28 @@ class ScaledDefocusResult:
     scale: float
     working_shape: tuple[int, int]
     working_result: object
+
+
+@contextlib.contextmanager
+def deterministic_global_rng(seed: int = 0) -> Iterator[None]:
+    """Seed NumPy's *global* legacy RNG for the duration of a block, then restore its state.
+
+    pyamg's smoothed-aggregation setup (used by :mod:`method.propagation`) estimates a spectral
+    radius from a random start vector drawn with ``np.random.rand``; unseeded, two runs of the
+    pipeline on the same photo differ by ~1e-7 px. Wrapping the pipeline in this context makes the
+    map bit-identical across runs and processes without touching the caller's random stream.
+
+    Parameters
+    ----------
+    seed : int
+        Seed for ``np.random.seed``.
+    """
+    state = np.random.get_state()
+    np.random.seed(seed)
+    try:
+        yield
+    finally:
+        np.random.set_state(state)
 
 
 def working_shape(shape, *, max_working_pixels=DEFAULT_MAX_WORKING_PIXELS) -> tuple[tuple[int, int], float]:
@@ -336,7 +360,8 @@ def estimate_defocus_map_at_scale(image, params=None, *, max_working_pixels=DEFA
     Notes
     -----
     1. s = √(budget / (H·W)) when over budget; downscale with a Gaussian prefilter.
-    2. :func:`method.pipeline.estimate_defocus_map` on the working image.
+    2. :func:`method.pipeline.estimate_defocus_map` on the working image, under
+       :func:`deterministic_global_rng` (bit-identical maps run after run).
     3. σ → full-resolution px (÷ s, prefilter removed in quadrature).
     4. Edge-aware upsampling by :func:`guided_upsample` guided by the full photo.
     """
@@ -350,11 +375,13 @@ def estimate_defocus_map_at_scale(image, params=None, *, max_working_pixels=DEFA
             progress(stage)
 
     if scale == 1.0:
-        result = estimate_defocus_map(image, params, progress=progress)
+        with deterministic_global_rng():
+            result = estimate_defocus_map(image, params, progress=progress)
         return ScaledDefocusResult(result.defocus_map, 1.0, (h, w), result)
     note("downscale")
     small = downscale_image(image, (h, w))
-    result = estimate_defocus_map(small, params, progress=progress)
+    with deterministic_global_rng():
+        result = estimate_defocus_map(small, params, progress=progress)
     note("upsample")
     full = upsample_defocus_map(result.defocus_map, small, image, scale=scale, remove_prefilter=remove_prefilter)
     return ScaledDefocusResult(full, scale, (h, w), result)

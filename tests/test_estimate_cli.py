@@ -1,0 +1,342 @@
+"""python -m repro.estimate: outputs, bad input (one stderr line, exit 2), working resolution, cache.
+
+Most cases call the CLI in-process (same code path as ``python -m``, much faster); a few run it
+as a real subprocess to prove there is no traceback and to exercise two processes at once.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from repro.estimate import PROG, _run_cli, main
+from scenes.photo_io import write_photo
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def textured_photo(h=96, w=128, *, seed=3, blur_right=2.5):
+    """Blocky colour texture (sharp edges) whose right half is Gaussian-blurred, float in [0, 1]."""
+    rng = np.random.default_rng(seed)
+    blocks = rng.random((h // 8 + 1, w // 8 + 1, 3))
+    img = np.repeat(np.repeat(blocks, 8, axis=0), 8, axis=1)[:h, :w]
+    blurred = np.stack([ndimage.gaussian_filter(img[..., c], blur_right) for c in range(3)], axis=-1)
+    img[:, w // 2:] = blurred[:, w // 2:]
+    return np.clip(img, 0, 1)
+
+
+@pytest.fixture
+def cache_dir(tmp_path, monkeypatch):
+    d = tmp_path / "cache"
+    monkeypatch.setenv("DEFOCUS_CACHE_DIR", str(d))
+    return d
+
+
+@pytest.fixture
+def photo(tmp_path):
+    return write_photo(tmp_path / "photo.png", textured_photo())
+
+
+def run(argv, capsys):
+    """(exit status, stdout, stderr lines) of the CLI called in-process."""
+    status = _run_cli(main, [str(a) for a in argv], prog=PROG)
+    out, err = capsys.readouterr()
+    return status, out, [line for line in err.splitlines() if line.strip()]
+
+
+def assert_one_line_error(status, err, *needles):
+    assert status == 2
+    assert len(err) == 1, err
+    assert err[0].startswith(f"{PROG}: error: ")
+    for n in needles:
+        assert n.lower() in err[0].lower(), err[0]
+
+
+# ------------------------------------------------------------------------------------------------
+# outputs
+# ------------------------------------------------------------------------------------------------
+
+
+def test_exr_npy_png_outputs(tmp_path, photo, cache_dir, capsys):
+    import OpenEXR
+    from PIL import Image
+
+    status, out, err = run([photo, "-o", tmp_path / "m.exr"], capsys)
+    assert status == 0, err
+    assert out.strip() == str(tmp_path / "m.exr")
+    sigma = OpenEXR.File(str(tmp_path / "m.exr")).channels()["sigma"].pixels
+    assert sigma.shape == (96, 128) and sigma.dtype == np.float32
+    assert np.all(np.isfinite(sigma)) and sigma.min() >= 0
+    # the blurred right half must read blurrier than the sharp left half
+    assert np.median(sigma[:, 80:]) > np.median(sigma[:, :48])
+
+    status, _, err = run([photo, "-o", tmp_path / "m.npy"], capsys)
+    assert status == 0 and any("reused from the cache" in line for line in err)
+    raw = np.load(tmp_path / "m.npy")
+    assert raw.dtype == np.float64
+    np.testing.assert_array_equal(raw.astype(np.float32), sigma)
+
+    status, _, _ = run([photo, "-o", tmp_path / "m.png"], capsys)
+    assert status == 0
+    with Image.open(tmp_path / "m.png") as im:
+        assert im.format == "PNG" and im.size[0] > 200
+
+
+def test_default_output_next_to_photo(photo, cache_dir, capsys):
+    status, out, _ = run([photo], capsys)
+    assert status == 0
+    assert Path(out.strip()) == photo.with_name("photo.defocus.exr")
+    assert photo.with_name("photo.defocus.exr").is_file()
+
+
+def test_help_mentions_default_output(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--help"])
+    assert exc.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "<stem>.defocus.exr" in text and "--max-working-pixels" in text
+
+
+def test_constant_image_zero_map_warning(tmp_path, cache_dir, capsys):
+    path = write_photo(tmp_path / "flat.png", np.full((40, 50, 3), 0.4))
+    status, _, err = run([path, "-o", tmp_path / "m.npy"], capsys)
+    assert status == 0
+    assert any("warning: no edges" in line for line in err)
+    m = np.load(tmp_path / "m.npy")
+    assert m.shape == (40, 50) and not np.any(m)
+    # the warning survives a cache hit
+    status, _, err = run([path, "-o", tmp_path / "m2.npy"], capsys)
+    assert status == 0 and any("warning: no edges" in line for line in err)
+
+
+def test_rgba_input_note(tmp_path, cache_dir, capsys):
+    from PIL import Image
+
+    rgba = np.concatenate([textured_photo(32, 40), np.ones((32, 40, 1))], axis=-1)
+    Image.fromarray((rgba * 255).astype(np.uint8), "RGBA").save(tmp_path / "a.png")
+    status, _, err = run([tmp_path / "a.png", "-o", tmp_path / "m.npy"], capsys)
+    assert status == 0
+    assert any("alpha channel ignored" in line for line in err)
+
+
+def test_exr_input_nonfinite_refused_then_repaired(tmp_path, cache_dir, capsys):
+    import OpenEXR
+
+    from scenes.display import srgb_to_linear
+
+    lin = srgb_to_linear(textured_photo(32, 40)).astype(np.float32)
+    lin[5, 5, 0] = np.nan
+    lin[6, 6, 1] = np.inf
+    path = tmp_path / "bad.exr"
+    OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}, {"RGB": lin}).write(str(path))
+    status, _, err = run([path, "-o", tmp_path / "m.npy"], capsys)
+    assert_one_line_error(status, err, "NaN/Inf", "--repair-nonfinite")
+    assert not (tmp_path / "m.npy").exists()
+    status, _, err = run([path, "-o", tmp_path / "m.npy", "--repair-nonfinite"], capsys)
+    assert status == 0 and any("repaired 2" in line for line in err)
+    assert np.all(np.isfinite(np.load(tmp_path / "m.npy")))
+
+
+def test_working_resolution_is_announced_and_map_is_full_size(tmp_path, photo, cache_dir, capsys):
+    status, _, err = run([photo, "-o", tmp_path / "m.npy", "--max-working-pixels", "3000"], capsys)
+    assert status == 0
+    line = next(line for line in err if "max-working-pixels" in line)
+    assert "estimating at" in line and "guided filter" in line
+    m = np.load(tmp_path / "m.npy")
+    assert m.shape == (96, 128) and np.all(np.isfinite(m)) and m.min() >= 0
+
+
+def test_estimator_and_alpha_change_the_map(tmp_path, photo, cache_dir, capsys):
+    assert run([photo, "-o", tmp_path / "a.npy"], capsys)[0] == 0
+    assert run([photo, "-o", tmp_path / "b.npy", "--estimator", "zero_crossing"], capsys)[0] == 0
+    assert run([photo, "-o", tmp_path / "c.npy", "--alpha", "0.1"], capsys)[0] == 0
+    a, b, c = (np.load(tmp_path / f"{n}.npy") for n in "abc")
+    assert not np.array_equal(a, b) and not np.array_equal(a, c)
+    assert len([p for p in (cache_dir / "maps").iterdir() if p.is_dir()]) == 3
+
+
+# ------------------------------------------------------------------------------------------------
+# bad input: one line on stderr, exit status 2, nothing written
+# ------------------------------------------------------------------------------------------------
+
+
+def _make_bad(kind, tmp_path):
+    from tests.test_photo_io import png_with_header
+
+    if kind == "missing":
+        return tmp_path / "nope.jpg", ["no such file"]
+    if kind == "directory":
+        (tmp_path / "dir.png").mkdir()
+        return tmp_path / "dir.png", ["directory"]
+    if kind == "empty":
+        (tmp_path / "e.jpg").write_bytes(b"")
+        return tmp_path / "e.jpg", ["empty"]
+    if kind == "truncated_jpeg":
+        good = write_photo(tmp_path / "g.jpg", textured_photo())
+        (tmp_path / "t.jpg").write_bytes(good.read_bytes()[: good.stat().st_size // 2])
+        return tmp_path / "t.jpg", ["truncated"]
+    if kind == "text_png":
+        (tmp_path / "x.png").write_text("hello\n" * 20)
+        return tmp_path / "x.png", ["not a recognised image"]
+    if kind == "1x1":
+        return write_photo(tmp_path / "one.png", np.full((1, 1, 3), 0.5)), ["1x1", "smallest supported side is 8"]
+    if kind == "5x5":
+        return write_photo(tmp_path / "five.png", np.full((5, 5), 0.5)), ["5x5", "smallest supported side is 8"]
+    if kind == "100MP":
+        return png_with_header(tmp_path / "huge.png", 10_000, 10_000), ["100.0 MP", "pixel budget"]
+    raise AssertionError(kind)
+
+
+@pytest.mark.parametrize("kind", ["missing", "directory", "empty", "truncated_jpeg", "text_png", "1x1", "5x5", "100MP"])
+def test_bad_photo(kind, tmp_path, cache_dir, capsys):
+    path, needles = _make_bad(kind, tmp_path)
+    out = tmp_path / "out.npy"
+    status, stdout, err = run([path, "-o", out], capsys)
+    assert_one_line_error(status, err, *needles)
+    assert stdout == "" and not out.exists()
+
+
+def test_pixel_budget_is_configurable(tmp_path, photo, cache_dir, capsys):
+    status, _, err = run([photo, "-o", tmp_path / "m.npy", "--max-pixels", "10000"], capsys)
+    assert_one_line_error(status, err, "pixel budget")
+
+
+def test_pillow_bomb_guard_is_one_line(tmp_path, cache_dir, capsys):
+    from tests.test_photo_io import png_with_header
+
+    path = png_with_header(tmp_path / "bomb.png", 20_000, 20_000, ctype=3)
+    status, _, err = run([path, "-o", tmp_path / "m.npy", "--max-pixels", "1e12"], capsys)
+    assert_one_line_error(status, err, "decompression-bomb")
+
+
+@pytest.mark.parametrize("argv,needles", [
+    (["--estimator", "magic"], ["--estimator", "magic", "model_fit"]),
+    (["--alpha", "0"], ["--alpha", "> 0"]),
+    (["--alpha", "abc"], ["--alpha", "not a number"]),
+    (["--alpha", "nan"], ["--alpha"]),
+    (["--max-working-pixels", "-5"], ["max-working-pixels"]),
+    (["--max-pixels", "lots"], ["max-pixels", "not a pixel count"]),
+    (["--no-such-flag"], ["unrecognized"]),
+])
+def test_bad_options(argv, needles, tmp_path, photo, cache_dir, capsys):
+    status, _, err = run([photo, "-o", tmp_path / "m.npy", *argv], capsys)
+    assert_one_line_error(status, err, *needles)
+    assert not (tmp_path / "m.npy").exists()
+
+
+@pytest.mark.parametrize("where,needles", [
+    ("missing_folder", ["does not exist"]),
+    ("file_as_folder", ["not a folder"]),
+    ("bad_extension", ["extension", ".exr"]),
+    ("is_directory", ["directory"]),
+])
+def test_unwritable_output(where, needles, tmp_path, photo, cache_dir, capsys):
+    if where == "missing_folder":
+        out = tmp_path / "no" / "m.exr"
+    elif where == "file_as_folder":
+        (tmp_path / "afile").write_text("x")
+        out = tmp_path / "afile" / "m.exr"
+    elif where == "bad_extension":
+        out = tmp_path / "m.gif"
+    else:
+        out = tmp_path / "d.exr"
+        out.mkdir()
+    status, _, err = run([photo, "-o", out], capsys)
+    assert_one_line_error(status, err, *needles)
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root can write in a read-only folder")
+def test_read_only_folder(tmp_path, photo, cache_dir, capsys):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        status, _, err = run([photo, "-o", ro / "m.exr"], capsys)
+        assert_one_line_error(status, err, "not writable")
+    finally:
+        ro.chmod(0o700)
+
+
+def test_output_equal_to_input_refused_unless_overwrite(tmp_path, cache_dir, capsys):
+    path = write_photo(tmp_path / "p.exr", textured_photo(32, 40))
+    before = path.read_bytes()
+    status, _, err = run([path, "-o", path], capsys)
+    assert_one_line_error(status, err, "is the input photo", "--overwrite")
+    assert path.read_bytes() == before
+    status, _, _ = run([path, "-o", path, "--overwrite"], capsys)
+    assert status == 0 and path.read_bytes() != before
+
+
+def test_no_temp_files_left_after_errors(tmp_path, photo, cache_dir, capsys):
+    run([photo, "-o", tmp_path / "m.exr", "--estimator", "x"], capsys)
+    run([tmp_path / "nope.png", "-o", tmp_path / "m.exr"], capsys)
+    assert not (tmp_path / "m.exr").exists()
+    assert not [p for p in tmp_path.iterdir() if ".tmp." in p.name or ".probe." in p.name]
+
+
+# ------------------------------------------------------------------------------------------------
+# real subprocesses: no traceback; cache shared between concurrent processes; corrupt entries
+# ------------------------------------------------------------------------------------------------
+
+
+def _cli(args, cache, **kw):
+    env = dict(os.environ, DEFOCUS_CACHE_DIR=str(cache))
+    return subprocess.Popen([sys.executable, "-m", "repro.estimate", *map(str, args)], cwd=ROOT, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
+
+
+@pytest.mark.parametrize("kind", ["missing", "text_png", "5x5"])
+def test_subprocess_error_is_one_line_without_traceback(kind, tmp_path):
+    path, needles = _make_bad(kind, tmp_path)
+    proc = _cli([path, "-o", tmp_path / "m.exr"], tmp_path / "cache")
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 2
+    assert "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1 and err.startswith(f"{PROG}: error:")
+
+
+def _entries(cache):
+    maps = cache / "maps"
+    return [p for p in maps.iterdir() if p.is_dir() and not p.name.startswith(".")] if maps.exists() else []
+
+
+def test_two_processes_share_one_cache_entry(tmp_path):
+    photo = write_photo(tmp_path / "photo.png", textured_photo())
+    cache = tmp_path / "cache"
+    procs = [_cli([photo, "-o", tmp_path / f"m{i}.npy", "-q"], cache) for i in range(2)]
+    results = [p.communicate(timeout=300) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], results
+    np.testing.assert_array_equal(np.load(tmp_path / "m0.npy"), np.load(tmp_path / "m1.npy"))
+    entries = _entries(cache)
+    assert len(entries) == 1
+    from scenes.storage import Cache
+
+    manifest = json.loads((entries[0] / "manifest.json").read_text())
+    assert Cache(cache / "maps").is_valid(manifest["key"])
+    assert not [p for p in (cache / "maps").iterdir() if p.name.endswith(".tmp")]
+
+
+def test_truncated_cache_entry_is_rebuilt(tmp_path):
+    photo = write_photo(tmp_path / "photo.png", textured_photo())
+    cache = tmp_path / "cache"
+    p = _cli([photo, "-o", tmp_path / "a.npy"], cache)
+    assert p.communicate(timeout=300) and p.returncode == 0
+    (entry,) = _entries(cache)
+    data = (entry / "map.npy").read_bytes()
+    (entry / "map.npy").write_bytes(data[: len(data) // 2])  # as a killed writer would leave it
+    p = _cli([photo, "-o", tmp_path / "b.npy"], cache)
+    _, err = p.communicate(timeout=300)
+    assert p.returncode == 0
+    assert "reused from the cache" not in err  # detected as invalid, so estimated again
+    np.testing.assert_array_equal(np.load(tmp_path / "a.npy"), np.load(tmp_path / "b.npy"))
+    assert (entry / "map.npy").read_bytes() == data
+    p = _cli([photo, "-o", tmp_path / "c.npy"], cache)
+    _, err = p.communicate(timeout=300)
+    assert p.returncode == 0 and "reused from the cache" in err

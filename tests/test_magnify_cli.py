@@ -1,0 +1,222 @@
+"""python -m repro.magnify: formats and bit depths, orientation, factor/kernel checks, cache reuse."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from repro.magnify import PROG, main
+from repro.estimate import _run_cli
+from scenes.photo_io import read_photo, write_photo
+from tests.test_estimate_cli import textured_photo
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(autouse=True)
+def cache_dir(tmp_path, monkeypatch):
+    d = tmp_path / "cache"
+    monkeypatch.setenv("DEFOCUS_CACHE_DIR", str(d))
+    return d
+
+
+@pytest.fixture
+def photo(tmp_path):
+    return write_photo(tmp_path / "photo.png", textured_photo())
+
+
+def run(argv, capsys):
+    status = _run_cli(main, [str(a) for a in argv], prog=PROG)
+    out, err = capsys.readouterr()
+    return status, out, [line for line in err.splitlines() if line.strip()]
+
+
+def assert_one_line_error(status, err, *needles):
+    assert status == 2
+    assert len(err) == 1, err
+    assert err[0].startswith(f"{PROG}: error: ")
+    for n in needles:
+        assert n.lower() in err[0].lower(), err[0]
+
+
+def test_default_output_png_8bit(tmp_path, photo, capsys):
+    from PIL import Image
+
+    status, out, err = run([photo, "--factor", "2"], capsys)
+    assert status == 0, err
+    path = Path(out.strip())
+    assert path == tmp_path / "photo.magnified-x2.png"
+    with Image.open(path) as im:
+        assert im.mode == "RGB" and im.size == (128, 96)
+    src, res = read_photo(photo).image, read_photo(path).image
+    # the blurred (right) half gets blurrier: its gradient energy drops more than the sharp half's
+    def energy(a):
+        return float(np.sum(np.diff(a, axis=1) ** 2))
+    assert energy(res[:, 72:]) < energy(src[:, 72:])
+    assert energy(res[:, 72:]) / energy(src[:, 72:]) < energy(res[:, :56]) / energy(src[:, :56])
+
+
+@pytest.mark.parametrize("suffix,bits", [(".png", 16), (".tif", 16), (".tif", 8)])
+def test_bit_depth_preserved(tmp_path, suffix, bits, capsys):
+    import tifffile
+    from PIL import Image
+
+    src = write_photo(tmp_path / f"in{suffix}", textured_photo(48, 64), bit_depth=bits)
+    status, out, err = run([src, "-o", tmp_path / f"out{suffix}"], capsys)
+    assert status == 0, err
+    out = tmp_path / f"out{suffix}"
+    if suffix == ".png":
+        import imagecodecs
+
+        arr = imagecodecs.png_decode(out.read_bytes())
+    else:
+        arr = tifffile.imread(out)
+    assert arr.dtype == (np.uint16 if bits == 16 else np.uint8)
+    assert arr.shape == (48, 64, 3)
+    assert read_photo(out).bit_depth == bits
+    del Image
+
+
+def test_16bit_in_jpeg_out_is_8bit(tmp_path, capsys):
+    src = write_photo(tmp_path / "in.png", textured_photo(48, 64), bit_depth=16)
+    status, _, _ = run([src, "-o", tmp_path / "out.jpg"], capsys)
+    assert status == 0
+    assert read_photo(tmp_path / "out.jpg").bit_depth == 8
+
+
+def test_grey_jpeg_stays_grey_and_same_size(tmp_path, capsys):
+    from PIL import Image
+
+    src = write_photo(tmp_path / "g.jpg", textured_photo(48, 64)[..., 1])
+    status, out, _ = run([src, "--factor", "3", "--kernel", "disk"], capsys)
+    assert status == 0
+    with Image.open(out.strip()) as im:
+        assert im.mode == "L" and im.size == (64, 48) and im.format == "JPEG"
+
+
+def test_exr_in_exr_out(tmp_path, capsys):
+    import OpenEXR
+
+    src = write_photo(tmp_path / "in.exr", textured_photo(48, 64))
+    status, out, _ = run([src], capsys)
+    assert status == 0
+    assert Path(out.strip()).name == "in.magnified-x2.exr"
+    rgb = OpenEXR.File(out.strip()).channels()["RGB"].pixels
+    assert rgb.shape == (48, 64, 3) and rgb.dtype == np.float32 and np.all(np.isfinite(rgb))
+
+
+def test_exif_orientation_respected(tmp_path, capsys):
+    from PIL import Image
+
+    img = (textured_photo(48, 64) * 255).astype(np.uint8)
+    im = Image.fromarray(img)
+    exif = im.getexif()
+    exif[0x0112] = 6  # stored landscape, displayed portrait
+    im.save(tmp_path / "rot.jpg", exif=exif.tobytes(), quality=95)
+    status, out, _ = run([tmp_path / "rot.jpg", "--factor", "1.5"], capsys)
+    assert status == 0
+    with Image.open(out.strip()) as res:
+        assert res.size == (48, 64)  # upright: W×H swapped
+        assert res.getexif().get(0x0112, 1) == 1
+
+
+def test_factor_one_is_identity(tmp_path, photo, capsys):
+    status, _, _ = run([photo, "--factor", "1", "-o", tmp_path / "same.png"], capsys)
+    assert status == 0
+    np.testing.assert_array_equal(read_photo(tmp_path / "same.png").image, read_photo(photo).image)
+
+
+def test_constant_image_unchanged_with_warning(tmp_path, capsys):
+    src = write_photo(tmp_path / "flat.png", np.full((40, 50, 3), 0.3))
+    status, out, err = run([src, "--factor", "4"], capsys)
+    assert status == 0
+    assert any("warning: no edges" in line for line in err)
+    np.testing.assert_array_equal(read_photo(out.strip()).image, read_photo(src).image)
+
+
+def test_second_factor_reuses_cached_map_and_save_map(tmp_path, photo, capsys):
+    status, _, err = run([photo, "--factor", "2", "--save-map", tmp_path / "m.npy"], capsys)
+    assert status == 0 and not any("reused" in line for line in err)
+    status, _, err = run([photo, "--factor", "3", "--save-map", tmp_path / "m2.npy"], capsys)
+    assert status == 0 and any("reused from the cache" in line for line in err)
+    np.testing.assert_array_equal(np.load(tmp_path / "m.npy"), np.load(tmp_path / "m2.npy"))
+    a = read_photo(tmp_path / "photo.magnified-x2.png").image
+    b = read_photo(tmp_path / "photo.magnified-x3.png").image
+    assert not np.array_equal(a, b)
+
+
+def test_working_resolution_path(tmp_path, photo, capsys):
+    status, _, err = run([photo, "--max-working-pixels", "3000", "-o", tmp_path / "o.png"], capsys)
+    assert status == 0
+    assert any("estimating at" in line for line in err)
+    assert read_photo(tmp_path / "o.png").image.shape == (96, 128, 3)
+
+
+@pytest.mark.parametrize("factor,needles", [
+    ("0", ["--factor", ">= 1"]),
+    ("-2", ["--factor", ">= 1"]),
+    ("abc", ["not a number"]),
+    ("nan", ["finite"]),
+    ("inf", ["finite"]),
+    ("0.5", ["deblurring"]),
+])
+def test_bad_factor(factor, needles, tmp_path, photo, capsys):
+    status, out, err = run([photo, "--factor", factor, "-o", tmp_path / "o.png"], capsys)
+    assert_one_line_error(status, err, *needles)
+    assert out == "" and not (tmp_path / "o.png").exists()
+
+
+@pytest.mark.parametrize("argv,needles", [
+    (["--kernel", "hexagon"], ["--kernel", "gaussian"]),
+    (["--estimator", "magic"], ["--estimator", "model_fit"]),
+    (["--bit-depth", "12"], ["bit-depth"]),
+    (["--tile-pixels", "x"], ["tile-pixels"]),
+])
+def test_bad_options(argv, needles, tmp_path, photo, capsys):
+    status, _, err = run([photo, "-o", tmp_path / "o.png", *argv], capsys)
+    assert_one_line_error(status, err, *needles)
+
+
+def test_output_equal_to_input(tmp_path, photo, capsys):
+    before = photo.read_bytes()
+    status, _, err = run([photo, "-o", photo], capsys)
+    assert_one_line_error(status, err, "is the input photo", "--overwrite")
+    assert photo.read_bytes() == before
+    status, _, _ = run([photo, "-o", photo, "--overwrite"], capsys)
+    assert status == 0 and photo.read_bytes() != before
+
+
+def test_bad_outputs(tmp_path, photo, capsys):
+    status, _, err = run([photo, "-o", tmp_path / "no" / "o.png"], capsys)
+    assert_one_line_error(status, err, "does not exist")
+    status, _, err = run([photo, "-o", tmp_path / "o.gif"], capsys)
+    assert_one_line_error(status, err, "extension", ".jpg")
+    status, _, err = run([photo, "-o", tmp_path / "o.png", "--save-map", tmp_path / "o.png"], capsys)
+    assert_one_line_error(status, err, "--save-map")
+    status, _, err = run([photo, "-o", tmp_path / "o.png", "--save-map", tmp_path / "m.jpg"], capsys)
+    assert_one_line_error(status, err, "--save-map", ".exr")
+    assert not (tmp_path / "o.png").exists()
+
+
+@pytest.mark.parametrize("kind", ["missing", "directory", "empty", "truncated_jpeg", "text_png", "1x1", "5x5", "100MP"])
+def test_bad_photo(kind, tmp_path, capsys):
+    from tests.test_estimate_cli import _make_bad
+
+    path, needles = _make_bad(kind, tmp_path)
+    status, out, err = run([path, "-o", tmp_path / "o.png"], capsys)
+    assert_one_line_error(status, err, *needles)
+    assert not (tmp_path / "o.png").exists()
+
+
+def test_subprocess_bad_factor_no_traceback(tmp_path, photo):
+    env = dict(os.environ, DEFOCUS_CACHE_DIR=str(tmp_path / "cache"))
+    proc = subprocess.run([sys.executable, "-m", "repro.magnify", str(photo), "--factor", "zero"],
+                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    assert proc.stderr.count("\n") == 1 and proc.stderr.startswith(f"{PROG}: error:")

@@ -163,7 +163,10 @@ def check_output_path(path, *, suffixes: Sequence[str] = (".exr",), flag: str = 
         raise CLIError(f"{flag} {str(path)!r} is a folder; allowed: a file path in a writable folder")
     folder = p.parent if str(p.parent) else Path(".")
     if not folder.is_dir():
-        raise CLIError(f"{flag} {str(path)!r} is not writable: folder {str(folder)!r} does not exist")
+        raise CLIError(
+            f"{flag} {str(path)!r} is not writable: folder {str(folder)!r} does not exist; "
+            "allowed: a file path in an existing writable folder"
+        )
     if not os.access(folder, os.W_OK | os.X_OK) or (p.exists() and not os.access(p, os.W_OK)):
         raise CLIError(f"{flag} {str(path)!r} is not writable; allowed: a file path in a writable folder")
     return p

@@ -1,0 +1,104 @@
+"""python -m repro.render: --list, a render, and every bad input → one stderr line, exit 2, nothing written."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from scenes.library import SCENES
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def env(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cli-cache")
+    proj = Path(os.environ.get("DEFOCUS_CACHE_DIR") or ROOT / ".cache")
+    if (proj / "variant-probes.json").exists():
+        (d / "variant-probes.json").write_bytes((proj / "variant-probes.json").read_bytes())
+    e = dict(os.environ, DEFOCUS_CACHE_DIR=str(d))
+    e.pop("DEFOCUS_MITSUBA_VARIANT", None)
+    return e
+
+
+def run(args, env):
+    return subprocess.run([sys.executable, "-m", "repro.render", *args], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=300)
+
+
+def _renders(env):
+    d = Path(env["DEFOCUS_CACHE_DIR"]) / "renders"
+    return sorted(p.name for p in d.iterdir()) if d.exists() else []
+
+
+def test_list(env):
+    p = run(["--list"], env)
+    assert p.returncode == 0, p.stderr
+    lines = p.stdout.strip().splitlines()
+    assert len(lines) == len(SCENES)
+    for name, line in zip(SCENES, lines):
+        assert line.startswith(name) and SCENES[name].description in line
+
+
+@pytest.mark.render
+def test_render_to_out(env, tmp_path):
+    out = tmp_path / "planes.exr"
+    p = run(["planes", "--preset", "small", "--spp", "16", "--fnumber", "4", "--out", str(out), "--quiet"], env)
+    assert p.returncode == 0, p.stderr
+    assert out.is_file() and out.with_suffix(".json").is_file()
+    assert str(out) in p.stdout and "sigma_gt" in p.stdout
+    from scenes.render import load_render
+
+    r = load_render(out)
+    assert r.metadata["spp"] == 16 and r.camera.f_number == 4.0 and r.rgb.shape == (120, 160, 3)
+    assert np.isfinite(r.rgb).all()
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["planes.exr", "planes.json"]
+
+
+BAD = [
+    (["nope"], "nope"),
+    (["planes", "--camera", "nikon"], "nikon"),
+    (["planes", "--fnumber", "0"], "'0'"),
+    (["planes", "--fnumber", "-2.8"], "-2.8"),
+    (["planes", "--fnumber", "nan"], "nan"),
+    (["planes", "--focus-distance", "0.04"], "0.04"),
+    (["planes", "--focus-distance", "0.05"], "0.05"),
+    (["planes", "--focal-length", "300", "--focus-distance", "0.25"], "focus_distance_m=0.25"),
+    (["planes", "--sensor-width", "0"], "'0'"),
+    (["planes", "--sensor-height", "-24"], "-24"),
+    (["planes", "--resolution", "640"], "640"),
+    (["planes", "--resolution", "0x480"], "0x480"),
+    (["planes", "--resolution", "axb"], "axb"),
+    (["planes", "--resolution=-640x480"], "-640x480"),
+    (["planes", "--preset", "huge"], "huge"),
+    (["planes", "--spp", "0"], "'0'"),
+    (["planes", "--spp", "-5"], "-5"),
+    (["planes", "--spp", "many"], "many"),
+    (["planes", "--sigma-convention", "fwhm"], "fwhm"),
+    (["planes", "--out", "/nonexistent-dir/x.exr"], "/nonexistent-dir/x.exr"),
+    (["planes", "--out", "{tmp}/not-a-folder.txt/x.exr"], "not-a-folder.txt"),
+    (["planes", "--out", "{tmp}"], "{tmp}"),
+    (["planes", "--out", "{tmp}/x.png"], "x.png"),
+    ([], "SCENE"),
+]
+
+
+@pytest.mark.parametrize("args, named", BAD, ids=[" ".join(a) or "no-args" for a, _ in BAD])
+def test_bad_input_one_line_exit_2_nothing_written(env, tmp_path, args, named):
+    (tmp_path / "not-a-folder.txt").write_text("x")
+    args = [a.replace("{tmp}", str(tmp_path)) for a in args]
+    named = named.replace("{tmp}", str(tmp_path))
+    before = sorted(p.name for p in tmp_path.iterdir())
+    renders_before = _renders(env)
+    p = run([*args, "--quiet"] if args else args, env)
+    assert p.returncode == 2, (p.stdout, p.stderr)
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1, p.stderr
+    assert "Traceback" not in p.stderr and named in lines[0]
+    assert "allowed" in lines[0] or "choose" in lines[0] or "not allowed" in lines[0] or "invalid choice" in lines[0]
+    assert p.stdout == ""
+    assert sorted(q.name for q in tmp_path.iterdir()) == before
+    assert _renders(env) == renders_before

@@ -200,12 +200,22 @@ def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
                 best, best_i = sc, i
         if best_i < 0:
             continue
+        # fine pass by coordinate descent: s' around the coarse optimum, then t0, then s' again
         bi, bj = best_i, jc
         for i in range(max(0, best_i - coarse_stride), min(n_s, best_i + coarse_stride + 1)):
-            for j in range(max(0, jc - 4), min(n_t, jc + 5)):
-                sc = _score(r, a, b, K, table, cum, i, j)
-                if sc > best:
-                    best, bi, bj = sc, i, j
+            sc = _score(r, a, b, K, table, cum, i, jc)
+            if sc > best:
+                best, bi = sc, i
+        i_mid = bi
+        for j in range(max(0, jc - 4), min(n_t, jc + 5)):
+            sc = _score(r, a, b, K, table, cum, i_mid, j)
+            if sc > best:
+                best, bj = sc, j
+        j_mid = bj
+        for i in range(max(0, i_mid - 3), min(n_s, i_mid + 4)):
+            sc = _score(r, a, b, K, table, cum, i, j_mid)
+            if sc > best:
+                best, bi = sc, i
         # 5. parabolic refinement of the squared error on the log-s' grid
         pos = float(bi)
         if 0 < bi < n_s - 1:
@@ -255,7 +265,9 @@ def estimate_blur_model_fit(gray, edge_map, *, params):
        also stops where |r| stops decaying past the extremum (first local minimum of |r| or sign
        change): beyond it a neighbouring edge's response dominates. Both sides are used.
     4. Brute force over d = 2s (Eq. 2c): templates m_{s'}(k − t0) on a geometric s' grid (ratio
-       :data:`S_GRID_RATIO`) × a t0 grid (step :data:`T0_GRID_STEP`), coarse pass then fine pass.
+       :data:`S_GRID_RATIO`) × a t0 grid (step :data:`T0_GRID_STEP`): a coarse pass over s'
+       (every :data:`COARSE_STRIDE`-th value) at the t0 nearest k0, then a fine pass by coordinate
+       descent (s', then t0 within ±0.2 steps, then s' again).
        For each template the amplitude A is the closed-form least-squares value
        A = (r·m)/(m·m) (constrained A > 0), so the squared error is ‖r‖² − (r·m)²/(m·m). We use
        the least-squares A rather than "A from the local extrema" because it uses every sample of

@@ -1,0 +1,38 @@
+"""Bae & Durand 2007, "Defocus Magnification": the method as pure numerics (arrays in, arrays out).
+
+>>> from method import DefocusParams, estimate_defocus_map, magnify_defocus
+>>> result = estimate_defocus_map(image, DefocusParams())          # doctest: +SKIP
+>>> out = magnify_defocus(image, result.defocus_map, factor=2.0)  # doctest: +SKIP
+
+Stages (one module each): :mod:`~method.gaussian_derivatives` and :mod:`~method.noise_thresholds`
+(Eq. 7–9), :mod:`~method.elder_zucker_edges` (Sec. 3.1), :mod:`~method.blur_estimators`
+(Sec. 3.2: ``model_fit``, ``zero_crossing``, ``gradient_ratio``), :mod:`~method.cross_bilateral`
+(Eq. 3), :mod:`~method.propagation` (Eq. 4), :mod:`~method.magnification` (Sec. 5).
+"""
+
+from .blur_estimators import BLUR_ESTIMATORS, estimate_blur
+from .cross_bilateral import BILATERAL_METHODS, biased_cross_bilateral
+from .elder_zucker_edges import EdgeMap, detect_edges
+from .magnification import MAGNIFICATION_KERNELS, magnify_defocus, preprocess_defocus_map
+from .params import DefocusParams
+from .pipeline import DefocusResult, NoEdgesWarning, estimate_defocus_map, luminance
+from .propagation import PROPAGATION_SOLVERS, propagate_defocus
+
+__all__ = [
+    "BILATERAL_METHODS",
+    "BLUR_ESTIMATORS",
+    "MAGNIFICATION_KERNELS",
+    "PROPAGATION_SOLVERS",
+    "DefocusParams",
+    "DefocusResult",
+    "EdgeMap",
+    "NoEdgesWarning",
+    "biased_cross_bilateral",
+    "detect_edges",
+    "estimate_blur",
+    "estimate_defocus_map",
+    "luminance",
+    "magnify_defocus",
+    "preprocess_defocus_map",
+    "propagate_defocus",
+]

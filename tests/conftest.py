@@ -14,3 +14,18 @@ def rng():
     import numpy as np
 
     return np.random.default_rng(20070101)
+
+
+def pytest_addoption(parser):
+    parser.addoption(
+        "--regen-goldens", action="store_true", default=False,
+        help="rewrite tests/golden/*.json from this run instead of comparing (review the diff!)",
+    )
+
+
+@pytest.fixture
+def goldens(request):
+    """Golden-number checker (see tests/golden.py)."""
+    from golden import Goldens
+
+    return Goldens(request.config.getoption("--regen-goldens"))

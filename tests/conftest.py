@@ -26,6 +26,6 @@ def pytest_addoption(parser):
 @pytest.fixture
 def goldens(request):
     """Golden-number checker (see tests/golden.py)."""
-    from golden import Goldens
+    from tests.golden import Goldens
 
     return Goldens(request.config.getoption("--regen-goldens"))

@@ -18,6 +18,8 @@ name to :data:`FIGURE_MODULES`.
 from __future__ import annotations
 
 import dataclasses
+import functools
+import hashlib
 import importlib
 import json
 import time
@@ -163,12 +165,37 @@ def to_jsonable(obj):
     return obj
 
 
+#: Packages whose source determines every figure's numbers (plotting excluded: it reads the cache).
+_FINGERPRINT_PACKAGES = ("method", "scenes", "experiments")
+
+
+@functools.lru_cache(maxsize=1)
+def code_fingerprint() -> str:
+    """SHA-256 (16 hex digits) of the source of ``method``, ``scenes`` and ``experiments``.
+
+    Part of every figure's cache key, so an edit of the estimator, the scenes or an experiment
+    invalidates cached figure data without anyone remembering to bump a version number
+    (renders keep their own, finer cache keyed by each scene's ``version``).
+    """
+    root = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256()
+    for pkg in _FINGERPRINT_PACKAGES:
+        for path in sorted((root / pkg).rglob("*.py")):
+            rel = path.relative_to(root)
+            if "plotting" in rel.parts:
+                continue
+            h.update(str(rel).encode())
+            h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
 def cache_key(figure: Figure, config) -> dict:
-    """JSON-able key of a compute result: figure name, code version, config type and fields
+    """JSON-able key of a compute result: figure name, code version and source fingerprint, config type and fields
     (and, for figures that render, the Mitsuba variant and version)."""
     key = {
         "figure": figure.name,
         "version": figure.version,
+        "code": code_fingerprint(),
         "config_type": type(config).__qualname__,
         "config": to_jsonable(config),
     }

@@ -41,6 +41,9 @@ PROG = "python -m repro.estimate"
 #: Map output extensions.
 MAP_OUTPUT_SUFFIXES = (".exr", ".png", ".npy")
 
+#: Largest map plotted as is in a PNG preview, px (bigger maps are downscaled for display first).
+PREVIEW_MAX_PIXELS = 2_000_000
+
 #: Version of the map-cache layout (bump when the entry's files or their meaning change).
 MAP_CACHE_VERSION = 1
 
@@ -364,6 +367,12 @@ def write_map_preview(path, sigma) -> Path:
 
     sigma = np.asarray(sigma, dtype=np.float64)
     h, w = sigma.shape
+    if h * w > PREVIEW_MAX_PIXELS:  # the figure is ~1200 px wide: plot a downscaled copy
+        from method.upsampling import downscale_image
+
+        s = (PREVIEW_MAX_PIXELS / (h * w)) ** 0.5
+        sigma = downscale_image(sigma, (max(1, int(h * s)), max(1, int(w * s))))
+        h, w = sigma.shape
     vmax = float(sigma.max()) if sigma.size and sigma.max() > 0 else 1.0
     width_in = 8.0
     fig = Figure(figsize=(width_in, max(2.0, width_in * h / w * 0.85)), dpi=150)

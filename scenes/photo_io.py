@@ -315,10 +315,10 @@ def _split_alpha(arr: np.ndarray, path: Path, notes: list[str], *, alpha_last=Tr
 
 def _to_unit(arr: np.ndarray, path: Path, notes: list[str]) -> tuple[np.ndarray, int]:
     """Integer or float samples → float64 in [0, 1] and the source bit depth."""
-    if arr.dtype == np.uint8:
-        return arr.astype(np.float64) / 255.0, 8
-    if arr.dtype == np.uint16:
-        return arr.astype(np.float64) / 65535.0, 16
+    if arr.dtype == np.uint8 or arr.dtype == np.uint16:  # one float64 array, scaled in place
+        out = arr.astype(np.float64)
+        out /= 255.0 if arr.dtype == np.uint8 else 65535.0
+        return out, 8 if arr.dtype == np.uint8 else 16
     if arr.dtype == bool:
         return arr.astype(np.float64), 8
     if np.issubdtype(arr.dtype, np.floating):
@@ -562,10 +562,14 @@ def output_bit_depth(suffix: str, source_bit_depth: int | None = None) -> int:
     return 8 if (source_bit_depth or 8) <= 8 else 16
 
 
-def _quantise(image: np.ndarray, bits: int) -> np.ndarray:
+def _quantise(image: np.ndarray, bits: int, *, rows=256) -> np.ndarray:
+    """[0, 1] floats → rounded 8/16-bit codes, in strips of rows (no full-size float temporaries)."""
     levels = 255.0 if bits == 8 else 65535.0
-    dtype = np.uint8 if bits == 8 else np.uint16
-    return np.round(np.clip(image, 0.0, 1.0) * levels).astype(dtype)
+    out = np.empty(image.shape, dtype=np.uint8 if bits == 8 else np.uint16)
+    for y in range(0, image.shape[0], rows):
+        strip = np.clip(image[y:y + rows], 0.0, 1.0) * levels
+        out[y:y + rows] = np.round(strip, out=strip)
+    return out
 
 
 def write_photo(path, image, *, bit_depth=None, exif=None, icc_profile=None) -> Path:

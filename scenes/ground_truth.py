@@ -37,8 +37,12 @@ def _camera_frame(mi, sensor):
     tf = sensor.world_transform()
     o = tf @ mi.Point3f(0.0, 0.0, 0.0)
     f = dr.normalize(tf @ mi.Vector3f(0.0, 0.0, 1.0))
-    pos = np.array([float(dr.ravel(o.x)[0]), float(dr.ravel(o.y)[0]), float(dr.ravel(o.z)[0])])
-    fwd = np.array([float(dr.ravel(f.x)[0]), float(dr.ravel(f.y)[0]), float(dr.ravel(f.z)[0])])
+
+    def first(v):  # a Python float (scalar variants) or a width-1 Dr.Jit array (JIT variants)
+        return float(np.ravel(np.asarray(v, dtype=np.float64))[0])
+
+    pos = np.array([first(o.x), first(o.y), first(o.z)])
+    fwd = np.array([first(f.x), first(f.y), first(f.z)])
     return pos, fwd
 
 

@@ -47,7 +47,7 @@ __all__ = [
 ]
 
 #: Version of the render file layout and ground-truth algorithm; part of the cache key.
-RENDER_FORMAT = 1
+RENDER_FORMAT = 2
 #: File names inside a cache entry.
 EXR_NAME = "render.exr"
 #: Samples (pixels x spp) per ``mitsuba.render`` call; renders are split into chunks with
@@ -255,10 +255,24 @@ def render_cache() -> Cache:
     return Cache(cache_root() / "renders")
 
 
+def _sampler_accepts(n: int) -> bool:
+    # Mitsuba's multijitter sampler lays n samples on an ny x nx grid with ny = floor(sqrt(n)),
+    # nx = ceil(n / ny), and rounds n up otherwise (measured: 32 → 35, 128 → 132, 512 → 528).
+    return n % math.isqrt(n) == 0
+
+
 def _chunks(spp: int, pixels: int) -> list[int]:
+    """Split ``spp`` into chunks of ≤ CHUNK_SAMPLES samples, each a count the sampler takes as is."""
     n = max(1, min(spp, math.ceil(spp * pixels / CHUNK_SAMPLES)))
-    base, extra = divmod(spp, n)
-    return [base + (1 if i < extra else 0) for i in range(n)]
+    target = math.ceil(spp / n)
+    out, left = [], spp
+    while left > 0:
+        k = min(left, target)
+        while not _sampler_accepts(k):
+            k -= 1
+        out.append(k)
+        left -= k
+    return out
 
 
 def _versions(mi) -> dict:
@@ -287,6 +301,9 @@ def _compute(sdef, camera, *, spp, seed, mi, variant, sigma_convention, progress
         for i, k in enumerate(chunks):
             chunk_seed = (seed * 1_000_003 + i) % (2**32)
             img = np.asarray(mi.render(scene, spp=k, seed=chunk_seed), dtype=np.float64)
+            used = int(scene.sensors()[0].sampler().sample_count())
+            if used != k:  # pragma: no cover - guarded by _sampler_accepts
+                raise RuntimeError(f"sampler used {used} spp for a chunk of {k}")
             acc += img[:, :, :3] * k
             bar.update(k)
     rgb = (acc / spp).astype(np.float32)

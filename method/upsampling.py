@@ -43,9 +43,11 @@ __all__ = [
 ]
 
 #: Default working-resolution budget, px (≈ 1.5 MP, e.g. 1500 × 1000). The estimator's target is
-#: ≤ 5 s and ≤ 3 GiB at 1 MP and grows about linearly with the pixel count, so 1.5 MP stays within
-#: ≈ 8 s and ≈ 4.5 GiB — the most this shared 2-core / 23 GiB machine kind should spend on one photo,
-#: while still resolving σ to ≈ 1/s px of a 24 MP photo (s = 0.25).
+#: ≤ 5 s and ≤ 3 GiB at 1 MP, growing about linearly with the pixel count, so 1.5 MP stays within
+#: ≈ 8 s and 4.5 GiB on an idle machine. Measured (repro.estimate on a 24 MP JPEG, 2 cores shared
+#: with other jobs, load ≈ 4.5): pipeline 19 s (propagation 15 s), peak RSS 1.25 GiB for the whole
+#: run. 1.5 MP still resolves σ to ≈ 1/s px of a 24 MP photo (s = 0.25), finer than the 0.5 %-of-size
+#: smoothing (30 px at 6000 px) the magnifier applies to the map anyway (Sec. 5).
 DEFAULT_MAX_WORKING_PIXELS = 1_500_000
 
 #: Guided-filter window radius, working px (window (2r+1)²): small, so the filter only re-aligns the

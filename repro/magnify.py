@@ -12,6 +12,9 @@ The defocus map is estimated (or reused from the cache, whatever the factor) as 
 ``repro.estimate``: at most ``--max-working-pixels`` (default 1.5 MP), upsampled edge-aware to full
 resolution. The magnification itself runs at full resolution, in overlapping tiles of
 ``--tile-pixels`` (default 4 MP) so its memory stays ≈ 1.1 GiB per tile whatever the photo's size.
+
+Memory: ≈ 75 B per photo pixel (photo, result, map, all float64) + one tile (≈ 290 B/px × 4 MP).
+Measured on a 24 MP JPEG: peak RSS 2.9 GiB, 42 s wall (estimation included) on 2 busy cores.
 """
 
 from __future__ import annotations

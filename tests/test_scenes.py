@@ -334,3 +334,24 @@ def test_full_preset_render(name, cache_dir):
     assert r.rgb.shape == (480, 640, 3) and np.isfinite(r.rgb).all()
     assert r.sigma_px.min() <= SCENE_SIGMA_FLOOR_PX + 0.5
     assert r.sigma_px.max() >= 4 * SCENE_SMALL_F8_MIN_MAX_SIGMA_PX
+
+
+def test_spp_chunks_sum_and_are_sampler_friendly():
+    from scenes.render import _chunks, _sampler_accepts
+
+    for spp in (1, 7, 32, 128, 256, 512, 1000):
+        for pixels in (100, 19200, 307200):
+            c = _chunks(spp, pixels)
+            assert sum(c) == spp and all(k > 0 and _sampler_accepts(k) for k in c)
+
+
+@pytest.mark.render
+def test_sampler_rounding_rule_matches_mitsuba():
+    from scenes.backend import import_mitsuba
+    from scenes.library.base import SAMPLER
+    from scenes.render import _sampler_accepts
+
+    mi, _ = import_mitsuba()
+    for n in range(1, 300):
+        if _sampler_accepts(n):
+            assert mi.load_dict({"type": SAMPLER, "sample_count": n}).sample_count() == n, n

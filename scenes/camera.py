@@ -1,6 +1,6 @@
 """Physical camera description (sensor, lens, aperture, focus) and its presets.
 
-The camera is pure data; :mod:`scenes.mitsuba_scene` maps it to Mitsuba's ``thinlens`` sensor
+The camera is pure data; :mod:`scenes.mitsuba_camera` maps it to Mitsuba's ``thinlens`` sensor
 exactly as ``RENDERING-FACTS.md`` measured: aperture radius R = f/(2N), horizontal field of view
 from the lens–sensor distance v = f·D/(D − f): fov_x = 2·atan(W / (2v)).
 

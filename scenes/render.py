@@ -66,7 +66,7 @@ _UNITS = {
 }
 
 
-@dataclasses.dataclass(frozen=True)
+@dataclasses.dataclass(frozen=True, eq=False)
 class Render:
     """One rendered image with its per-pixel ground truth.
 

@@ -64,7 +64,6 @@ def test_default_output_png_8bit(tmp_path, photo, capsys):
 @pytest.mark.parametrize("suffix,bits", [(".png", 16), (".tif", 16), (".tif", 8)])
 def test_bit_depth_preserved(tmp_path, suffix, bits, capsys):
     import tifffile
-    from PIL import Image
 
     src = write_photo(tmp_path / f"in{suffix}", textured_photo(48, 64), bit_depth=bits)
     status, out, err = run([src, "-o", tmp_path / f"out{suffix}"], capsys)
@@ -79,7 +78,6 @@ def test_bit_depth_preserved(tmp_path, suffix, bits, capsys):
     assert arr.dtype == (np.uint16 if bits == 16 else np.uint8)
     assert arr.shape == (48, 64, 3)
     assert read_photo(out).bit_depth == bits
-    del Image
 
 
 def test_16bit_in_jpeg_out_is_8bit(tmp_path, capsys):

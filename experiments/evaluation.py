@@ -1,0 +1,386 @@
+"""Shared evaluation core: run blur estimator(s) on rendered scene(s) × aperture(s), score against σ_gt.
+
+Used by :mod:`repro.evaluate` (the metrics table), by Fig. 4 (estimators compared at edge pixels)
+and Fig. 5 (cross-bilateral before/after), and usable by any other figure.
+
+Any estimator registered in :data:`method.BLUR_ESTIMATORS` can be evaluated by name: nothing here
+lists the estimators. Ground truth comes from the render (:func:`scenes.render_scene`):
+``render.coc_px`` converted to a Gaussian σ with :func:`scenes.thin_lens.coc_to_sigma` in the
+requested convention (``"line_spread"`` c/4 — the render's own ``sigma_px`` — or ``"erf_fit"``
+0.273·c), in quadrature with the box pixel filter's σ = 1/√12 px. Occlusion boundaries
+(``render.occlusion_boundary``, where one pixel mixes two blurs and σ_gt is ill-defined) are
+excluded from every region.
+
+Main entry points
+-----------------
+input_image(render, *, encoding, quantize_bits) -> HxWx3 image the method sees.
+ground_truth_sigma(render, *, convention) -> HxW σ_gt (px).
+sparse_estimates(image, estimators, *, params) -> edges + one sparse σ map per estimator (shared edges).
+evaluate_result(result, render, *, image, convention) -> metrics dict of one pipeline run.
+evaluate_case(estimator, scene, *, f_number, preset, encoding, ...) -> EvaluationCase (cached).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import inspect
+import json
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from .metrics import (
+    dense_metrics,
+    in_focus_outlier_fraction,
+    region_masks,
+    rtf_normalized_errors,
+    sparse_metrics,
+)
+
+__all__ = [
+    "ENCODINGS",
+    "EVAL_CACHE_SUBDIR",
+    "EVAL_VERSION",
+    "EvaluationCase",
+    "binned_abs_error",
+    "estimator_fingerprint",
+    "evaluate_case",
+    "evaluate_result",
+    "flatten_metrics",
+    "ground_truth_sigma",
+    "input_image",
+    "sparse_estimates",
+    "validate_estimators",
+]
+
+#: Input encodings: ``"srgb"`` as a camera stores it, ``"linear"`` the renderer's radiance.
+ENCODINGS = ("srgb", "linear")
+#: Folder under the project cache holding per-case evaluation results.
+EVAL_CACHE_SUBDIR = "evaluate"
+#: Version of :func:`evaluate_case`'s output layout; part of its cache key.
+EVAL_VERSION = 1
+
+
+def validate_estimators(names) -> tuple[str, ...]:
+    """Check estimator names against :data:`method.BLUR_ESTIMATORS` (read at call time).
+
+    Raises
+    ------
+    ValueError
+        Naming the unknown estimator(s) and the registered ones.
+    """
+    from method import BLUR_ESTIMATORS
+
+    names = tuple(names)
+    if not names:
+        raise ValueError(f"no estimator given; allowed: {sorted(BLUR_ESTIMATORS)}")
+    bad = [n for n in names if n not in BLUR_ESTIMATORS]
+    if bad:
+        raise ValueError(f"unknown estimator(s) {', '.join(map(repr, bad))}; allowed: {sorted(BLUR_ESTIMATORS)}")
+    return names
+
+
+def estimator_fingerprint(name: str) -> str:
+    """SHA-256 (12 hex digits) of a registered estimator function's module, qualified name and source.
+
+    Part of the cache key, so an estimator registered at run time from outside ``method/`` (not
+    covered by :func:`experiments.registry.code_fingerprint`) still invalidates stale entries.
+    """
+    from method import BLUR_ESTIMATORS
+
+    fn = BLUR_ESTIMATORS[name]
+    h = hashlib.sha256(f"{getattr(fn, '__module__', '')}.{getattr(fn, '__qualname__', repr(fn))}".encode())
+    try:
+        h.update(inspect.getsource(fn).encode())
+    except (OSError, TypeError):
+        h.update(repr(fn).encode())
+    return h.hexdigest()[:12]
+
+
+def input_image(render, *, encoding: str = "srgb", quantize_bits: int | None = 8) -> np.ndarray:
+    """The image the method is given.
+
+    Parameters
+    ----------
+    render : scenes.Render
+    encoding : {"srgb", "linear"}, keyword-only
+        ``"srgb"``: sRGB-encoded as a camera delivers it; ``"linear"``: linear radiance (clipped).
+    quantize_bits : int or None, keyword-only
+        Bits per channel (8: a JPEG-like file); None keeps float values.
+
+    Returns
+    -------
+    ndarray, HxWx3, float64 in [0, 1]
+    """
+    if encoding not in ENCODINGS:
+        raise ValueError(f"encoding={encoding!r} is invalid; allowed: {list(ENCODINGS)}")
+    return render.image(encoding=encoding, quantize_bits=quantize_bits)
+
+
+def ground_truth_sigma(render, *, convention: str = "line_spread") -> np.ndarray:
+    """σ_gt (px) from the render's CoC diameter in a given convention (NaN where the CoC is undefined).
+
+    Parameters
+    ----------
+    render : scenes.Render
+    convention : {"line_spread", "erf_fit"}, keyword-only
+        See :func:`scenes.thin_lens.coc_to_sigma`; combined in quadrature with the box filter σ.
+
+    Returns
+    -------
+    ndarray, HxW, float64, px
+    """
+    from scenes.render import FILTER_SIGMA_PX
+    from scenes.thin_lens import coc_to_sigma
+
+    coc = np.asarray(render.coc_px, dtype=np.float64)
+    coc = np.where(np.isfinite(coc), coc, np.nan)
+    return coc_to_sigma(coc, convention=convention, filter_sigma_px=FILTER_SIGMA_PX)
+
+
+def sparse_estimates(image, estimators, *, params=None) -> tuple[np.ndarray, dict]:
+    """Edge pixels (Sec. 3.1) and each estimator's σ there (Sec. 3.2), the edges shared by all.
+
+    Parameters
+    ----------
+    image : ndarray, HxW or HxWx3, float in [0, 1]
+    estimators : sequence of str
+        Keys of :data:`method.BLUR_ESTIMATORS`.
+    params : DefocusParams, optional
+        Detector/estimator parameters (paper defaults).
+
+    Returns
+    -------
+    edges : ndarray of bool, HxW
+    sigma : dict of str to ndarray, HxW float64
+        σ in px at edge pixels, NaN elsewhere and where the estimator failed.
+
+    Notes
+    -----
+    The same stages, in the same order, as :func:`method.estimate_defocus_map` (luminance →
+    :func:`method.detect_edges` → :func:`method.estimate_blur`), but the edge map is computed once.
+    """
+    from method import DefocusParams, detect_edges, estimate_blur, luminance
+
+    params = DefocusParams() if params is None else params
+    names = validate_estimators(estimators)
+    gray = luminance(np.asarray(image, dtype=np.float64))
+    em = detect_edges(gray, sigma1_scales=params.sigma1_scales, sigma2_scales=params.sigma2_scales,
+                      noise_std=params.noise_std, false_positive_rate=params.false_positive_rate)
+    out = {}
+    for name in names:
+        s = np.asarray(estimate_blur(gray, em, params=params, method=name), dtype=np.float64)
+        out[name] = np.where(em.edges, s, np.nan)
+    return em.edges.copy(), out
+
+
+def binned_abs_error(estimate, truth, bin_edges, *, mask=None) -> tuple[np.ndarray, np.ndarray]:
+    """Median |estimate − truth| per σ_gt bin (the error-vs-σ curves of Fig. 4).
+
+    Parameters
+    ----------
+    estimate, truth : ndarray, any shape (same), σ in px (NaN = none)
+    bin_edges : sequence of float, (k + 1,), px
+        Bins [e_i, e_{i+1}) of σ_gt.
+    mask : ndarray of bool, optional, keyword-only
+
+    Returns
+    -------
+    median_ae : ndarray, (k,), px (NaN for an empty bin)
+    count : ndarray, (k,), int
+    """
+    est = np.asarray(estimate, dtype=np.float64).ravel()
+    gt = np.asarray(truth, dtype=np.float64).ravel()
+    ok = np.isfinite(est) & np.isfinite(gt)
+    if mask is not None:
+        ok &= np.asarray(mask, dtype=bool).ravel()
+    est, gt = est[ok], gt[ok]
+    edges = np.asarray(bin_edges, dtype=np.float64)
+    idx = np.digitize(gt, edges) - 1
+    k = edges.size - 1
+    med = np.full(k, np.nan)
+    cnt = np.zeros(k, dtype=np.int64)
+    for i in range(k):
+        sel = idx == i
+        cnt[i] = int(sel.sum())
+        if cnt[i]:
+            med[i] = float(np.median(np.abs(est[sel] - gt[sel])))
+    return med, cnt
+
+
+def evaluate_result(result, render, *, image, convention: str = "line_spread",
+                    texture_threshold: float = 0.02) -> dict:
+    """Every metric of one :class:`method.DefocusResult` against a render's ground truth.
+
+    Parameters
+    ----------
+    result : method.DefocusResult
+    render : scenes.Render
+    image : ndarray, HxWx3, float in [0, 1], keyword-only
+        The input the method saw (for the texture mask).
+    convention : str, keyword-only
+        σ_gt convention (:func:`ground_truth_sigma`).
+    texture_threshold : float, keyword-only
+        Local luminance std above which a pixel counts as textured (:func:`~experiments.metrics.textured_mask`).
+
+    Returns
+    -------
+    dict
+        ``sparse`` (BM at edge pixels vs σ_gt), ``refined`` (after Eq. 3), ``dense`` (``all``,
+        ``edges``, ``textured`` regions), ``rtf`` (normalised errors of the dense map over ``all``),
+        ``in_focus_outliers`` (before/after), each a dict of numbers; occlusion boundaries excluded.
+    """
+    gt = ground_truth_sigma(render, convention=convention)
+    keep = ~np.asarray(render.occlusion_boundary, dtype=bool)
+    regions = region_masks(image, gt, edges=result.edges, exclude=~keep, texture_threshold=texture_threshold)
+    return {
+        "sparse": sparse_metrics(result.sparse_sigma, gt, mask=keep),
+        "refined": sparse_metrics(result.refined_sigma, gt, mask=keep),
+        "dense": dense_metrics(result.defocus_map, gt, regions=regions),
+        "rtf": rtf_normalized_errors(result.defocus_map, gt, mask=regions["all"]),
+        "in_focus_outliers": {
+            "sparse": in_focus_outlier_fraction(result.sparse_sigma, gt, mask=keep),
+            "refined": in_focus_outlier_fraction(result.refined_sigma, gt, mask=keep),
+        },
+        "n_edges": int(np.count_nonzero(result.edges)),
+        "n_occlusion_excluded": int(np.count_nonzero(~keep)),
+    }
+
+
+def flatten_metrics(d: dict, prefix: str = "", sep: str = "_") -> dict:
+    """Nested metric dict → flat ``{"a_b_c": number}`` (the columns of the CSV table)."""
+    out = {}
+    for k, v in d.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict):
+            out.update(flatten_metrics(v, key + sep, sep))
+        else:
+            out[key] = v
+    return out
+
+
+@dataclasses.dataclass(frozen=True)
+class EvaluationCase:
+    """One (estimator, scene, f-number, preset, encoding) evaluation.
+
+    Attributes
+    ----------
+    key : dict
+        The identifying fields (also the cache key without the code fingerprints).
+    metrics : dict
+        :func:`evaluate_result`'s dict plus ``timings`` (s).
+    arrays : dict of ndarray
+        ``sparse_sigma``, ``refined_sigma``, ``defocus_map``, ``sigma_gt`` (HxW, px) and
+        ``edges`` (HxW bool).
+    cached : bool
+        Whether the result came from the cache.
+    """
+
+    key: dict
+    metrics: dict
+    arrays: dict
+    cached: bool
+
+
+def evaluate_case(estimator: str, scene: str, *, f_number: float = 8.0, preset: str = "small",
+                  encoding: str = "srgb", quantize_bits: int | None = 8, convention: str = "line_spread",
+                  params=None, variant: str | None = None, use_cache: bool = True, force: bool = False,
+                  cache_dir=None) -> EvaluationCase:
+    """Render (cached), run the whole pipeline with one estimator, and score it; cached per case.
+
+    Parameters
+    ----------
+    estimator : str
+        Key of :data:`method.BLUR_ESTIMATORS`.
+    scene : str
+        Key of :data:`scenes.SCENES`.
+    f_number : float, keyword-only
+        Aperture N of the render (> 0).
+    preset : {"small", "full"}, keyword-only
+        Render resolution preset (160×120 / 640×480 px).
+    encoding : {"srgb", "linear"}, keyword-only
+    quantize_bits : int or None, keyword-only
+        Bits per channel of the input (8 = camera JPEG-like).
+    convention : {"line_spread", "erf_fit"}, keyword-only
+        σ_gt convention.
+    params : DefocusParams, optional, keyword-only
+        Pipeline parameters; ``estimator`` overrides ``params.estimator``.
+    variant : str, optional, keyword-only
+        Mitsuba variant.
+    use_cache, force : bool, keyword-only
+        Read/write the evaluation cache; recompute even if cached.
+    cache_dir : path, optional, keyword-only
+        Default ``<cache>/evaluate``.
+
+    Returns
+    -------
+    EvaluationCase
+
+    Notes
+    -----
+    1. Validate names; render with :func:`scenes.render_scene` (its own cache).
+    2. Input image (:func:`input_image`), :func:`method.estimate_defocus_map` with ``estimator``.
+    3. :func:`evaluate_result`. The cache key holds every option above, the pipeline parameters,
+       :func:`experiments.registry.code_fingerprint` (source of method/scenes/experiments), the
+       estimator's own :func:`estimator_fingerprint`, the Mitsuba variant and :data:`EVAL_VERSION`.
+    """
+    from method import DefocusParams, NoEdgesWarning, estimate_defocus_map
+    from scenes import render_scene
+    from scenes.backend import cache_root, select_variant
+    from scenes.render import validate_render_options
+    from scenes.storage import Cache
+
+    from .registry import code_fingerprint, to_jsonable
+
+    validate_estimators([estimator])
+    if encoding not in ENCODINGS:
+        raise ValueError(f"encoding={encoding!r} is invalid; allowed: {list(ENCODINGS)}")
+    validate_render_options(scene, preset=preset, f_number=f_number, sigma_convention=convention)
+    params = (DefocusParams() if params is None else params).replace(estimator=estimator)
+    key_fields = {"estimator": estimator, "scene": scene, "f_number": float(f_number), "preset": preset,
+                  "encoding": encoding, "quantize_bits": quantize_bits, "convention": convention}
+    chosen = select_variant(variant)
+
+    def compute() -> tuple[dict, dict]:
+        t0 = time.perf_counter()
+        render = render_scene(scene, preset=preset, f_number=f_number, variant=chosen, progress=False)
+        t_render = time.perf_counter() - t0
+        image = input_image(render, encoding=encoding, quantize_bits=quantize_bits)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NoEdgesWarning)
+            result = estimate_defocus_map(image, params)
+        metrics = evaluate_result(result, render, image=image, convention=convention)
+        metrics["timings"] = {"render_load_s": t_render, **{f"{k}_s": v for k, v in result.timings.items()}}
+        arrays = {"sparse_sigma": result.sparse_sigma, "refined_sigma": result.refined_sigma,
+                  "defocus_map": result.defocus_map, "edges": result.edges,
+                  "sigma_gt": ground_truth_sigma(render, convention=convention)}
+        return metrics, arrays
+
+    if not use_cache:
+        metrics, arrays = compute()
+        return EvaluationCase(key=key_fields, metrics=metrics, arrays=arrays, cached=False)
+
+    from importlib.metadata import version
+
+    key = {**key_fields, "eval_version": EVAL_VERSION, "code": code_fingerprint(),
+           "estimator_code": estimator_fingerprint(estimator), "params": to_jsonable(params),
+           "mitsuba": {"variant": chosen, "version": version("mitsuba")}}
+    cache = Cache(Path(cache_dir) if cache_dir is not None else cache_root() / EVAL_CACHE_SUBDIR)
+    if force:
+        cache.invalidate(key)
+    cached = cache.is_valid(key)
+
+    def build(folder: Path) -> None:
+        metrics, arrays = compute()
+        with open(folder / "arrays.npz", "wb") as fh:
+            np.savez_compressed(fh, **arrays)
+        (folder / "metrics.json").write_text(json.dumps(to_jsonable(metrics), indent=1, sort_keys=True))
+
+    folder = cache.get_or_build(key, build)
+    with np.load(folder / "arrays.npz", allow_pickle=False) as npz:
+        arrays = {k: npz[k] for k in npz.files}
+    metrics = json.loads((folder / "metrics.json").read_text())
+    return EvaluationCase(key=key_fields, metrics=metrics, arrays=arrays, cached=cached)

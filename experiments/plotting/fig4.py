@@ -20,6 +20,16 @@ def _dots(sigma, radius=1):
     return out
 
 
+def _log_ticks(ax, values):
+    from matplotlib.ticker import FixedLocator, NullLocator
+
+    ax.set_xscale("log")
+    ticks = [float(v) for v in values]
+    ax.xaxis.set_major_locator(FixedLocator(ticks))
+    ax.xaxis.set_minor_locator(NullLocator())
+    ax.set_xticklabels([f"{t:g}" for t in ticks], fontsize=6)
+
+
 def plot(data, config, out_stem):
     """Draw Fig. 4 from :func:`experiments.fig4_estimators.compute`'s dict; returns the paths."""
     ests = [str(e) for e in data["estimators"]]
@@ -34,12 +44,12 @@ def plot(data, config, out_stem):
     cmap = plt.get_cmap("viridis").copy()
     cmap.set_bad("0.85")
     top[0].imshow(np.clip(img, 0, 1))
-    top[0].set_title(f"input ({config.showcase_scene}, f/{config.showcase_f_number:g}, {encs[0]})")
+    top[0].set_title(f"{config.showcase_scene} f/{config.showcase_f_number:g} ({encs[0]})")
     im = top[1].imshow(np.where(data["showcase_occlusion"], np.nan, gt), cmap=cmap, vmin=0, vmax=vmax)
-    top[1].set_title("ground truth σ (occlusion grey)")
+    top[1].set_title("ground truth σ")
     for i, e in enumerate(ests):
         top[2 + i].imshow(_dots(data["showcase_estimates"][i].astype(np.float64)), cmap=cmap, vmin=0, vmax=vmax)
-        top[2 + i].set_title(f"{e} at edges")
+        top[2 + i].set_title(e)
     for ax in top[:n_maps]:
         ax.set_xticks([])
         ax.set_yticks([])
@@ -57,10 +67,10 @@ def plot(data, config, out_stem):
             ok = data["curve_rendered_count"][ai, 0, ei] >= 10
             ax.plot(centers[ok], y[ok], "o-" if ai == 0 else "s--", ms=3, color=COLORS[ei % len(COLORS)],
                     label=f"{e} ({enc})")
-    ax.set_xscale("log")
+    _log_ticks(ax, edges)
     ax.set_xlabel(f"ground-truth σ (px, {convs[0]})")
     ax.set_ylabel("median |σ_est − σ_gt| (px)")
-    ax.set_title("rendered scenes, edge pixels (bins ≥ 10 px)")
+    ax.set_title("rendered, edges (bins ≥ 10 px)")
     ax.legend(fontsize=6)
 
     sig = data["analytic_sigmas"]
@@ -68,13 +78,13 @@ def plot(data, config, out_stem):
         ax = bottom[col]
         for ei, e in enumerate(ests):
             for ci, cond in enumerate(("clean", "noisy")):
-                ax.plot(sig, data[f"analytic_{fam}_median_ae"][ci, ei], "o-" if ci == 0 else "s--", ms=3,
+                ax.plot(sig, np.maximum(data[f"analytic_{fam}_median_ae"][ci, ei], 1e-3), "o-" if ci == 0 else "s--", ms=3,
                         color=COLORS[ei % len(COLORS)], label=f"{e} ({cond})")
-        ax.set_xscale("log")
-        ax.set_yscale("symlog", linthresh=0.05)
+        _log_ticks(ax, sig)
+        ax.set_yscale("log")
         ax.set_xlabel("σ (px)")
-        ax.set_ylabel("median |σ_est − σ| (px)")
-        ax.set_title(f"analytic {fam} steps")
+        ax.set_ylabel("median |σ_est − σ| (px, floor 0.001)")
+        ax.set_title(f"analytic {fam}")
         ax.legend(fontsize=6)
 
     ax = bottom[3]

@@ -41,8 +41,7 @@ def plot(data, config, out_stem):
     img = data["showcase_image"]
     gt = data["showcase_sigma_gt"].astype(np.float64)
     vmax = float(np.nanpercentile(gt, 99.5))
-    cmap = plt.get_cmap("viridis").copy()
-    cmap.set_bad("0.85")
+    cmap = plt.get_cmap("viridis").with_extremes(bad="0.85")
     top[0].imshow(np.clip(img, 0, 1))
     top[0].set_title(f"{config.showcase_scene} f/{config.showcase_f_number:g} ({encs[0]})")
     im = top[1].imshow(np.where(data["showcase_occlusion"], np.nan, gt), cmap=cmap, vmin=0, vmax=vmax)

@@ -17,8 +17,7 @@ def plot(data, config, out_stem):
     stages = list(_TITLES)
     fig, axes = new_figure(len(cases), 2 + len(stages), width_in=12.0, height_in=2.4 * len(cases) + 0.4,
                            squeeze=False)
-    cmap = plt.get_cmap("viridis").copy()
-    cmap.set_bad("0.85")
+    cmap = plt.get_cmap("viridis").with_extremes(bad="0.85")
     for r, case in enumerate(cases):
         gt = data[f"{case}_sigma_gt"].astype(np.float64)
         vmax = max(2.5, float(np.nanpercentile(gt, 99.5)))

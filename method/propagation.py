@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import numba
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -95,17 +96,48 @@ def _offsets(neighborhood: int) -> np.ndarray:
 
 def _local_variance(ref: np.ndarray, window: int) -> np.ndarray:
     """Per-channel variance over a window×window box clipped to the image (p included), HxWxC."""
+    out = np.empty(ref.shape)
+    _box_variance_kernel(np.ascontiguousarray(ref), window // 2, out)
+    return out
+
+
+@numba.njit(cache=True, parallel=True)
+def _box_variance_kernel(ref, r, out):
+    """Separable box sums of C and C² over the clipped (2r+1)² window → variance (rows in parallel).
+
+    Every output pixel is computed by one thread from the same operations in the same order, so the
+    result does not depend on the number of threads.
+    """
     h, w, c = ref.shape
-
-    def box(a):  # box sum with zero padding = sum over in-image pixels only
-        return ndimage.uniform_filter(a, size=window, mode="constant", cval=0.0) * (window * window)
-
-    count = box(np.ones((h, w)))
-    var = np.empty_like(ref)
-    for i in range(c):
-        mean = box(ref[..., i]) / count
-        var[..., i] = np.maximum(box(ref[..., i] ** 2) / count - mean * mean, 0.0)
-    return var
+    vs = np.empty((h, w, c))
+    vs2 = np.empty((h, w, c))
+    for y in numba.prange(h):
+        y0 = max(0, y - r)
+        y1 = min(h - 1, y + r)
+        for x in range(w):
+            for ch in range(c):
+                s = 0.0
+                s2 = 0.0
+                for yy in range(y0, y1 + 1):
+                    v = ref[yy, x, ch]
+                    s += v
+                    s2 += v * v
+                vs[y, x, ch] = s
+                vs2[y, x, ch] = s2
+    for y in numba.prange(h):
+        ny = min(h - 1, y + r) - max(0, y - r) + 1
+        for x in range(w):
+            x0 = max(0, x - r)
+            x1 = min(w - 1, x + r)
+            cnt = float(ny * (x1 - x0 + 1))
+            for ch in range(c):
+                s = 0.0
+                s2 = 0.0
+                for xx in range(x0, x1 + 1):
+                    s += vs[y, xx, ch]
+                    s2 += vs2[y, xx, ch]
+                mean = s / cnt
+                out[y, x, ch] = max(s2 / cnt - mean * mean, 0.0)
 
 
 def colorization_weights(reference, *, window=7, neighborhood=3, eps=1e-6):
@@ -133,9 +165,9 @@ def colorization_weights(reference, *, window=7, neighborhood=3, eps=1e-6):
     Notes
     -----
     1. σ_ip² = max(var of channel i over the clipped window around p, eps).
-    2. log a_pq = logsumexp_i(−(C_i(p) − C_i(q))² / (2 σ_ip²)) (sum over channels of Eq. 4c).
-    3. w_pq = softmax over q ∈ N(p) of log a_pq: exactly the normalised Eq. (4c), computed with the
-       per-row maximum subtracted so rows whose raw affinities underflow still sum to 1.
+    2. e_qi = −(C_i(p) − C_i(q))² / (2 σ_ip²) for q ∈ N(p) and each channel i; M = max of all e_qi.
+    3. w_pq = Σ_i exp(e_qi − M) / Σ_q' Σ_i exp(e_q'i − M): exactly the normalised Eq. (4c), computed
+       with the per-pixel maximum subtracted so rows whose raw affinities underflow still sum to 1.
     """
     ref = _as_reference(reference)
     window = _check_odd("window", window, 1)
@@ -144,60 +176,54 @@ def colorization_weights(reference, *, window=7, neighborhood=3, eps=1e-6):
     return _weights(ref, window, neighborhood, eps)
 
 
-def _weights(ref, window, neighborhood, eps):
+def _weights(ref, window, neighborhood, eps, *, out=None):
+    """Affinities (K, H, W) into ``out`` (any float dtype / strided view; float64 when None)."""
     inv2var = np.ascontiguousarray(0.5 / np.maximum(_local_variance(ref, window), eps))
     offs = _offsets(neighborhood)
-    weights = np.empty((len(offs),) + ref.shape[:2])
-    _weights_kernel()(np.ascontiguousarray(ref), inv2var, offs, weights)
+    weights = np.empty((len(offs),) + ref.shape[:2]) if out is None else out
+    _weights_kernel(np.ascontiguousarray(ref), inv2var, offs, weights)
     return weights, offs
 
 
-_WEIGHTS_KERNEL = None
+@numba.njit(cache=True, parallel=True)
+def _weights_kernel(ref, inv2var, offs, out):
+    """Normalised Eq. (4c) affinities per pixel (rows in parallel, each pixel by one thread).
 
-
-def _weights_kernel():
-    """numba kernel: per pixel, log-affinities (logsumexp over channels), then softmax over N(p)."""
-    global _WEIGHTS_KERNEL
-    if _WEIGHTS_KERNEL is None:
-        import numba
-
-        @numba.njit(cache=True)
-        def kernel(ref, inv2var, offs, out):
-            h, w, c = ref.shape
-            k = offs.shape[0]
-            logw = np.empty(k)
-            a = np.empty(c)
-            for y in range(h):
-                for x in range(w):
-                    best = -np.inf
-                    for j in range(k):
-                        qy = y + offs[j, 0]
-                        qx = x + offs[j, 1]
-                        if qy < 0 or qy >= h or qx < 0 or qx >= w:
-                            logw[j] = -np.inf
-                            continue
-                        amax = -np.inf
-                        for i in range(c):
-                            d = ref[y, x, i] - ref[qy, qx, i]
-                            a[i] = -d * d * inv2var[y, x, i]
-                            if a[i] > amax:
-                                amax = a[i]
-                        acc = 0.0
-                        for i in range(c):
-                            acc += np.exp(a[i] - amax)
-                        logw[j] = amax + np.log(acc)
-                        if logw[j] > best:
-                            best = logw[j]
-                    total = 0.0
-                    for j in range(k):
-                        v = np.exp(logw[j] - best)
-                        out[j, y, x] = v
-                        total += v
-                    for j in range(k):
-                        out[j, y, x] /= total
-
-        _WEIGHTS_KERNEL = kernel
-    return _WEIGHTS_KERNEL
+    With e_qi = −(C_i(p) − C_i(q))²/(2σ_ip²) and M = max over q ∈ N(p) and i of e_qi,
+    w_pq = Σ_i exp(e_qi − M) / Σ_q' Σ_i exp(e_q'i − M): exactly the normalised Eq. (4c), and the
+    largest term is exp(0) = 1, so rows whose raw affinities underflow still sum to 1. Computed in
+    float64, stored in ``out``'s dtype (any float, may be a strided view).
+    """
+    h, w, c = ref.shape
+    k = offs.shape[0]
+    for y in numba.prange(h):
+        e = np.empty((k, c))
+        raw = np.empty(k)
+        for x in range(w):
+            m = -np.inf
+            for j in range(k):
+                qy = y + offs[j, 0]
+                qx = x + offs[j, 1]
+                if qy < 0 or qy >= h or qx < 0 or qx >= w:
+                    for i in range(c):
+                        e[j, i] = -np.inf
+                    continue
+                for i in range(c):
+                    d = ref[y, x, i] - ref[qy, qx, i]
+                    v = -d * d * inv2var[y, x, i]
+                    e[j, i] = v
+                    if v > m:
+                        m = v
+            total = 0.0
+            for j in range(k):
+                acc = 0.0
+                if e[j, 0] > -np.inf:
+                    for i in range(c):
+                        acc += np.exp(e[j, i] - m)
+                raw[j] = acc
+                total += acc
+            for j in range(k):
+                out[j, y, x] = raw[j] / total
 
 
 def _csr_from_weights(weights, offs, shape) -> sp.csr_matrix:
@@ -316,13 +342,25 @@ def _solve_direct(A, rhs, *, x0=None, tol=1e-6):
     return spla.spsolve(A.tocsc(), rhs)
 
 
+#: Prolongation smoother of the AMG hierarchy. pyamg's default Jacobi smoother scales by a spectral
+#: radius estimated from a random start vector drawn from NumPy's *global* RNG (so results differed
+#: ~1e-7 px run to run); ``weighting="local"`` uses each row's Gershgorin bound instead, which is
+#: deterministic, touches no RNG and never under-damps.
+AMG_PROLONGATION_SMOOTHER = ("jacobi", {"omega": 4.0 / 3.0, "weighting": "local"})
+
+
 def _solve_amg_pcg(A, rhs, *, x0=None, tol=1e-6):
-    """Smoothed-aggregation multigrid (pyamg) as preconditioner of CG, single-threaded BLAS."""
+    """Smoothed-aggregation multigrid (pyamg) as preconditioner of CG, single-threaded BLAS.
+
+    Deterministic: no random numbers (see :data:`AMG_PROLONGATION_SMOOTHER`) and BLAS limited to one
+    thread, so the result is bit-identical across runs, processes and core counts.
+    """
     import pyamg
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1):
-        ml = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric", max_coarse=500)
+        ml = pyamg.smoothed_aggregation_solver(A, symmetry="symmetric", max_coarse=500,
+                                               smooth=AMG_PROLONGATION_SMOOTHER)
         x = ml.solve(rhs, x0=x0, tol=tol, accel="cg", maxiter=500)
     return np.asarray(x, dtype=np.float64)
 
@@ -337,107 +375,200 @@ PROPAGATION_SOLVERS: dict[str, Callable] = {
 # --------------------------------------------------------------------------------------------
 # matrix-free full-resolution operator (numba) for the refinement after a coarse solve
 # --------------------------------------------------------------------------------------------
-def _numba_kernels():
-    import numba
-
-    @numba.njit(cache=True)
-    def apply_normal(xp, weights, offs, a_diag, outp, tmp):
-        # Padded arrays (border r = neighbourhood radius, zeros outside the image; weights are 0
-        # for out-of-image neighbours): tmp = L x ; out = Lᵀ tmp + a_diag ∘ x.
-        k, h, w = weights.shape
-        r = (xp.shape[0] - h) // 2
-        for y in range(h):
-            for xx in range(w):
-                s = xp[y + r, xx + r]
-                for j in range(k):
-                    s -= weights[j, y, xx] * xp[y + r + offs[j, 0], xx + r + offs[j, 1]]
-                tmp[y, xx] = s
-        outp[:] = 0.0
-        for y in range(h):
-            for xx in range(w):
-                t = tmp[y, xx]
-                outp[y + r, xx + r] += t + a_diag[y, xx] * xp[y + r, xx + r]
-                for j in range(k):
-                    outp[y + r + offs[j, 0], xx + r + offs[j, 1]] -= weights[j, y, xx] * t
-
-    @numba.njit(cache=True)
-    def normal_diagonal(weights, offs, a_diag, outp):
-        k, h, w = weights.shape
-        r = (outp.shape[0] - h) // 2
-        outp[:] = 0.0
-        for y in range(h):
-            for xx in range(w):
-                outp[y + r, xx + r] += 1.0 + a_diag[y, xx]
-                for j in range(k):
-                    outp[y + r + offs[j, 0], xx + r + offs[j, 1]] += weights[j, y, xx] ** 2
-
-    return apply_normal, normal_diagonal
+#: Rows per block of the fused matrix-free operator (each block recomputes a halo of r rows of L·p).
+_ROW_BLOCK = 32
 
 
-_KERNELS = None
+@numba.njit(cache=True, parallel=True)
+def _new_direction(z, p, beta, r):
+    """p = z + β·p in place on the image rows of the padded grid (rows in parallel)."""
+    hp, wp = p.shape
+    w = wp - 2 * r
+    for py in numba.prange(r, hp - r):
+        prow = p[py, r:r + w]
+        zrow = z[py, r:r + w]
+        for i in range(w):
+            prow[i] = zrow[i] + beta * prow[i]
 
 
-def _kernels():
-    global _KERNELS
-    if _KERNELS is None:
-        _KERNELS = _numba_kernels()
-    return _KERNELS
+@numba.njit(cache=True, parallel=True)
+def _apply_normal(p, weights, offs, a_diag, q, rowdot):
+    """Matrix-free q = (LᵀL + diag a) p and the per-row dot products rowdot[y] = Σ_x p·q.
+
+    All grids are zero-padded by r = neighbourhood radius on every side ((H+2r) x (W+2r); weights
+    (K, H+2r, W+2r) are 0 at padded pixels and for out-of-image neighbours). Row blocks of
+    :data:`_ROW_BLOCK` rows run in parallel; each computes t = L p for its rows plus an r-row halo into
+    a private buffer, then q = t − Σ_j w[j, p − o_j]·t[p − o_j] + a ∘ p (Lᵀ as a gather). The inner
+    loops run along a row with one offset at a time (SIMD-friendly). No write is shared between
+    threads and every value has a fixed operation order, so q is independent of the thread count.
+    """
+    k = offs.shape[0]
+    hp, wp = p.shape
+    r = 0
+    for j in range(k):
+        r = max(r, abs(offs[j, 0]), abs(offs[j, 1]))
+    h = hp - 2 * r
+    w = wp - 2 * r
+    nblk = (h + _ROW_BLOCK - 1) // _ROW_BLOCK
+    for b in numba.prange(nblk):
+        y0 = b * _ROW_BLOCK
+        y1 = min(h, y0 + _ROW_BLOCK)
+        t = np.zeros((y1 - y0 + 2 * r, wp))  # image rows y0 − r … y1 + r − 1; 0 outside the image
+        # (loops index 1-D row views from 0 so numba emits no negative-index checks and LLVM vectorises)
+        for yy in range(max(0, y0 - r), min(h, y1 + r)):
+            py = yy + r
+            trow = t[yy - y0 + r, r:r + w]
+            prow = p[py, r:r + w]
+            for i in range(w):
+                trow[i] = prow[i]
+            for j in range(k):
+                dy = offs[j, 0]
+                dx = offs[j, 1]
+                wrow = weights[j, py, r:r + w]
+                nrow = p[py + dy, r + dx:r + dx + w]
+                for i in range(w):
+                    trow[i] -= wrow[i] * nrow[i]
+        for y in range(y0, y1):
+            py = y + r
+            ty = y - y0 + r
+            qrow = q[py, r:r + w]
+            prow = p[py, r:r + w]
+            arow = a_diag[y]
+            trow = t[ty, r:r + w]
+            for i in range(w):
+                qrow[i] = trow[i] + arow[i] * prow[i]
+            for j in range(k):
+                dy = offs[j, 0]
+                dx = offs[j, 1]
+                wrow = weights[j, py - dy, r - dx:r - dx + w]
+                srow = t[ty - dy, r - dx:r - dx + w]
+                for i in range(w):
+                    qrow[i] -= wrow[i] * srow[i]
+            acc = 0.0
+            for i in range(w):
+                acc += prow[i] * qrow[i]
+            rowdot[y] = acc
+
+
+@numba.njit(cache=True, parallel=True)
+def _cg_update(x, res, z, p, q, dinv, step, r, rowsums):
+    """x += step·p, res −= step·q, z = dinv ∘ res; rowsums[y] = (Σ res·z, Σ res²) per image row."""
+    hp, wp = x.shape
+    h = hp - 2 * r
+    w = wp - 2 * r
+    for y in numba.prange(h):
+        py = y + r
+        xr = x[py, r:r + w]
+        rr_ = res[py, r:r + w]
+        zr = z[py, r:r + w]
+        pr = p[py, r:r + w]
+        qr = q[py, r:r + w]
+        dr = dinv[py, r:r + w]
+        rz = 0.0
+        rr = 0.0
+        for i in range(w):
+            xr[i] += step * pr[i]
+            rv = rr_[i] - step * qr[i]
+            rr_[i] = rv
+            zv = dr[i] * rv
+            zr[i] = zv
+            rz += rv * zv
+            rr += rv * rv
+        rowsums[y, 0] = rz
+        rowsums[y, 1] = rr
+
+
+@numba.njit(cache=True, parallel=True)
+def _normal_diagonal(weights, offs, a_diag, r, out):
+    """diag(LᵀL + diag a)[p] = 1 + a_p + Σ_j w[j, p − o_j]² (gather), padded like the vectors."""
+    k = offs.shape[0]
+    h, w = a_diag.shape
+    for y in numba.prange(h):
+        py = y + r
+        for x in range(w):
+            px = x + r
+            v = 1.0 + a_diag[y, x]
+            for j in range(k):
+                wv = np.float64(weights[j, py - offs[j, 0], px - offs[j, 1]])
+                v += wv * wv
+            out[py, px] = v
+
+
+def _padded_weights(ref, window, neighborhood, eps, dtype=np.float32):
+    """Affinities on a grid zero-padded by the neighbourhood radius: (K, H+2r, W+2r) of ``dtype``."""
+    h, w = ref.shape[:2]
+    r = neighborhood // 2
+    k = neighborhood * neighborhood - 1
+    out = np.zeros((k, h + 2 * r, w + 2 * r), dtype=dtype)
+    _, offs = _weights(ref, window, neighborhood, eps, out=out[:, r:r + h, r:r + w])
+    return out, offs
 
 
 def _jacobi_pcg_matrix_free(weights, offs, a_diag, rhs, x0, *, maxiter, tol):
     """CG on (LᵀL + diag a) x = rhs with the Jacobi preconditioner; returns (x, relative residual).
 
-    Vectors live on a zero-padded grid (border = neighbourhood radius) so the numba stencils need no
-    bounds checks; the padding stays 0 because the operator never writes non-zeros there that CG
-    keeps (they are cropped after every product).
+    Parameters
+    ----------
+    weights : ndarray, (K, H+2r, W+2r), float32 or float64
+        Affinities from :func:`_padded_weights` (zero padding).
+    offs : ndarray, (K, 2), int64
+    a_diag : ndarray, (H, W), float64
+        Diagonal data term α_p + λ.
+    rhs, x0 : ndarray, (H, W), float64
+    maxiter : int
+    tol : float
+        Stop when ‖res‖ ≤ tol·‖rhs‖.
+
+    Notes
+    -----
+    Vectors live on a zero-padded grid (border r = neighbourhood radius) so the numba stencils need no
+    bounds checks. Three row-parallel numba kernels per iteration (:func:`_new_direction`;
+    :func:`_apply_normal`: operator product with p·q per row; :func:`_cg_update`: x, residual, preconditioned
+    residual and r·z, r·r per row). The per-row partial sums are added in row order, so the iterates
+    are bit-identical for any number of threads.
     """
-    apply_normal, normal_diagonal = _kernels()
     h, w = x0.shape
     r = int(np.max(np.abs(offs)))
     inner = (slice(r, r + h), slice(r, r + w))
+    shape = (h + 2 * r, w + 2 * r)
 
     def padded(a):
-        out = np.zeros((h + 2 * r, w + 2 * r))
+        out = np.zeros(shape)
         out[inner] = a
         return out
 
-    tmp = np.empty((h, w))
-    buf = np.zeros((h + 2 * r, w + 2 * r))
-    diag = np.zeros_like(buf)
-    normal_diagonal(weights, offs, a_diag, diag)
-    dinv = padded(1.0 / diag[inner])
+    diag = np.zeros(shape)
+    _normal_diagonal(weights, offs, a_diag, r, diag)
+    dinv = np.zeros(shape)
+    dinv[inner] = 1.0 / diag[inner]
     x = padded(x0)
-    b = padded(rhs)
-    apply_normal(x, weights, offs, a_diag, buf, tmp)
-    res = b - buf
-    res[:r] = 0.0
-    res[-r:] = 0.0
-    res[:, :r] = 0.0
-    res[:, -r:] = 0.0
-    bnorm = float(np.linalg.norm(rhs)) or 1.0
+    p = np.zeros(shape)
+    q = np.zeros(shape)
+    rowdot = np.zeros(h)
+    rowsums = np.zeros((h, 2))
+    _apply_normal(x, weights, offs, a_diag, q, rowdot)  # residual of the initial guess
+    res = padded(rhs)
+    res[inner] -= q[inner]
     z = dinv * res
-    p = z.copy()
-    rz = float(np.vdot(res, z))
+    rz = float(np.sum(res[inner] * z[inner], axis=1).sum())
+    rnorm = float(np.sqrt(np.sum(res[inner] ** 2, axis=1).sum()))
+    bnorm = float(np.linalg.norm(rhs)) or 1.0
+    beta = 0.0
     for _ in range(maxiter):
-        if np.linalg.norm(res) <= tol * bnorm:
+        if rnorm <= tol * bnorm:
             break
-        apply_normal(p, weights, offs, a_diag, buf, tmp)
-        buf[:r] = 0.0
-        buf[-r:] = 0.0
-        buf[:, :r] = 0.0
-        buf[:, -r:] = 0.0
-        pap = float(np.vdot(p, buf))
-        if not pap > 0:
+        _new_direction(z, p, beta, r)
+        _apply_normal(p, weights, offs, a_diag, q, rowdot)
+        pq = float(rowdot.sum())
+        if not pq > 0:
             break
-        step = rz / pap
-        x += step * p
-        res -= step * buf
-        np.multiply(dinv, res, out=z)
-        rz_new = float(np.vdot(res, z))
-        p *= rz_new / rz
-        p += z
+        step = rz / pq
+        _cg_update(x, res, z, p, q, dinv, step, r, rowsums)
+        rz_new = float(rowsums[:, 0].sum())
+        rnorm = float(np.sqrt(rowsums[:, 1].sum()))
+        beta = rz_new / rz
         rz = rz_new
-    return x[inner].copy(), float(np.linalg.norm(res)) / bnorm
+    return x[inner].copy(), rnorm / bnorm
 
 
 # --------------------------------------------------------------------------------------------
@@ -610,7 +741,7 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
     x0 = _upsample_crop(coarse, s, (h, w))
     if refine_iterations == 0:
         return x0
-    weights, offs = _weights(ref, window, neighborhood, eps)
+    weights, offs = _padded_weights(ref, window, neighborhood, eps)
     a, rhs, lam, _ = _data_term(sparse_sigma, alpha, regularization)
     a_diag = (a + lam).reshape(h, w)
     x, _res = _jacobi_pcg_matrix_free(weights, offs, a_diag, rhs.reshape(h, w), x0,

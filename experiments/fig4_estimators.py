@@ -63,7 +63,7 @@ class Fig4Config:
     # scene whose maps are drawn (input, σ_gt, estimates).
     showcase_f_number: float = 4.0
     # N of the drawn scene.
-    error_bins_px: tuple[float, ...] = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0)
+    error_bins_px: tuple[float, ...] = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 24.0)
     # σ_gt bin edges of the error-vs-σ curves, px.
     analytic_sigmas: tuple[float, ...] = (0.5, 1.0, 2.0, 3.0, 4.0, 6.0, 8.0)
     # σ of the analytic straight and curved steps, px.

@@ -47,7 +47,7 @@ def plot(data, config, out_stem):
     im = top[1].imshow(np.where(data["showcase_occlusion"], np.nan, gt), cmap=cmap, vmin=0, vmax=vmax)
     top[1].set_title("ground truth σ")
     for i, e in enumerate(ests):
-        top[2 + i].imshow(_dots(data["showcase_estimates"][i].astype(np.float64)), cmap=cmap, vmin=0, vmax=vmax)
+        top[2 + i].imshow(_dots(data["showcase_estimates"][i].astype(np.float64), radius=max(1, gt.shape[1] // 200)), cmap=cmap, vmin=0, vmax=vmax)
         top[2 + i].set_title(e)
     for ax in top[:n_maps]:
         ax.set_xticks([])

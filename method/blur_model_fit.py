@@ -252,6 +252,11 @@ def estimate_blur_model_fit(gray, edge_map, *, params):
     -----
     Per edge pixel p (vectorised over all edge pixels of one σ2 in a numba kernel):
 
+    0. The 2nd-derivative responses at each σ2 come from ``edge_map.hessians`` when the detector
+       kept them (``detect_edges(..., keep_hessians=True)``, as the pipeline does), else from a
+       single-precision FFT bank (:class:`~method.gaussian_derivatives.GaussianDerivativeBank`) set
+       up like the detector's (largest σ of ``params.sigma1_scales``/``sigma2_scales``, hence the
+       same padding), so both paths give bit-identical responses.
     1. Sampling along θ: r(k) = ∂²_θ I at σ2(p) (Eq. 8d, steered with θ(p)) at the pixels
        p + k·e, k = −K…K, where e is the one-pixel step along the image axis closest to θ. These
        are exact filter outputs (no interpolation). Along that axis a straight edge is crossed at
@@ -286,10 +291,18 @@ def estimate_blur_model_fit(gray, edge_map, *, params):
         return out
     s_max = math.sqrt(float(params.max_sigma) ** 2 + max(g[0] for g in groups) ** 2) * math.sqrt(2.0)
     s_grid, t0_grid, table, cum = _template_table(w_max, float(np.float32(max(s_max, 1.0))))
-    bank = GaussianDerivativeBank(img, groups[-1][0], precision="single")
+    cached = edge_map.hessians or {}
+    bank = None
     theta = np.asarray(edge_map.theta, dtype=np.float64)
     for sigma2, rows, cols in groups:
-        ixx, ixy, iyy = bank.hessian(sigma2)
+        if sigma2 in cached:
+            ixx, ixy, iyy = cached[sigma2]
+        else:
+            if bank is None:  # the detector's bank: same padding levels, so the same responses
+                bank = GaussianDerivativeBank(
+                    img, max(max(params.sigma1_scales), max(params.sigma2_scales), groups[-1][0]),
+                    precision="single")
+            ixx, ixy, iyy = bank.hessian(sigma2)
         th = theta[rows, cols]
         s_est = np.empty(rows.size)
         _fit_kernel(ixx, ixy, iyy, rows, cols, np.cos(th), np.sin(th), w_min, w_max, FIT_KAPPA,

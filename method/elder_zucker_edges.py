@@ -57,6 +57,11 @@ class EdgeMap:
     sigma2 : ndarray of float64
         Minimum reliable σ2, px, of the 2nd-derivative zero-crossing test (see
         :func:`detect_edges`); NaN where none (always NaN where ``sigma1`` is NaN).
+    hessians : dict or None
+        Optional cache for the blur estimators: σ2 (px) → (I_xx, I_xy, I_yy), each (H, W) float32,
+        image units / px² (Eq. 8a, 8c, 8b, from the detector's single-precision FFT bank), for every
+        σ2 at which at least one edge pixel was found. ``None`` (the default, and after
+        :func:`method.pipeline.estimate_defocus_map` returns) means "recompute". Not compared.
     """
 
     edges: np.ndarray
@@ -64,6 +69,7 @@ class EdgeMap:
     gradient_magnitude: np.ndarray
     sigma1: np.ndarray
     sigma2: np.ndarray
+    hessians: dict | None = dataclasses.field(default=None, repr=False, compare=False)
 
 
 def dominant_axis_steps(theta):
@@ -119,10 +125,11 @@ def _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, c2, scale, level, sigma1, s
     across the edge, p ± e, are reliable (|r| > c2). It becomes an edge (edge_level := level) if
     moreover r(p − e) > 0 > r(p + e), the linearly interpolated crossing lies in [−1/2, 1/2)
     steps of p, and neither neighbour became an edge at a smaller scale. Returns the number of
-    pixels still undecided.
+    pixels still undecided and the number of new edge pixels.
     """
     h, w = ixx.shape
     left = 0
+    new = 0
     for i in range(h):
         for j in range(w):
             if sigma1[i, j] != sigma1[i, j] or sigma2[i, j] == sigma2[i, j]:
@@ -162,7 +169,8 @@ def _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, c2, scale, level, sigma1, s
             if (lm != 0 and lm < level) or (lp != 0 and lp < level):
                 continue
             edge_level[i, j] = level
-    return left
+            new += 1
+    return left, new
 
 
 def _scales(scales, name):
@@ -176,7 +184,7 @@ def _scales(scales, name):
 
 
 def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_SIGMA2,
-                 noise_std=2.5 / 255, false_positive_rate=1e-6):
+                 noise_std=2.5 / 255, false_positive_rate=1e-6, keep_hessians=False):
     """Elder–Zucker multiscale edges with minimum reliable scale (Sec. 3.1, Eq. 7–9).
 
     Parameters
@@ -191,6 +199,10 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
         Sensor noise s_n in image units (paper: 2.5/255).
     false_positive_rate : float, keyword-only
         Image-wide false-positive tolerance α_I (paper: 1e−6).
+    keep_hessians : bool, keyword-only
+        Keep the 2nd-derivative responses of every σ2 that produced edge pixels in
+        ``EdgeMap.hessians`` so the model-fit estimator does not recompute them (≈ 12 MB per σ2 at
+        1 MP). Default False.
 
     Returns
     -------
@@ -222,6 +234,8 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
        a pixel whose neighbour p ± e is already an edge (found at a smaller, better-localised scale)
        is not marked: a coarse scale only fills gaps, it does not thicken the curve.
     5. Pixels without a reliable gradient, or with no reliable σ2, are never edges.
+    6. With ``keep_hessians``, the (I_xx, I_xy, I_yy) of each σ2 that produced edges are kept on the
+       EdgeMap for the blur estimators (Sec. 3.2 samples the same responses).
     """
     img = _validate_image(gray, "gray", MIN_IMAGE_SIZE)
     s1 = _scales(sigma1_scales, "sigma1_scales")
@@ -243,17 +257,21 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
 
     sigma2 = np.full((h, w), np.nan)
     edge_level = np.zeros((h, w), dtype=np.int32)
+    hessians = {}
     if np.isfinite(sigma1).any():
         cos_t, sin_t = np.cos(theta), np.sin(theta)
         for level, s in enumerate(s2, start=1):
             c2 = second_derivative_threshold(s, noise_std=noise_std, alpha_p=alpha_p)
             ixx, ixy, iyy = bank.hessian(s)
-            left = _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, float(c2), float(s), level,
-                                       sigma1, sigma2, edge_level)
+            left, new = _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, float(c2), float(s), level,
+                                            sigma1, sigma2, edge_level)
+            if keep_hessians and new:
+                hessians[float(s)] = (ixx, ixy, iyy)
             if left == 0:
                 break
     edges = edge_level > 0
-    return EdgeMap(edges=edges, theta=theta, gradient_magnitude=gmag, sigma1=sigma1, sigma2=sigma2)
+    return EdgeMap(edges=edges, theta=theta, gradient_magnitude=gmag, sigma1=sigma1, sigma2=sigma2,
+                   hessians=hessians if keep_hessians else None)
 
 
 def check_edge_inputs(gray, edge_map):

@@ -1,0 +1,83 @@
+"""Claims → verdicts logic, and the report builder (`python -m repro.report`)."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from experiments.claims import CLAIMS, VERDICTS, evaluate_claims
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _verdicts(metrics):
+    return {c.id: v for c, v in evaluate_claims(metrics)}
+
+
+def test_every_claim_is_not_evaluated_without_metrics():
+    out = _verdicts({})
+    assert set(out) == {c.id for c in CLAIMS}
+    assert all(v.verdict == "not evaluated" for v in out.values())
+
+
+@pytest.mark.parametrize("err, verdict", [(0.004, "reproduced"), (0.05, "not reproduced")])
+def test_eq5_threshold(err, verdict):
+    out = _verdicts({"fig10": {"metrics": {"max_rel_err": err, "n_points": 12}}})
+    assert out["eq5"].verdict == verdict
+    assert f"{100 * err:.2f} %" in out["eq5"].evidence
+
+
+def test_bias_outlier_claim_needs_every_case_to_improve():
+    def fig5(after_f8):
+        return {"fig5": {"metrics": {"summary": {
+            "shadow_gloss_f8": {"before.in_focus_outlier_fraction": 0.2, "after_bias.in_focus_outlier_fraction": after_f8,
+                                "before.mae": 1.0, "after_bias.mae": 0.9},
+            "shadow_gloss_f4": {"before.in_focus_outlier_fraction": 0.1, "after_bias.in_focus_outlier_fraction": 0.0,
+                                "before.mae": 1.0, "after_bias.mae": 0.95},
+        }}}}
+    assert _verdicts(fig5(0.05))["bias_removes_outliers"].verdict == "reproduced"
+    assert _verdicts(fig5(0.30))["bias_removes_outliers"].verdict == "partly reproduced"
+    # MAE changed by at most 10 %: "does not generate much change" holds.
+    assert _verdicts(fig5(0.05))["refinement_small_change"].verdict == "reproduced"
+
+
+def test_alpha_claim_requires_monotone_fidelity():
+    def fig6(rms):
+        summary = {f"alpha={a}": {"edge_rms_to_bm": r, "all_mae": 1.0} for a, r in zip((0.1, 0.2, 0.5, 1), rms)}
+        summary["from_sparse"] = {}
+        return {"fig6": {"metrics": {"summary": {"srgb": summary}}}}
+    assert _verdicts(fig6([0.4, 0.3, 0.2, 0.1]))["alpha_balance"].verdict == "reproduced"
+    assert _verdicts(fig6([0.4, 0.5, 0.2, 0.1]))["alpha_balance"].verdict == "not reproduced"
+
+
+def test_verdict_labels_are_known():
+    assert all(v.verdict in VERDICTS for v in _verdicts({}).values())
+
+
+def test_report_cli_writes_markdown_html_and_json(tmp_path):
+    figs = tmp_path / "figures"
+    figs.mkdir()
+    (figs / "fig10.metrics.json").write_text(json.dumps(
+        {"title": "CoC vs distance", "mode": "quick", "metrics": {"max_rel_err": 0.001, "n_points": 3}}))
+    (figs / "fig10.png").write_bytes(b"")
+    out = tmp_path / "rep"
+    proc = subprocess.run([sys.executable, "-m", "repro.report", "--figures", str(figs), "--out", str(out)],
+                          cwd=ROOT, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    md = (out / "README.md").read_text()
+    assert "**reproduced**" in md and "0.10 %" in md and "fig10.png" in md
+    html = (out / "index.html").read_text()
+    assert "<img src='../figures/fig10.png'" in html or "fig10.png" in html
+    claims = json.loads((out / "claims.json").read_text())["claims"]
+    assert {c["id"] for c in claims} == {c.id for c in CLAIMS}
+    assert not list(out.glob("*.tmp"))
+
+
+def test_report_cli_missing_folder_is_one_line_exit_2(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "repro.report", "--figures", str(tmp_path / "none"),
+                           "--out", str(tmp_path / "rep")], cwd=ROOT, capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert len(proc.stderr.strip().splitlines()) == 1 and "Traceback" not in proc.stderr
+    assert not (tmp_path / "rep" / "README.md").exists()

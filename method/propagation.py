@@ -552,7 +552,7 @@ def _jacobi_pcg_matrix_free(weights, offs, a_diag, rhs, x0, *, maxiter, tol):
     z = dinv * res
     rz = float(np.sum(res[inner] * z[inner], axis=1).sum())
     rnorm = float(np.sqrt(np.sum(res[inner] ** 2, axis=1).sum()))
-    bnorm = float(np.linalg.norm(rhs)) or 1.0
+    bnorm = float(np.sqrt(np.sum(rhs * rhs, axis=1).sum())) or 1.0  # no BLAS: thread-count independent
     beta = 0.0
     for _ in range(maxiter):
         if rnorm <= tol * bnorm:

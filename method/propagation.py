@@ -689,8 +689,15 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
        pixels, so the smoothness energy grows by s² and α is scaled alike to keep their ratio.
        Solve the coarse Eq. (4) exactly, interpolate bilinearly, then run ``refine_iterations``
        iterations of Jacobi-preconditioned CG on the exact full-resolution system (matrix-free,
-       numba), which restores the colour-edge-aligned detail the coarse grid cannot represent.
-       Error against the exact solution is measured in ``tests/test_propagation.py`` and the README.
+       numba, affinities stored in float32: the map moves by < 1e-6 px against float64), which
+       restores the colour-edge-aligned detail the coarse grid cannot represent. Error against the
+       exact solution is measured in ``tests/test_propagation.py`` (smooth synthetic guide) and in
+       ``report/bench/NOTES.md`` (photo: the astronaut at 512² and 1024², where it is 0.08 and
+       0.15 px RMS — the 60 iterations remove little of the coarse grid's low-frequency error).
+    5. Determinism: the AMG setup draws no random numbers (:data:`AMG_PROLONGATION_SMOOTHER`) and
+       runs with single-threaded BLAS; the numba kernels are row-parallel without shared writes and
+       add per-row partial sums in row order. Same inputs give the same bytes in any process and for
+       any thread count; NumPy's global RNG is neither used nor reseeded.
     """
     sparse_sigma, ref = _validate_inputs(sparse_sigma, reference)
     window, neighborhood, eps, alpha, regularization = _validate_options(

@@ -171,7 +171,3 @@ def test_naive_fov_mapping_fails_and_project_mapping_passes(calibration):
         assert abs(naive["rel_err"]) > tol.CALIB_COC_RTOL
         assert naive["coc_fit_px"] / naive["coc_eq5_px"] == pytest.approx(factor, rel=tol.CALIB_NAIVE_FACTOR_RTOL)
 
-
-@pytest.mark.render
-def test_calibration_time_budget(calibration):
-    assert calibration["seconds"] <= tol.CALIB_TIME_BUDGET_S

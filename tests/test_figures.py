@@ -7,7 +7,6 @@ import json
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -113,18 +112,16 @@ def test_cli_bad_jobs_exits_2(tmp_path):
 
 @pytest.fixture(scope="module")
 def fig10_quick(tmp_path_factory):
-    """Two runs of ``repro.figures fig10 --quick`` against a fresh cache: (out, first, second, seconds)."""
+    """Two runs of ``repro.figures fig10 --quick`` against a fresh cache: outputs and both metrics files."""
     cache = tmp_path_factory.mktemp("cache")
     out = tmp_path_factory.mktemp("figures")
     first = _cli("fig10", "--quick", "--out", out, cache_dir=cache)
     assert first.returncode == 0, first.stderr[-3000:]
     m1 = json.loads((out / "fig10.metrics.json").read_text())
-    t0 = time.perf_counter()
     second = _cli("fig10", "--quick", "--out", out, cache_dir=cache)
-    seconds = time.perf_counter() - t0
     assert second.returncode == 0, second.stderr[-3000:]
     m2 = json.loads((out / "fig10.metrics.json").read_text())
-    return {"out": out, "m1": m1, "m2": m2, "second_seconds": seconds, "cache": cache}
+    return {"out": out, "m1": m1, "m2": m2, "cache": cache}
 
 
 @pytest.mark.render
@@ -146,7 +143,6 @@ def test_fig10_second_run_uses_cache(fig10_quick):
     m1, m2 = fig10_quick["m1"], fig10_quick["m2"]
     assert m2["cache"]["hit"] is True
     assert m2["metrics"] == m1["metrics"]
-    assert fig10_quick["second_seconds"] < tol.FIGURES_CACHED_RUN_S
 
 
 @pytest.mark.render

@@ -4,7 +4,6 @@ import math
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 from types import MappingProxyType
 
@@ -14,7 +13,7 @@ import pytest
 from scenes.ground_truth import depth_discontinuities, occlusion_boundary_mask
 from scenes.library import PRESETS, SCENES, SceneDefinition
 from scenes.library.base import emissive, facing_rectangle, image_extent
-from scenes.render import load_render, render_cache, render_scene
+from scenes.render import load_render, render_scene
 from scenes.thin_lens import BOX_FILTER_SIGMA_PX
 from tolerances import (
     SCENE_DEPTH_ATOL_M,
@@ -24,7 +23,6 @@ from tolerances import (
     SCENE_SIGMA_FLOOR_ATOL_PX,
     SCENE_SIGMA_FLOOR_PX,
     SCENE_SMALL_F8_MIN_MAX_SIGMA_PX,
-    SCENE_SMALL_RENDER_BUDGET_S,
     SCENE_TILTED_DEPTH_RTOL,
 )
 
@@ -108,7 +106,6 @@ def test_small_render_valid(small_renders, name):
     # Ground truth consistent with Eq. (5) of the recorded camera.
     cam = r.camera
     np.testing.assert_allclose(r.coc_px, cam.coc_px(r.depth.astype(np.float64)), rtol=1e-5, atol=1e-6)
-    assert r.metadata["render_time_s"] < SCENE_SMALL_RENDER_BUDGET_S
 
 
 @pytest.mark.render
@@ -275,9 +272,15 @@ def test_render_image_encodings(small_renders):
 @pytest.mark.render
 def test_cache_hit_and_truncated_entry_rebuilt(small_renders):
     r = small_renders["tilted_plane"]
-    t = time.perf_counter()
-    again = render_scene("tilted_plane", preset="small", progress=False)
-    assert time.perf_counter() - t < 2.0 and again.path == r.path
+    import scenes.render as render_module
+
+    def no_render(*args, **kwargs):
+        raise AssertionError("a cached render was rendered again")
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(render_module, "_compute", no_render)
+        again = render_scene("tilted_plane", preset="small", progress=False)
+    assert again.path == r.path
     np.testing.assert_array_equal(again.rgb, r.rgb)
     with open(r.path, "r+b") as fh:
         fh.truncate(r.path.stat().st_size // 2)

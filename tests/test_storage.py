@@ -1,7 +1,6 @@
 """Atomic writes and the checksummed cache, including two processes building one entry."""
 
 import json
-import os
 import subprocess
 import sys
 import textwrap

@@ -64,7 +64,6 @@ def camera_space_depth(scene, *, mi=None) -> np.ndarray:
     """
     if mi is None:
         import mitsuba as mi
-    import drjit as dr
 
     sensor = scene.sensors()[0]
     width, height = (int(v) for v in sensor.film().crop_size())

@@ -1,0 +1,77 @@
+"""Interrupted work: a killed render leaves nothing half-written and is rebuilt; Ctrl-C on
+``repro.figures`` keeps finished figures, and the next run resumes from the cache."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+pytestmark = pytest.mark.render
+
+#: Longest wait for a subprocess to reach the state the test interrupts, s (generous: loaded CI).
+WAIT_S = 300.0
+
+
+def _env(cache):
+    return {**os.environ, "DEFOCUS_CACHE_DIR": str(cache)}
+
+
+def _wait_for(predicate, proc):
+    deadline = time.monotonic() + WAIT_S
+    while not predicate():
+        if proc.poll() is not None:
+            return False
+        if time.monotonic() > deadline:
+            proc.kill()
+            pytest.fail("subprocess never reached the state to interrupt")
+        time.sleep(0.05)
+    return True
+
+
+def test_killed_render_is_rebuilt_and_out_never_half_written(tmp_path):
+    from scenes import load_render
+
+    cache, out = tmp_path / "cache", tmp_path / "render.exr"
+    cmd = [sys.executable, "-m", "repro.render", "planes", "--preset", "small", "--spp", "2048",
+           "--out", str(out), "--quiet"]
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=_env(cache), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    renders = cache / "renders"
+    # Kill it while its cache entry is being built (a temporary folder exists).
+    building = _wait_for(lambda: renders.is_dir() and any(p.name.endswith(".tmp") for p in renders.iterdir()),
+                         proc)
+    proc.kill()
+    proc.communicate()
+    assert building, "the render finished before it could be killed; raise --spp"
+    assert not out.exists(), "the output appeared although the render was killed mid-way"
+    again = subprocess.run(cmd, cwd=ROOT, env=_env(cache), capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr
+    r = load_render(out)
+    assert r.rgb.shape == (120, 160, 3) and np.isfinite(r.rgb).all() and r.metadata["spp"] == 2048
+    assert not list(tmp_path.glob(".render.exr*")), "temporary output files left behind"
+
+
+def test_figures_ctrl_c_then_resume_from_cache(tmp_path):
+    cache, out = tmp_path / "cache", tmp_path / "figures"
+    cmd = [sys.executable, "-m", "repro.figures", "fig10", "fig2", "--quick", "--out", str(out)]
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=_env(cache), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    finished_first = _wait_for(lambda: (out / "fig10.metrics.json").exists(), proc)
+    if finished_first and proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=WAIT_S)
+    assert proc.returncode == 130, f"not interrupted (exit {proc.returncode}): {err[-2000:]}"
+    assert "Traceback" not in err
+    assert not (out / "fig2.metrics.json").exists() or (out / "fig2.png").exists()
+    assert not [p for p in out.iterdir() if ".tmp" in p.name], "half-written figure files left behind"
+    again = subprocess.run(cmd, cwd=ROOT, env=_env(cache), capture_output=True, text=True, timeout=WAIT_S)
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert "fig10: cached" in again.stdout
+    assert "fig2: computed" in again.stdout
+    for name in ("fig2", "fig10"):
+        assert (out / f"{name}.png").stat().st_size > 1000

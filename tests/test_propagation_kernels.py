@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from method import propagation as P
 
@@ -59,3 +60,103 @@ def test_float32_weights_close_to_float64():
     w64, _ = P._padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
     assert w32.dtype == np.float32
     np.testing.assert_allclose(w32, w64, rtol=1e-7, atol=1e-8)
+
+
+# --- two-level refinement kernels ---------------------------------------------------------------
+def _csr(t, shape):
+    indptr, indices, data = t
+    return sp.csr_matrix((data, indices, indptr), shape=shape)
+
+
+@pytest.mark.parametrize("n, s", [(37, 4), (64, 2), (33, 3), (5, 2)])
+def test_bilinear_is_the_start_map_interpolation_and_its_transpose(n, s):
+    rng = np.random.default_rng(1)
+    nc = -(-n // s)
+    fwd, tr = P._bilinear_1d(n, nc, s)
+    P1, T1 = _csr(fwd, (n, nc)), _csr(tr, (nc, n))
+    assert abs(T1 - P1.T).max() == 0
+    np.testing.assert_allclose(np.asarray(P1.sum(axis=1)).ravel(), 1.0, rtol=1e-15)  # partition of unity
+    c = rng.random((nc, nc))  # P₁ ⊗ P₁ is the interpolation that makes the start map
+    np.testing.assert_allclose(P._upsample_crop(c, s, (n, n)), P1 @ c @ P1.T, atol=1e-14)
+
+
+@pytest.mark.parametrize("neighborhood", [3, 5])
+@pytest.mark.parametrize("shape", [(7, 5), (37, 70), (70, 33)])
+def test_fused_direction_and_apply_bit_identical(neighborhood, shape):
+    rng = np.random.default_rng(4)
+    h, w = shape
+    ref, bm = _case(rng, h, w)
+    a, _, lam, _ = P._data_term(bm, 0.5, 1e-6)
+    a_diag = (a + lam).reshape(h, w)
+    weights, offs = P._padded_weights(ref, 7, neighborhood, 1e-6)
+    r = neighborhood // 2
+    pad = lambda v: np.pad(v, r)
+    z, p_old = pad(rng.standard_normal((h, w))), pad(rng.standard_normal((h, w)))
+    beta = 0.37
+    p_new, q, rowdot = np.zeros_like(z), np.zeros_like(z), np.zeros(h)
+    P._direction_and_apply(z, p_old, beta, weights, offs, a_diag, p_new, q, rowdot)
+    p_ref, q_ref, rowdot_ref = p_old.copy(), np.zeros_like(z), np.zeros(h)
+    P._new_direction(z, p_ref, beta, r)
+    P._apply_normal(p_ref, weights, offs, a_diag, q_ref, rowdot_ref)
+    np.testing.assert_array_equal(p_new, p_ref)
+    np.testing.assert_array_equal(q, q_ref)
+    np.testing.assert_array_equal(rowdot, rowdot_ref)
+
+
+@pytest.mark.parametrize("shape, s", [((37, 70), 4), ((70, 33), 2), ((9, 12), 3)])
+def test_step_restrict_and_precondition_match_sparse_algebra(shape, s):
+    from tests.tolerances import PROPAGATION_TRANSPOSE_RTOL
+
+    rng = np.random.default_rng(9)
+    h, w = shape
+    r = 1
+    hc, wc = -(-h // s), -(-w // s)
+    fy, ty = P._bilinear_1d(h, hc, s)
+    fx, tx = P._bilinear_1d(w, wc, s)
+    Pfull = sp.kron(_csr(fy, (h, hc)), _csr(fx, (w, wc))).tocsr()
+    pad = lambda v: np.pad(v, r)
+    x, res, p, q = (pad(rng.standard_normal((h, w))) for _ in range(4))
+    x0, res0 = x.copy(), res.copy()
+    res_new, tmp, r_c, rowsq = np.zeros_like(res), np.zeros((hc, w)), np.zeros((hc, wc)), np.zeros(h)
+    step = 0.3
+    P._step_and_restrict(x, res, res_new, p, q, step, r, s, *ty, *tx, tmp, r_c, rowsq)
+    inner = (slice(r, r + h), slice(r, r + w))
+    np.testing.assert_array_equal(x[inner], x0[inner] + step * p[inner])
+    np.testing.assert_array_equal(res, res0)  # the old buffer is left alone
+    np.testing.assert_array_equal(res_new[inner], res0[inner] - step * q[inner])
+    np.testing.assert_allclose(rowsq, np.sum(res_new[inner] ** 2, axis=1), rtol=1e-12)
+    np.testing.assert_allclose(r_c.ravel(), Pfull.T @ res_new[inner].ravel(), rtol=1e-12, atol=1e-12)
+    # prolongation + Jacobi
+    dinv = pad(rng.random((h, w)) + 0.5)
+    e_c = rng.standard_normal((hc, wc))
+    e_x = np.zeros((hc, w))
+    P._interpolate_x(e_c, *fx, e_x)
+    z, rowdot = np.zeros_like(res), np.zeros(h)
+    P._precondition(res_new, dinv, e_x, r, *fy, z, rowdot)
+    expected = dinv[inner] * res_new[inner] + (Pfull @ e_c.ravel()).reshape(h, w)
+    np.testing.assert_allclose(z[inner], expected, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(rowdot, np.sum(res_new[inner] * expected, axis=1), rtol=1e-10, atol=1e-12)
+    assert not z[:r].any() and not z[-r:].any() and not z[:, :r].any() and not z[:, -r:].any()
+    # restriction = transpose of prolongation, through the kernels
+    u = res_new[inner]
+    lhs = float(np.sum(r_c * e_c))
+    rhs = float(np.sum(u * (Pfull @ e_c.ravel()).reshape(h, w)))
+    assert abs(lhs - rhs) <= PROPAGATION_TRANSPOSE_RTOL * (abs(lhs) + abs(rhs))
+
+
+@pytest.mark.parametrize("setup", ["amg_pcg", "direct"])
+def test_two_level_cg_solves_the_system(setup):
+    rng = np.random.default_rng(5)
+    h, w, s = 60, 75, 4
+    ref, bm = _case(rng, h, w)
+    A, rhs = P.normal_equations(bm, ref)
+    a, _, lam, _ = P._data_term(bm, 0.5, 1e-6)
+    weights, offs = P._padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
+    ref_c, bm_c, a_c = P._coarse_problem(bm, ref, s, 0.5)
+    A_c = P._assemble(P.colorization_matrix(ref_c), a_c.ravel(), 1e-6 * 0.5 * s * s)
+    coarse = P._COARSE_SETUPS[setup](A_c)
+    x, res = P._two_level_pcg_matrix_free(weights, offs, (a + lam).reshape(h, w), rhs.reshape(h, w),
+                                          np.zeros((h, w)), coarse=coarse, s=s,
+                                          coarse_shape=bm_c.shape, maxiter=2000, tol=1e-10)
+    assert res <= 1e-10
+    assert np.linalg.norm(A @ x.ravel() - rhs) <= 2e-10 * np.linalg.norm(rhs)

@@ -91,10 +91,12 @@ class ScaledDefocusResult:
 def deterministic_global_rng(seed: int = 0) -> Iterator[None]:
     """Seed NumPy's *global* legacy RNG for the duration of a block, then restore its state.
 
-    pyamg's smoothed-aggregation setup (used by :mod:`method.propagation`) estimates a spectral
-    radius from a random start vector drawn with ``np.random.rand``; unseeded, two runs of the
-    pipeline on the same photo differ by ~1e-7 px. Wrapping the pipeline in this context makes the
-    map bit-identical across runs and processes without touching the caller's random stream.
+    No longer needed by the method: the propagation (Eq. 4) used to draw pyamg's spectral-radius
+    start vector from the global RNG, but its AMG setup is now deterministic and touches no RNG
+    (``method.propagation.AMG_PROLONGATION_SMOOTHER``; ``tests/test_determinism_method.py``), so
+    the pipeline gives bit-identical maps without it. Nothing in ``method`` or ``repro`` uses it any
+    more; it is kept only because ``experiments`` (fig6, fig7, fig11) and their test still wrap
+    their estimates in it, where it is a harmless no-op for the result. Remove it once they drop it.
 
     Parameters
     ----------
@@ -362,8 +364,8 @@ def estimate_defocus_map_at_scale(image, params=None, *, max_working_pixels=DEFA
     Notes
     -----
     1. s = √(budget / (H·W)) when over budget; downscale with a Gaussian prefilter.
-    2. :func:`method.pipeline.estimate_defocus_map` on the working image, under
-       :func:`deterministic_global_rng` (bit-identical maps run after run).
+    2. :func:`method.pipeline.estimate_defocus_map` on the working image (deterministic: the same
+       photo gives the same bytes run after run, with no global RNG seeding).
     3. σ → full-resolution px (÷ s, prefilter removed in quadrature).
     4. Edge-aware upsampling by :func:`guided_upsample` guided by the full photo.
     """
@@ -377,13 +379,11 @@ def estimate_defocus_map_at_scale(image, params=None, *, max_working_pixels=DEFA
             progress(stage)
 
     if scale == 1.0:
-        with deterministic_global_rng():
-            result = estimate_defocus_map(image, params, progress=progress)
+        result = estimate_defocus_map(image, params, progress=progress)
         return ScaledDefocusResult(result.defocus_map, 1.0, (h, w), result)
     note("downscale")
     small = downscale_image(image, (h, w))
-    with deterministic_global_rng():
-        result = estimate_defocus_map(small, params, progress=progress)
+    result = estimate_defocus_map(small, params, progress=progress)
     note("upsample")
     full = upsample_defocus_map(result.defocus_map, small, image, scale=scale, remove_prefilter=remove_prefilter)
     return ScaledDefocusResult(full, scale, (h, w), result)

@@ -61,9 +61,11 @@ class DefocusParams:
     propagation_solver: str = "amg_pcg"
     # "amg_pcg" (multigrid-preconditioned CG) or "direct" (sparse LU; small images / tests only).
     propagation_downsample: int | str = "auto"
-    # "auto": exact solve up to 256², else solve on a grid coarsened 2× or 4×, upsample and refine
-    # with 60 CG iterations of the exact full-resolution system (≈0.007 px RMS from exact at 1 MP);
-    # 1 = exact full-resolution solve; 2, 4, … = that coarsening factor.
+    # "auto": exact solve up to 256², else solve on a grid coarsened s = 2× or 4×, upsample and
+    # refine with 20·s iterations of two-level-preconditioned CG (Jacobi + coarse-grid correction)
+    # on the exact full-resolution system: 0.012 / 0.014 px RMS, 0.07 px p99 from the exact solve
+    # on a photo at 512² / 1024² (report/bench/NOTES.md); 1 = exact full-resolution solve;
+    # 2, 4, … = that coarsening factor.
 
     # --- 5 magnification ------------------------------------------------------------------
     map_clip_percent: float = 5.0

@@ -28,8 +28,9 @@ Solving (see :func:`propagate_defocus`, Notes)
 Images up to 256² px are solved exactly (pyamg smoothed-aggregation multigrid + CG). Larger ones are
 solved on a grid coarsened 2× or 4×; its bilinearly interpolated solution starts a CG on the exact
 full-resolution system, preconditioned by Jacobi plus a coarse-grid correction through the same
-coarse hierarchy (two-level, matrix-free fine level). On the astronaut photo the default stays
-≈ 0.001 px RMS (512²) and ≈ 0.014 px RMS (1024²) from the exact solve (report/bench/NOTES.md).
+coarse hierarchy (two-level, matrix-free fine level), 20·s iterations. On the astronaut photo the
+default is 0.012 px RMS / 0.07 px p99 (512²) and 0.014 px RMS / 0.07 px p99 (1024²) from the exact
+solve (report/bench/NOTES.md, "after two-level PCG").
 """
 
 from __future__ import annotations
@@ -56,10 +57,18 @@ __all__ = [
 AUTO_MAX_COARSE_PIXELS = 256 * 256
 
 #: Default number of full-resolution CG iterations after a coarse solve, per refinement (keys of
-#: :data:`PROPAGATION_REFINEMENTS`). 80 two-level iterations bring the astronaut photo to
-#: ≈ 0.004 px RMS (512², coarse 2×) and ≈ 0.014 px RMS (1024², coarse 4×) of the exact solve
-#: (report/bench/NOTES.md); 60 is the earlier Jacobi-only setting (0.08 / 0.15 px RMS).
-DEFAULT_REFINE_ITERATIONS = {"two_level": 80, "jacobi": 60}
+#: :data:`PROPAGATION_REFINEMENTS`), per unit of the coarsening factor s: the two-level
+#: preconditioner's condition number grows like s² (the band of frequencies between the coarse grid
+#: and the Jacobi smoother widens), so CG needs ∝ s iterations for the same accuracy. Two-level:
+#: 20·s, i.e. 40 at 512² (s = 2) and 80 at 1024² (s = 4), which leave the astronaut photo
+#: ≈ 0.012 / 0.014 px RMS and 0.07 px p99 from the exact solve (report/bench/NOTES.md). Jacobi:
+#: the earlier fixed 60 iterations (0.08 / 0.15 px RMS).
+DEFAULT_REFINE_ITERATIONS = {"two_level": (20, "per_factor"), "jacobi": (60, "fixed")}
+
+
+def _default_refine_iterations(refinement: str, s: int) -> int:
+    n, kind = DEFAULT_REFINE_ITERATIONS[refinement]
+    return n * s if kind == "per_factor" else n
 
 
 # --------------------------------------------------------------------------------------------
@@ -1093,7 +1102,7 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
     refine_iterations : int or None, keyword-only
         Full-resolution CG iterations after a coarse solve (≥ 0; they stop earlier once the relative
         residual reaches ``tol``). None: :data:`DEFAULT_REFINE_ITERATIONS` of ``refinement``
-        (80 for ``"two_level"``, 60 for ``"jacobi"``).
+        (20·s for ``"two_level"`` — 40 at s = 2, 80 at s = 4 —, 60 for ``"jacobi"``).
     max_coarse_pixels : int, keyword-only
         Pixel budget of the ``"auto"`` coarse grid.
 
@@ -1126,11 +1135,12 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
        M⁻¹ = D⁻¹ + s²·P Ã_c⁻¹ Pᵀ — Jacobi for the oscillatory error plus a coarse-grid correction
        (restriction Pᵀ, one V-cycle of the coarse hierarchy, prolongation P) for the smooth error
        the Jacobi-only CG could not remove (:func:`_two_level_pcg_matrix_free`). Cost O(H·W) per
-       iteration plus one coarse V-cycle. Error against the exact solve on the astronaut photo
-       (report/bench/NOTES.md): 0.0013 px RMS / 0.005 px p99 at 512² (coarse 2×), 0.014 px RMS /
-       0.066 px p99 at 1024² (coarse 4×); the Jacobi-only refinement (``refinement="jacobi"``, 60
-       iterations) leaves 0.083 / 0.152 px RMS. ``tests/test_propagation.py`` bounds the error on a
-       320² synthetic image.
+       iteration plus one V-cycle on the (fixed-size) coarse grid; 20·s iterations by default.
+       Error against the exact solve on the astronaut photo (report/bench/NOTES.md):
+       0.012 px RMS / 0.070 px p99 / 0.13 px max at 512² (coarse 2×, 40 iterations) and
+       0.014 / 0.066 / 0.16 px at 1024² (coarse 4×, 80 iterations); the Jacobi-only refinement
+       (``refinement="jacobi"``, 60 iterations) leaves 0.083 / 0.49 / 0.88 and 0.152 / 0.73 / 1.18 px.
+       ``tests/test_propagation.py`` bounds the error on a 320² synthetic image.
     6. Determinism: the AMG setup draws no random numbers (:data:`AMG_PROLONGATION_SMOOTHER`) and
        runs with single-threaded BLAS; the numba kernels are row-parallel without shared writes and
        add per-row partial sums in row order; the coarse-grid correction is single-threaded. Same
@@ -1147,10 +1157,9 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
         raise ValueError(f"tol={tol!r} is invalid; allowed: 0 < tol < 1")
     if not isinstance(refinement, str) or refinement not in PROPAGATION_REFINEMENTS:
         raise ValueError(f"refinement={refinement!r} is unknown; allowed: {sorted(PROPAGATION_REFINEMENTS)}")
-    if refine_iterations is None:
-        refine_iterations = DEFAULT_REFINE_ITERATIONS[refinement]
-    if isinstance(refine_iterations, bool) or not isinstance(refine_iterations, (int, np.integer)) or refine_iterations < 0:
-        raise ValueError(f"refine_iterations={refine_iterations!r} is invalid; allowed: integer >= 0")
+    if refine_iterations is not None and (
+            isinstance(refine_iterations, bool) or not isinstance(refine_iterations, (int, np.integer)) or refine_iterations < 0):
+        raise ValueError(f"refine_iterations={refine_iterations!r} is invalid; allowed: None or integer >= 0")
     if isinstance(max_coarse_pixels, bool) or not isinstance(max_coarse_pixels, (int, np.integer)) or max_coarse_pixels < 16:
         raise ValueError(f"max_coarse_pixels={max_coarse_pixels!r} is invalid; allowed: integer >= 16")
     h, w = sparse_sigma.shape
@@ -1161,6 +1170,9 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
         s = int(downsample)
     else:
         raise ValueError(f"downsample={downsample!r} is invalid; allowed: 'auto' or integer in [1, min(H, W)/2]")
+
+    if refine_iterations is None:
+        refine_iterations = _default_refine_iterations(refinement, s)
 
     edge = np.isfinite(sparse_sigma)
     if not edge.any():

@@ -188,3 +188,6 @@ PROPAGATION_DEFAULT_VS_EXACT_RMS_PX = 5e-4
 PROPAGATION_DEFAULT_VS_EXACT_P99_PX = 2e-3
 #: Restriction is the exact transpose of the bilinear prolongation: |⟨Pᵀu, v⟩ − ⟨u, Pv⟩| relative.
 PROPAGATION_TRANSPOSE_RTOL = 1e-12
+#: Correction to the comment above: the default now runs 20·s two-level iterations (40 at 512²,
+#: 80 at 1024²), which leaves the astronaut 0.0117 px RMS at 512² (0.0013 px was for 80 there) and
+#: 0.0140 px at 1024²; the 320² figures above are unchanged (the CG stops at tol before 40).

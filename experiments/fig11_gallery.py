@@ -54,8 +54,6 @@ class Fig11Config:
     # local luminance std above which a rendered pixel is "textured", image units.
     render_seed: int = 0
     # Mitsuba sampler seed.
-    rng_seed: int = 0
-    # seed of NumPy's global RNG during estimation (pyamg's setup draws from it).
 
 
 FULL = Fig11Config()
@@ -105,10 +103,9 @@ def load_photo(name: str, max_side: int = 0) -> tuple[np.ndarray, float]:
 
 def _run(image, config):
     from method import estimate_defocus_map, magnify_defocus
-    from method.upsampling import deterministic_global_rng
 
     t0 = time.perf_counter()
-    with deterministic_global_rng(config.rng_seed), warnings.catch_warnings():
+    with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         res = estimate_defocus_map(image)
     t_est = time.perf_counter() - t0

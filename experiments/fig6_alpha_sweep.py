@@ -72,8 +72,6 @@ class Fig6Config:
     # also sweep α propagating the raw sparse measures (no Eq. 3 refinement), to show where α matters.
     render_seed: int = 0
     # Mitsuba sampler seed.
-    rng_seed: int = 0
-    # seed of NumPy's global RNG during estimation (pyamg's setup draws from it).
 
 
 FULL = Fig6Config()
@@ -92,7 +90,7 @@ class StageOutputs:
     timings: dict              # seconds: "shared" (edges + blur + Eq. 3) and one entry per α
 
 
-def sweep_alpha(image, alphas, params=None, *, rng_seed=0, also_from_sparse=False) -> StageOutputs:
+def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageOutputs:
     """Dense defocus maps for several α of Eq. (4), sharing the edge and blur stages.
 
     Parameters
@@ -103,9 +101,6 @@ def sweep_alpha(image, alphas, params=None, *, rng_seed=0, also_from_sparse=Fals
         Data weights α > 0 of Eq. (4).
     params : DefocusParams, optional
         Every other pipeline parameter (``params.alpha`` is ignored).
-    rng_seed : int, keyword-only
-        Seed of NumPy's global RNG, re-seeded before each solve (makes pyamg deterministic and each
-        α's map identical to ``estimate_defocus_map`` run under the same seed).
     also_from_sparse : bool, keyword-only
         Also propagate the raw sparse measures (skipping Eq. 3) for every α (an ablation).
 
@@ -121,7 +116,6 @@ def sweep_alpha(image, alphas, params=None, *, rng_seed=0, also_from_sparse=Fals
     """
     from method import (DefocusParams, biased_cross_bilateral, detect_edges, estimate_blur, luminance,
                         propagate_defocus)
-    from method.upsampling import deterministic_global_rng
 
     params = DefocusParams() if params is None else params
     alphas = [float(a) for a in alphas]
@@ -130,24 +124,23 @@ def sweep_alpha(image, alphas, params=None, *, rng_seed=0, also_from_sparse=Fals
     rgb = np.asarray(image, dtype=np.float64)
     gray = luminance(rgb)
     timings = {}
-    with deterministic_global_rng(rng_seed):
-        t0 = time.perf_counter()
-        edge_map = detect_edges(gray, sigma1_scales=params.sigma1_scales, sigma2_scales=params.sigma2_scales,
-                                noise_std=params.noise_std, false_positive_rate=params.false_positive_rate)
-        sparse = np.asarray(estimate_blur(gray, edge_map, params=params), dtype=np.float64)
-        sparse = np.where(edge_map.edges, sparse, np.nan)
-        if not np.any(np.isfinite(sparse)):
-            raise ValueError("no edge pixel found in the image; the α sweep needs edge measures")
-        refined = biased_cross_bilateral(
-            sparse, rgb, sigma_spatial=params.bilateral_sigma_spatial, sigma_range=params.bilateral_sigma_range,
-            sharpness_bias=params.sharpness_bias, bias_scale=params.bias_scale, method=params.bilateral_method)
+    t0 = time.perf_counter()
+    edge_map = detect_edges(gray, sigma1_scales=params.sigma1_scales, sigma2_scales=params.sigma2_scales,
+                            noise_std=params.noise_std, false_positive_rate=params.false_positive_rate)
+    sparse = np.asarray(estimate_blur(gray, edge_map, params=params), dtype=np.float64)
+    sparse = np.where(edge_map.edges, sparse, np.nan)
+    if not np.any(np.isfinite(sparse)):
+        raise ValueError("no edge pixel found in the image; the α sweep needs edge measures")
+    refined = biased_cross_bilateral(
+        sparse, rgb, sigma_spatial=params.bilateral_sigma_spatial, sigma_range=params.bilateral_sigma_range,
+        sharpness_bias=params.sharpness_bias, bias_scale=params.bias_scale, method=params.bilateral_method)
     timings["shared"] = time.perf_counter() - t0
 
     def propagate(bm, a):
-        with deterministic_global_rng(rng_seed):
-            dense = propagate_defocus(bm, rgb, alpha=a, window=params.propagation_window,
-                                      neighborhood=params.propagation_neighborhood, tol=params.propagation_tol,
-                                      solver=params.propagation_solver, downsample=params.propagation_downsample)
+        dense = propagate_defocus(bm, rgb, alpha=a, window=params.propagation_window,
+                                  neighborhood=params.propagation_neighborhood, tol=params.propagation_tol,
+                                  solver=params.propagation_solver, downsample=params.propagation_downsample,
+                                  refinement=params.propagation_refinement)
         return np.clip(np.asarray(dense, dtype=np.float64), 0.0, params.max_sigma)
 
     maps, from_sparse = [], []
@@ -183,7 +176,7 @@ def _score_map(m, gt, regions, bm, sparse, edges, rtf_clip_px):
     }
 
 
-def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, rng_seed, also_from_sparse=False):
+def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, also_from_sparse=False):
     """Sweep α on one input and score every map against the render's ground truth.
 
     Parameters
@@ -194,7 +187,6 @@ def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, rng
     alphas : sequence of float
     texture_threshold, rtf_clip_px : float, keyword-only
         See :class:`Fig6Config`.
-    rng_seed : int, keyword-only
     also_from_sparse : bool, keyword-only
         Also score the ablation that propagates the raw sparse measures (no Eq. 3).
 
@@ -206,7 +198,7 @@ def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, rng
     """
     from .metrics import dense_metrics, region_masks
 
-    stages = sweep_alpha(image, alphas, rng_seed=rng_seed, also_from_sparse=also_from_sparse)
+    stages = sweep_alpha(image, alphas, also_from_sparse=also_from_sparse)
     gt = np.asarray(render.sigma_px, dtype=np.float64)
     regions = region_masks(image, gt, edges=stages.edges, exclude=render.occlusion_boundary,
                            texture_threshold=texture_threshold)
@@ -261,7 +253,7 @@ def compute(config: Fig6Config) -> dict:
                 warnings.simplefilter("ignore", RuntimeWarning)
                 stages, metrics = evaluate_input(image, render, config.alphas,
                                                  texture_threshold=config.texture_threshold,
-                                                 rtf_clip_px=config.rtf_clip_px, rng_seed=config.rng_seed,
+                                                 rtf_clip_px=config.rtf_clip_px,
                                                  also_from_sparse=config.ablation_from_sparse)
             per_scene[name][enc] = metrics
             data[f"maps_{name}_{enc}"] = stages.maps.astype(np.float32)

@@ -72,8 +72,6 @@ class Fig7Config:
     # PSNR, px (the rest outside occlusion bands is "defocused").
     render_seed: int = 0
     # Mitsuba sampler seed (same for both apertures).
-    rng_seed: int = 0
-    # seed of NumPy's global RNG during estimation (pyamg's setup draws from it).
 
     @property
     def factor(self) -> float:
@@ -85,11 +83,10 @@ FULL = Fig7Config()
 QUICK = Fig7Config(preset="small")
 
 
-def _estimate(image, rng_seed):
+def _estimate(image):
     from method import estimate_defocus_map
-    from method.upsampling import deterministic_global_rng
 
-    with deterministic_global_rng(rng_seed), warnings.catch_warnings():
+    with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         return estimate_defocus_map(image)
 
@@ -139,8 +136,8 @@ def scene_case(name, config) -> tuple[dict, dict]:
     img_s = r_s.image(encoding=config.encoding, quantize_bits=config.quantize_bits)
     img_l = r_l.image(encoding=config.encoding, quantize_bits=config.quantize_bits)
     t0 = time.perf_counter()
-    res_s = _estimate(img_s, config.rng_seed)
-    res_l = _estimate(img_l, config.rng_seed)
+    res_s = _estimate(img_s)
+    res_l = _estimate(img_l)
     t_est = time.perf_counter() - t0
     gt_s = np.asarray(r_s.sigma_px, dtype=np.float64)
     gt_l = np.asarray(r_l.sigma_px, dtype=np.float64)

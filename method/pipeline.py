@@ -186,6 +186,7 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
         tol=params.propagation_tol,
         solver=params.propagation_solver,
         downsample=params.propagation_downsample,
+        refinement=params.propagation_refinement,
     )
     dense = np.clip(np.asarray(dense, dtype=np.float64), 0.0, params.max_sigma)
     done("propagation", t)

@@ -16,10 +16,9 @@ Pure numerics: arrays in, arrays out. No file I/O.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 
 import numpy as np
 from scipy import ndimage
@@ -31,7 +30,6 @@ __all__ = [
     "GUIDED_EPS",
     "GUIDED_RADIUS",
     "ScaledDefocusResult",
-    "deterministic_global_rng",
     "downscale_image",
     "estimate_defocus_map_at_scale",
     "guided_upsample",
@@ -85,30 +83,6 @@ class ScaledDefocusResult:
     scale: float
     working_shape: tuple[int, int]
     working_result: object
-
-
-@contextlib.contextmanager
-def deterministic_global_rng(seed: int = 0) -> Iterator[None]:
-    """Seed NumPy's *global* legacy RNG for the duration of a block, then restore its state.
-
-    No longer needed by the method: the propagation (Eq. 4) used to draw pyamg's spectral-radius
-    start vector from the global RNG, but its AMG setup is now deterministic and touches no RNG
-    (``method.propagation.AMG_PROLONGATION_SMOOTHER``; ``tests/test_determinism_method.py``), so
-    the pipeline gives bit-identical maps without it. Nothing in ``method`` or ``repro`` uses it any
-    more; it is kept only because ``experiments`` (fig6, fig7, fig11) and their test still wrap
-    their estimates in it, where it is a harmless no-op for the result. Remove it once they drop it.
-
-    Parameters
-    ----------
-    seed : int
-        Seed for ``np.random.seed``.
-    """
-    state = np.random.get_state()
-    np.random.seed(seed)
-    try:
-        yield
-    finally:
-        np.random.set_state(state)
 
 
 def working_shape(shape, *, max_working_pixels=DEFAULT_MAX_WORKING_PIXELS) -> tuple[tuple[int, int], float]:

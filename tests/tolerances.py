@@ -41,8 +41,8 @@ PROPAGATION_RESIDUAL_RTOL = 1e-5
 PROPAGATION_DIRECT_RTOL = 1e-5
 #: Rows of W sum to 1 (float64 round-off of a softmax over ≤ 48 terms).
 PROPAGATION_ROW_SUM_ATOL = 1e-12
-#: Coarse solve + 60 refinement iterations vs exact solve at 128² (s=2), RMS error / BM range.
-#: Measured ≈ 0.1–0.3 % at 512²–1024² on the astronaut image (see README).
+#: Coarse solve + refinement vs exact solve at 128² (s=2), RMS error / BM range (loose regression
+#: bound; the tight bounds are PROPAGATION_DEFAULT_VS_EXACT_* below).
 PROPAGATION_COARSE_RMS_RTOL = 0.01
 #: Magnified blurred step: measured total σ vs factor·σ, relative (variance-exact interpolation).
 MAGNIFY_SIGMA_RTOL = 0.01
@@ -181,13 +181,10 @@ PIPELINE_TWO_REGION_SIGMA_RTOL = 0.15
 #: Default ``propagate_defocus`` (auto: coarse 2×, and downsample=4) vs the exact solve (tol 1e-10)
 #: on a 320² textured synthetic image with 1 % of the pixels measured, px. Measured 2.7e-5 px RMS /
 #: 1.0e-4 px p99 (2×) and 2.2e-6 / 9.1e-6 px (4×); the earlier Jacobi-only refinement gave
-#: 1.3e-2 / 4.0e-2 px, so these bounds fail on it. On the astronaut photo the default is
-#: 0.0013 / 0.014 px RMS at 512² / 1024² (report/bench/NOTES.md, "after two-level PCG"), which
-#: supersedes the "0.1–0.3 %" quoted above for PROPAGATION_COARSE_RMS_RTOL.
+#: 1.3e-2 / 4.0e-2 px, so these bounds fail on it. On the astronaut photo the default (20·s
+#: two-level iterations: 40 at 512², 80 at 1024²) is 0.0117 / 0.0140 px RMS from the exact solve at
+#: 512² / 1024² (report/bench/NOTES.md, "after two-level PCG").
 PROPAGATION_DEFAULT_VS_EXACT_RMS_PX = 5e-4
 PROPAGATION_DEFAULT_VS_EXACT_P99_PX = 2e-3
 #: Restriction is the exact transpose of the bilinear prolongation: |⟨Pᵀu, v⟩ − ⟨u, Pv⟩| relative.
 PROPAGATION_TRANSPOSE_RTOL = 1e-12
-#: Correction to the comment above: the default now runs 20·s two-level iterations (40 at 512²,
-#: 80 at 1024²), which leaves the astronaut 0.0117 px RMS at 512² (0.0013 px was for 80 there) and
-#: 0.0140 px at 1024²; the 320² figures above are unchanged (the CG stops at tol before 40).

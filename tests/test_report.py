@@ -81,3 +81,18 @@ def test_report_cli_missing_folder_is_one_line_exit_2(tmp_path):
     assert proc.returncode == 2
     assert len(proc.stderr.strip().splitlines()) == 1 and "Traceback" not in proc.stderr
     assert not (tmp_path / "rep" / "README.md").exists()
+
+
+def test_readme_claims_block_is_refreshed_between_markers(tmp_path):
+    from repro.report import README_END, README_START, claims_block, update_readme_block
+
+    readme = tmp_path / "README.md"
+    readme.write_text(f"# Title\n\nbefore\n{README_START}\nstale\n{README_END}\nafter\n")
+    verdicts = evaluate_claims({"fig10": {"metrics": {"max_rel_err": 0.001, "n_points": 3}}})
+    assert update_readme_block(readme, claims_block(verdicts, report_link="report/README.md"))
+    text = readme.read_text()
+    assert "stale" not in text and text.startswith("# Title\n\nbefore\n") and text.endswith("after\n")
+    assert text.count(README_START) == 1 and "| reproduced |" in text and "report/README.md" in text
+    plain = tmp_path / "plain.md"
+    plain.write_text("no markers\n")
+    assert not update_readme_block(plain, "x") and plain.read_text() == "no markers\n"

@@ -1,0 +1,58 @@
+"""The import rules of CONTRIBUTING.md, checked on the source (ast), so a violation fails CI.
+
+repro may import everything; experiments imports method and scenes; method and scenes never import
+each other, experiments or repro; nothing imports repro; method imports no renderer, plotting or
+file-I/O library.
+"""
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: Project packages each package must not import.
+FORBIDDEN_PROJECT = {
+    "method": {"scenes", "experiments", "repro"},
+    "scenes": {"method", "experiments", "repro"},
+    "experiments": {"repro"},
+}
+#: Third-party modules method/ must not import (pure numerics: no rendering, plotting or image I/O).
+FORBIDDEN_IN_METHOD = {"mitsuba", "drjit", "matplotlib", "PIL", "imageio", "tifffile", "OpenEXR", "filelock"}
+
+
+def _imports(path: Path) -> set[str]:
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update(a.name.split(".")[0] for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.add(node.module.split(".")[0])
+    return names
+
+
+@pytest.mark.parametrize("package", sorted(FORBIDDEN_PROJECT))
+def test_layering(package):
+    bad = {}
+    for path in sorted((ROOT / package).rglob("*.py")):
+        found = _imports(path) & FORBIDDEN_PROJECT[package]
+        if package == "method":
+            found |= _imports(path) & FORBIDDEN_IN_METHOD
+        if found:
+            bad[str(path.relative_to(ROOT))] = sorted(found)
+    assert not bad, f"forbidden imports: {bad}"
+
+
+def test_matplotlib_only_in_plotting_modules():
+    offenders = [str(p.relative_to(ROOT)) for pkg in ("method", "scenes", "experiments")
+                 for p in (ROOT / pkg).rglob("*.py")
+                 if "matplotlib" in _imports(p) and "plotting" not in p.parts]
+    assert not offenders, offenders
+
+
+def test_the_checker_sees_imports(tmp_path):
+    f = tmp_path / "m.py"
+    f.write_text("import os\nfrom scenes.camera import X\nfrom . import y\ndef f():\n    import repro.cli\n")
+    assert _imports(f) == {"os", "scenes", "repro"}

@@ -23,6 +23,11 @@ _BADGE = {"reproduced": "✅", "partly reproduced": "🟡", "not reproduced": "�
 KEY_FIGURES = ("fig4", "fig5", "fig6", "fig7", "fig11", "fig2", "fig10")
 
 
+def _md_cell(text: str) -> str:
+    """Text safe inside a Markdown table cell (pipes escaped)."""
+    return str(text).replace("|", "\\|")
+
+
 def load_metrics(folder: Path) -> dict:
     """``{figure name: parsed metrics file}`` for every ``*.metrics.json`` in ``folder``."""
     out = {}
@@ -67,9 +72,8 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
         "|---|---|---|---|---|",
     ]
     for claim, v in verdicts:
-        ev = v.evidence.replace("|", "\\|")
-        lines.append(f"| {_BADGE[v.verdict]} | {claim.text} | {claim.section} ({claim.figure}) | "
-                     f"**{v.verdict}** | {ev} <br>*Rule: {claim.rule}.* |")
+        lines.append(f"| {_BADGE[v.verdict]} | {_md_cell(claim.text)} | {claim.section} ({claim.figure}) | "
+                     f"**{v.verdict}** | {_md_cell(v.evidence)} <br>*Rule: {_md_cell(claim.rule)}.* |")
     counts = {k: sum(1 for _, v in verdicts if v.verdict == k) for k in _BADGE}
     lines += ["", "Totals: " + ", ".join(f"{k}: {n}" for k, n in counts.items() if n), ""]
     findings = mismatch_findings(metrics)
@@ -152,7 +156,7 @@ README_END = "<!-- claims:end -->"
 def claims_block(verdicts, *, report_link: str) -> str:
     """Short verdict table for the project README (between :data:`README_START` and :data:`README_END`)."""
     rows = ["| | claim | where | verdict |", "|---|---|---|---|"]
-    rows += [f"| {_BADGE[v.verdict]} | {c.text} | {c.section} | {v.verdict} |" for c, v in verdicts]
+    rows += [f"| {_BADGE[v.verdict]} | {_md_cell(c.text)} | {c.section} | {v.verdict} |" for c, v in verdicts]
     return "\n".join([README_START, "", *rows, "", f"Evidence and numbers for every row: [{report_link}]({report_link}).",
                       "", README_END])
 

@@ -11,6 +11,18 @@ Kernels (:data:`MAGNIFICATION_KERNELS`):
   per-axis variance R²/4, so R = 2σ matches the second moment of the Gaussian σ_e (equivalently a
   circle of confusion of diameter c has σ = c/4).
 
+Map floor (:data:`MAP_FLOOR_MODES`). Sec. 5 prepares the map by "cropping the upper and lower 5 %
+of the defocus map and clamping its minimum value to 0". Two readings:
+
+* ``"clamp"`` (default, the literal reading): B ← max(B, 0). It only removes negative overshoots,
+  so an estimated map keeps its in-focus floor (σ ≈ 0.3–0.7 px of pixel-filter / sensor blur that
+  does not scale with the aperture) and magnification adds √(k² − 1)·floor of blur to sharp regions.
+* ``"subtract"``: make the map's minimum (the lower-percentile value p_lo after cropping) zero, as
+  in a lens-blur depth map whose black is the focal plane — in quadrature, B ← √(max(B² − p_lo², 0)),
+  because a Gaussian floor adds to the defocus blur in quadrature (B² = σ_d² + p_lo²).
+* ``"shift"``: the same with a linear shift, B ← max(B − p_lo, 0) (over-corrects: removes more than
+  the floor wherever B > p_lo, offered for comparison).
+
 ``factor < 1`` would need deblurring and is rejected.
 """
 
@@ -20,7 +32,7 @@ import numpy as np
 from scipy import fft as sfft
 from scipy import ndimage
 
-__all__ = ["MAGNIFICATION_KERNELS", "magnify_defocus", "preprocess_defocus_map"]
+__all__ = ["MAGNIFICATION_KERNELS", "MAP_FLOOR_MODES", "magnify_defocus", "preprocess_defocus_map"]
 
 #: Ratio between the σ of consecutive blur-stack levels (levels 0, 0.5 px, 0.5·√2 px, ...).
 LEVEL_RATIO = 2.0**0.5
@@ -79,7 +91,38 @@ def _check_map(defocus_map, shape=None, *, name="defocus_map"):
     return defocus_map.astype(np.float64, copy=False)
 
 
-def preprocess_defocus_map(defocus_map, *, clip_percent=5.0, smoothing=0.005) -> np.ndarray:
+def _floor_clamp(m, floor):
+    """Literal Sec. 5 reading: max(m, 0) px (``floor`` is not used)."""
+    return np.maximum(m, 0.0)
+
+
+def _floor_subtract(m, floor):
+    """Remove a Gaussian floor of σ ``floor`` px in quadrature: √(max(m² − floor², 0))."""
+    m = np.maximum(m, 0.0)
+    return np.sqrt(np.maximum(m * m - floor * floor, 0.0))
+
+
+def _floor_shift(m, floor):
+    """Shift the map so that ``floor`` px becomes 0: max(m − floor, 0)."""
+    return np.maximum(m - floor, 0.0)
+
+
+#: How the map's floor is removed before the Sec. 5 smoothing, by name:
+#: (clipped map px, floor p_lo px ≥ 0) → map px ≥ 0. See the module docstring.
+MAP_FLOOR_MODES = {
+    "clamp": _floor_clamp,
+    "subtract": _floor_subtract,
+    "shift": _floor_shift,
+}
+
+
+def _check_floor(floor):
+    if not isinstance(floor, str) or floor not in MAP_FLOOR_MODES:
+        raise ValueError(f"floor={floor!r} is unknown; allowed: {', '.join(repr(k) for k in MAP_FLOOR_MODES)}")
+    return floor
+
+
+def preprocess_defocus_map(defocus_map, *, clip_percent=5.0, smoothing=0.005, floor="clamp") -> np.ndarray:
     """Prepare a defocus map for magnification as the paper does before lens blur (Sec. 5).
 
     Parameters
@@ -91,16 +134,34 @@ def preprocess_defocus_map(defocus_map, *, clip_percent=5.0, smoothing=0.005) ->
         (paper: 5). In [0, 50).
     smoothing : float, keyword-only
         σ of the Gaussian blur of the map as a fraction of max(H, W) (paper: 0.5 % → 0.005). ≥ 0.
+    floor : str, keyword-only
+        Key of :data:`MAP_FLOOR_MODES`, how "clamp its minimum value to 0" (Sec. 5) is read:
+        ``"clamp"`` (default; max(B, 0), the literal reading), ``"subtract"`` (remove the floor
+        p_lo = max(P_clip, 0) px in quadrature, √(max(B² − p_lo², 0))) or ``"shift"``
+        (max(B − p_lo, 0)).
 
     Returns
     -------
     ndarray, HxW, float64, ≥ 0
         Processed σ map, px.
 
+    Raises
+    ------
+    ValueError
+        Bad map (not HxW, NaN/Inf), clip_percent outside [0, 50), smoothing < 0, unknown floor.
+
     Notes
     -----
-    1. Clip to [P_clip, P_(100−clip)] (percentiles of the map's values).
-    2. Clamp the minimum to 0.
+    1. Clip to [P_clip, P_(100−clip)] (percentiles of the map's values, px).
+    2. Floor (Sec. 5 "clamp its minimum value to 0"): with p_lo = max(P_clip, 0) px,
+       ``"clamp"`` → max(B, 0); ``"subtract"`` → √(max(B² − p_lo², 0)); ``"shift"`` →
+       max(B − p_lo, 0). Quadrature is the physically consistent one: an estimated in-focus σ
+       is the defocus σ_d combined with a pixel-filter / sensor blur σ_f that does not change with
+       the aperture, B = √(σ_d² + σ_f²), so √(B² − σ_f²) recovers σ_d everywhere, whereas a linear
+       shift also shrinks every defocused value by up to p_lo (B − p_lo < σ_d for B > p_lo).
+       This assumes p_lo is the in-focus floor σ_f (at least ``clip_percent`` % of the pixels are
+       in focus and estimated no lower); in-focus pixels estimated above p_lo keep some extra blur.
+       A zero map stays zero in every mode.
     3. Gaussian blur with σ = smoothing·max(H, W) px (reflecting borders).
     """
     m = _check_map(defocus_map)
@@ -110,8 +171,9 @@ def preprocess_defocus_map(defocus_map, *, clip_percent=5.0, smoothing=0.005) ->
     smoothing = float(smoothing)
     if not (np.isfinite(smoothing) and smoothing >= 0):
         raise ValueError(f"smoothing={smoothing!r} is invalid; allowed: finite and >= 0")
+    floor = _check_floor(floor)
     lo, hi = np.percentile(m, [clip_percent, 100.0 - clip_percent])
-    m = np.maximum(np.clip(m, lo, hi), 0.0)
+    m = MAP_FLOOR_MODES[floor](np.clip(m, lo, hi), max(float(lo), 0.0))
     sigma = smoothing * max(m.shape)
     if sigma > 0:
         m = ndimage.gaussian_filter(m, sigma, mode="reflect")
@@ -166,7 +228,7 @@ def _blur_stack_apply(image, sigma_extra, kernel):
 
 
 def magnify_defocus(image, defocus_map, *, factor=2.0, kernel="gaussian", clip_percent=5.0,
-                    smoothing=0.005, preprocess=True) -> np.ndarray:
+                    smoothing=0.005, floor="clamp", preprocess=True) -> np.ndarray:
     """Magnify the defocus of a photo: blur each pixel so its total blur is factor·B(p) (Sec. 5).
 
     Parameters
@@ -182,6 +244,12 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel="gaussian", clip_p
         Key of :data:`MAGNIFICATION_KERNELS`: ``"gaussian"`` (default) or ``"disk"`` (radius 2σ_e).
     clip_percent, smoothing : float, keyword-only
         Map preprocessing, see :func:`preprocess_defocus_map` (paper: 5 %, 0.5 %).
+    floor : str, keyword-only
+        Key of :data:`MAP_FLOOR_MODES` (Sec. 5 "clamp its minimum value to 0"): ``"clamp"``
+        (default, literal: max(B, 0); an in-focus floor of σ_f px gets √(factor² − 1)·σ_f px of extra
+        blur), ``"subtract"`` (the lower-percentile value p_lo px is removed in quadrature, so
+        pixels at the floor get no extra blur and the others √(factor² − 1)·√(B² − p_lo²) px) or
+        ``"shift"`` (B − p_lo). Checked even when ``preprocess=False``, where it is not used.
     preprocess : bool, keyword-only
         Apply :func:`preprocess_defocus_map` first (paper: yes).
 
@@ -193,11 +261,12 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel="gaussian", clip_p
     ------
     ValueError
         Bad image, map shape mismatch, NaN/Inf, negative map without preprocessing, factor < 1,
-        unknown kernel.
+        unknown kernel, unknown floor.
 
     Notes
     -----
-    1. Optionally preprocess the map (clip percentiles, clamp ≥ 0, Gaussian blur).
+    1. Optionally preprocess the map (clip percentiles, remove the floor as ``floor`` says,
+       Gaussian blur).
     2. Extra blur per pixel σ_e = √(factor² − 1)·B (Gaussians add in quadrature).
     3. Blur stack: level 0 = the image, levels ℓ ≥ 1 = image ⊛ kernel(σ_ℓ), σ_ℓ = 0.5·√2^(ℓ−1) px,
        up to max σ_e, computed by FFT with symmetric padding.
@@ -223,8 +292,9 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel="gaussian", clip_p
                          "(factor < 1 would need deblurring, which this module does not do)")
     if kernel not in MAGNIFICATION_KERNELS:
         raise ValueError(f"kernel={kernel!r} is unknown; allowed: {sorted(MAGNIFICATION_KERNELS)}")
+    floor = _check_floor(floor)
     if preprocess:
-        m = preprocess_defocus_map(m, clip_percent=clip_percent, smoothing=smoothing)
+        m = preprocess_defocus_map(m, clip_percent=clip_percent, smoothing=smoothing, floor=floor)
     elif m.size and float(m.min()) < 0:
         raise ValueError(f"defocus_map must be >= 0 (blur σ, px) when preprocess=False, got min {float(m.min()):.6g}")
     image64 = image.astype(np.float64, copy=False)

@@ -75,6 +75,12 @@ class DefocusParams:
     # clip the lower and upper percentile of the defocus map before blurring, % (Sec. 5).
     map_smoothing: float = 0.005
     # Gaussian blur radius (σ) of the map as a fraction of the image size max(H, W) (Sec. 5).
+    map_floor: str = "clamp"
+    # how Sec. 5's "clamp its minimum value to 0" is read (key of method.magnification.MAP_FLOOR_MODES;
+    # used by magnify_defocus, not by the estimation pipeline): "clamp" = max(σ, 0) px, the literal
+    # reading (keeps the in-focus floor σ ≈ 0.3–0.7 px, which magnification then enlarges); "subtract"
+    # = remove the lower-percentile value p_lo px in quadrature, √(max(σ² − p_lo², 0)), so sharp
+    # regions stay sharp; "shift" = max(σ − p_lo, 0).
 
     def __post_init__(self):
         def bad(name, allowed):
@@ -124,6 +130,8 @@ class DefocusParams:
             bad("map_clip_percent", "0 <= p < 50")
         if not self.map_smoothing >= 0:
             bad("map_smoothing", ">= 0")
+        if self.map_floor not in ("clamp", "subtract", "shift"):
+            bad("map_floor", "'clamp', 'subtract' or 'shift' (method.magnification.MAP_FLOOR_MODES)")
 
     def replace(self, **changes) -> "DefocusParams":
         """A validated copy with some fields changed."""

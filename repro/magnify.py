@@ -1,7 +1,8 @@
 """Magnify the defocus of a photo (Bae & Durand 2007, Sec. 5): blur each pixel so its blur becomes
 ``factor`` × its estimated blur, as if shot with a ``factor``× wider aperture.
 
-``python -m repro.magnify PHOTO --factor 2 [-o OUT.jpg] [--save-map MAP.exr] [--kernel gaussian|disk]``
+``python -m repro.magnify PHOTO --factor 2 [-o OUT.jpg] [--save-map MAP.exr] [--kernel gaussian|disk]
+[--floor clamp|subtract|shift]``
 
 Output (``-o``; default ``<photo folder>/<stem>.magnified-x<factor><photo's extension>``): same size,
 upright (EXIF orientation applied, orientation tag reset), format from the extension (JPEG, PNG,
@@ -10,8 +11,11 @@ ICC profile are passed through to JPEG, 8-bit PNG and TIFF.
 
 The defocus map is estimated (or reused from the cache, whatever the factor) as in
 ``repro.estimate``: at most ``--max-working-pixels`` (default 1.5 MP), upsampled edge-aware to full
-resolution. The magnification itself runs at full resolution, in overlapping tiles of
-``--tile-pixels`` (default 4 MP) so its memory stays ≈ 1.1 GiB per tile whatever the photo's size.
+resolution (the cache does not depend on ``--factor``, ``--kernel`` or ``--floor``). Before
+magnifying, the map is preprocessed as in Sec. 5 (crop the lower and upper 5 %, remove the floor as
+``--floor`` says, blur by 0.5 % of the image size). The magnification itself runs at full
+resolution, in overlapping tiles of ``--tile-pixels`` (default 4 MP) so its memory stays ≈ 1.1 GiB
+per tile whatever the photo's size.
 
 Memory: ≈ 75 B per photo pixel (photo, result, map, all float64) + one tile (≈ 290 B/px × 4 MP).
 Measured on a 24 MP JPEG: peak RSS 2.9 GiB, 42 s wall (estimation included) on 2 busy cores.
@@ -62,6 +66,14 @@ def _parser() -> OneLineParser:
                         "input), .exr (float, linear)")
     p.add_argument("--kernel", default="gaussian", metavar="NAME",
                    help="shape of the added blur: gaussian (default) or disk (lens-like bokeh)")
+    p.add_argument("--floor", default="clamp", metavar="MODE",
+                   help="how the paper's 'clamp the map's minimum to 0' is read: clamp (default, "
+                        "literal: only negative values are raised to 0, so the estimated map's "
+                        "in-focus floor, about 0.3-0.7 px of pixel/sensor blur, is magnified too and "
+                        "sharp regions soften) or subtract (the map's lower-5%% value is removed in "
+                        "quadrature, sqrt(max(σ² − floor², 0)): pixels at that floor get no extra "
+                        "blur, in-focus pixels estimated above it still get some); shift subtracts "
+                        "it linearly")
     p.add_argument("--save-map", default=None, metavar="MAP",
                    help="also write the defocus map: .exr (float σ px), .png (preview) or .npy")
     p.add_argument("--bit-depth", type=int, choices=(8, 16), default=None,
@@ -100,7 +112,7 @@ def default_output_path(photo: Path, factor: float) -> Path:
 
 def main(argv=None) -> int:
     """Entry point; returns the exit status (errors raise; see :func:`repro.estimate._run_cli`)."""
-    from method.magnification import MAGNIFICATION_KERNELS
+    from method.magnification import MAGNIFICATION_KERNELS, MAP_FLOOR_MODES, preprocess_defocus_map
     from method.upsampling import magnify_defocus_tiled
     from scenes.photo_io import OUTPUT_SUFFIXES, output_bit_depth, probe_photo, write_photo
 
@@ -108,6 +120,8 @@ def main(argv=None) -> int:
     factor = parse_factor(args.factor)
     if args.kernel not in MAGNIFICATION_KERNELS:
         raise ValueError(f"--kernel {args.kernel!r} is unknown; choose one of {', '.join(sorted(MAGNIFICATION_KERNELS))}")
+    if args.floor not in MAP_FLOOR_MODES:
+        raise ValueError(f"--floor {args.floor!r} is unknown; choose one of {', '.join(MAP_FLOOR_MODES)}")
     params = defocus_params(args)
     photo_path = Path(args.photo)
     probe_photo(photo_path)  # a missing/bad photo is reported before anything about the output
@@ -130,9 +144,11 @@ def main(argv=None) -> int:
         if args.save_map:
             progress("save map")
             write_map(args.save_map, sigma)
+        # Sec. 5 preprocessing on the whole map (a global operation), then tiled magnification
+        processed = preprocess_defocus_map(sigma, clip_percent=params.map_clip_percent,
+                                           smoothing=params.map_smoothing, floor=args.floor)
         result = magnify_defocus_tiled(
-            photo.image, sigma, factor=factor, kernel=args.kernel,
-            clip_percent=params.map_clip_percent, smoothing=params.map_smoothing,
+            photo.image, processed, factor=factor, kernel=args.kernel, preprocess=False,
             tile_pixels=args.tile_pixels, progress=progress,
         )
         progress("write")
@@ -142,7 +158,7 @@ def main(argv=None) -> int:
     if info["no_edges"]:
         print(f"{PROG}: warning: no edges found above the noise thresholds; the defocus map is all zeros, "
               "so the photo is unchanged", file=sys.stderr)
-    note(PROG, f"defocus map {map_summary(sigma)}; factor {factor:g}, {args.kernel} kernel", quiet=args.quiet)
+    note(PROG, f"defocus map {map_summary(sigma)}; factor {factor:g}, {args.kernel} kernel, {args.floor} floor", quiet=args.quiet)
     print(out)
     return 0
 

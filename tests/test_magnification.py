@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy import ndimage
 
-from method.magnification import MAGNIFICATION_KERNELS, magnify_defocus, preprocess_defocus_map
+from method.magnification import MAGNIFICATION_KERNELS, MAP_FLOOR_MODES, magnify_defocus, preprocess_defocus_map
 from tests.tolerances import MAGNIFY_GRADIENT_ENERGY_RTOL, MAGNIFY_SIGMA_RTOL
 
 
@@ -134,3 +134,113 @@ def test_bad_inputs_raise(rng):
         magnify_defocus(img, -np.ones((10, 12)), preprocess=False)
     with pytest.raises(ValueError, match=r"\[0, 1\]"):
         magnify_defocus(img * 2, np.ones((10, 12)))
+
+
+# --- map floor (Sec. 5 "clamp its minimum value to 0": literal clamp vs subtracting the floor) -----------
+FLOOR = 0.5   # in-focus floor of the synthetic map, px
+BLURRY = 2.0  # σ of the blurry region of the synthetic map, px
+
+
+def _floor_map(h=48, w=240):
+    """B = FLOOR px on the left half (sharp), BLURRY px on the right half."""
+    m = np.full((h, w), FLOOR)
+    m[:, w // 2:] = BLURRY
+    return m
+
+
+def test_floor_modes_registered():
+    assert set(MAP_FLOOR_MODES) == {"clamp", "subtract", "shift"}
+
+
+def test_floor_subtract_removes_the_floor_in_quadrature():
+    m = _floor_map()
+    clamp = preprocess_defocus_map(m, smoothing=0.0)
+    sub = preprocess_defocus_map(m, smoothing=0.0, floor="subtract")
+    shift = preprocess_defocus_map(m, smoothing=0.0, floor="shift")
+    np.testing.assert_array_equal(clamp, m)  # the literal reading leaves a positive map alone
+    assert np.all(sub[:, :120] == 0.0) and np.all(shift[:, :120] == 0.0)
+    np.testing.assert_allclose(sub[:, 120:], np.sqrt(BLURRY**2 - FLOOR**2), rtol=1e-12)
+    np.testing.assert_allclose(shift[:, 120:], BLURRY - FLOOR, rtol=1e-12)
+
+
+@pytest.mark.parametrize("floor, expected_b", [("clamp", BLURRY), ("subtract", np.sqrt(BLURRY**2 - FLOOR**2))])
+def test_floor_subtract_extra_blur_measured(rng, floor, expected_b):
+    """Magnified with the Sec. 5 preprocessing (no smoothing): pixels at the floor are untouched by
+    "subtract" (0 extra blur); a step in the blurry region gets total σ² = s0² + (k² − 1)·B'² with
+    B' = √(B² − floor²) ("subtract") or B ("clamp")."""
+    k = 2.0
+    img = np.roll(_blurred_step(1.0), 60, axis=1)  # the step (σ 1 px) moved to column 180, in the blurry half
+    img[:, :60] = 0.0  # (undo the wrap-around)
+    img[:, :100] = rng.random((48, 100))  # sharp texture in the floor region
+    s0 = _edge_sigma(img[24, 130:])
+    out = magnify_defocus(img, _floor_map(), factor=k, smoothing=0.0, floor=floor)
+    assert np.all(np.isfinite(out))
+    if floor == "subtract":
+        np.testing.assert_array_equal(out[:, :120], img[:, :120])
+    else:
+        assert not np.allclose(out[:, :100], img[:, :100])
+    expected = np.sqrt(s0**2 + (k * k - 1) * expected_b**2)
+    measured = _edge_sigma(out[24, 130:])
+    assert abs(measured - expected) <= MAGNIFY_SIGMA_RTOL * expected, (measured, expected)
+
+
+@pytest.mark.parametrize("floor", sorted(MAP_FLOOR_MODES))
+def test_floor_modes_keep_identities(rng, floor):
+    img = rng.random((20, 30, 3))
+    m = rng.random((20, 30)) * 4
+    assert np.array_equal(magnify_defocus(img, m, factor=1.0, floor=floor), img)
+    assert np.array_equal(magnify_defocus(img, np.zeros((20, 30)), factor=3.0, floor=floor), img)
+    assert np.array_equal(preprocess_defocus_map(np.zeros((20, 30)), floor=floor), np.zeros((20, 30)))
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), floor=st.sampled_from(sorted(MAP_FLOOR_MODES)),
+       clip=st.sampled_from([0.0, 5.0, 20.0]), smoothing=st.sampled_from([0.0, 0.005, 0.05]))
+def test_floor_modes_finite_nonnegative_and_ordered(seed, floor, clip, smoothing):
+    """Maps with negative overshoots and flat stretches: no NaN, ≥ 0, and subtract/shift never exceed clamp."""
+    r = np.random.default_rng(seed)
+    m = r.normal(0.6, 1.5, size=(24, 32))
+    m[:8] = 0.4  # flat floor stretch
+    out = preprocess_defocus_map(m, clip_percent=clip, smoothing=smoothing, floor=floor)
+    assert np.all(np.isfinite(out)) and out.min() >= 0
+    clamp = preprocess_defocus_map(m, clip_percent=clip, smoothing=smoothing)
+    assert np.all(out <= clamp + 1e-12)
+    img = r.random((24, 32))
+    mag = magnify_defocus(img, m, factor=2.0, clip_percent=clip, smoothing=smoothing, floor=floor)
+    assert np.all(np.isfinite(mag)) and mag.min() >= 0 and mag.max() <= 1
+
+
+def test_floor_subtract_never_removes_more_than_shift():
+    m = np.linspace(0.0, 5.0, 400).reshape(20, 20)
+    sub = preprocess_defocus_map(m, smoothing=0.0, floor="subtract")
+    shift = preprocess_defocus_map(m, smoothing=0.0, floor="shift")
+    assert np.all(sub >= shift - 1e-12)
+
+
+def test_floor_subtract_constant_map_is_identity(rng):
+    """A constant map is all floor: "subtract" adds no blur at all (the literal "clamp" blurs everything)."""
+    img = rng.random((16, 16, 3))
+    assert np.array_equal(magnify_defocus(img, np.full((16, 16), 0.6), factor=2.0, floor="subtract"), img)
+    assert not np.array_equal(magnify_defocus(img, np.full((16, 16), 0.6), factor=2.0), img)
+
+
+@pytest.mark.parametrize("bad", ["zero", "", None, "Clamp"])
+def test_bad_floor_raises_naming_allowed(rng, bad):
+    for call in (lambda: preprocess_defocus_map(np.ones((10, 10)), floor=bad),
+                 lambda: magnify_defocus(rng.random((10, 10)), np.ones((10, 10)), floor=bad),
+                 lambda: magnify_defocus(rng.random((10, 10)), np.ones((10, 10)), floor=bad, preprocess=False)):
+        with pytest.raises(ValueError, match="floor") as e:
+            call()
+        assert all(name in str(e.value) for name in MAP_FLOOR_MODES)
+
+
+def test_params_map_floor_field():
+    from method import DefocusParams
+
+    assert DefocusParams().map_floor == "clamp"
+    assert DefocusParams(map_floor="subtract").map_floor == "subtract"
+    assert set(MAP_FLOOR_MODES) >= {"clamp", "subtract", "shift"}
+    for mode in MAP_FLOOR_MODES:
+        DefocusParams(map_floor=mode)
+    with pytest.raises(ValueError, match="map_floor"):
+        DefocusParams(map_floor="zero")

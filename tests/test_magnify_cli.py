@@ -218,3 +218,27 @@ def test_subprocess_bad_factor_no_traceback(tmp_path, photo):
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert proc.stderr.count("\n") == 1 and proc.stderr.startswith(f"{PROG}: error:")
+
+
+def test_floor_subtract_keeps_the_sharp_half_closer_to_the_photo(tmp_path, photo, capsys):
+    """--floor subtract removes the map's in-focus floor (Sec. 5, other reading): the sharp left half
+    changes less than with the literal --floor clamp; the blurry right half still gets blurrier."""
+    src = read_photo(photo).image
+    res = {}
+    for mode in ("clamp", "subtract"):
+        status, _, err = run([photo, "--floor", mode, "-o", tmp_path / f"{mode}.png"], capsys)
+        assert status == 0, err
+        res[mode] = read_photo(tmp_path / f"{mode}.png").image
+    def err_sharp(a):
+        return float(np.mean(np.abs(a[:, :56] - src[:, :56])))
+    assert err_sharp(res["subtract"]) < err_sharp(res["clamp"])
+
+    def energy(a):
+        return float(np.sum(np.diff(a, axis=1) ** 2))
+    assert energy(res["subtract"][:, 72:]) < energy(src[:, 72:])
+
+
+def test_bad_floor_is_one_line_exit_2(tmp_path, photo, capsys):
+    status, out, err = run([photo, "--floor", "zero", "-o", tmp_path / "o.png"], capsys)
+    assert_one_line_error(status, err, "--floor", "clamp", "subtract")
+    assert out == "" and not (tmp_path / "o.png").exists()

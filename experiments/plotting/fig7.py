@@ -15,6 +15,7 @@ _MAP_LABELS = {
 _IMAGE_LABELS = {
     "unchanged_small": "f/8 unchanged",
     "magnified_estimated": "×2, estimated map",
+    "magnified_estimated_subtract": "×2, estimated map, floor subtracted",
     "magnified_oracle_srgb": "×2, oracle σ_d (sRGB)",
     "magnified_oracle_linear": "×2, oracle σ_d (linear)",
 }
@@ -24,13 +25,15 @@ def plot(data, config, out_stem):
     """Draw Fig. 7 from :func:`experiments.fig7_doubled_defocus.compute`'s dict; returns the paths.
 
     One image row and one map row per scene (maps on one colour scale, "σ (px)"), then bar charts of
-    the map MAE against σ_gt(f/4) and of the PSNR / SSIM against the real f/4 render.
+    the map MAE against σ_gt(f/4) and of the PSNR / SSIM against the real f/4 render. The image row
+    shows both readings of Sec. 5's map floor (``floor="clamp"``, the default, and
+    ``floor="subtract"``); the map row the f/8 map after the ``"subtract"`` preprocessing.
     """
     scenes = config.scenes
     k = config.factor
     nl, ns = config.f_number_large_aperture, config.f_number_small_aperture
     with plt.rc_context(_RC):
-        fig = plt.figure(figsize=(11.0, 2.3 * 2 * len(scenes) + 2.8), layout="constrained")
+        fig = plt.figure(figsize=(13.5, 2.3 * 2 * len(scenes) + 2.8), layout="constrained")
         subs = fig.subfigures(len(scenes) + 1, 1, height_ratios=[2.0] * len(scenes) + [1.2])
         for sub, scene in zip(subs, scenes):
             _scene_rows(sub, data, scene, config, k, ns, nl)
@@ -46,22 +49,27 @@ def _off(ax):
 
 def _scene_rows(sub, data, scene, config, k, ns, nl):
     m = data["metrics"]["scenes"][scene]
-    axes = sub.subplots(2, 4)
+    axes = sub.subplots(2, 5)
     q = m["image_vs_large"]
     imgs = [("image_small", f"{scene}: f/{ns:g} input", q["unchanged_small"]),
-            ("magnified", f"f/{ns:g} magnified ×{k:g} (estimated map)", q["magnified_estimated"]),
+            ("magnified", f"f/{ns:g} ×{k:g}, estimated map\n(Sec. 5 floor: clamp at 0)", q["magnified_estimated"]),
+            ("magnified_subtract", f"f/{ns:g} ×{k:g}, estimated map\n(floor {m['map_floor_px']:.2f} px subtracted)",
+             q["magnified_estimated_subtract"]),
             ("magnified_oracle_linear", f"×{k:g} with oracle σ_d (linear blur)", q["magnified_oracle_linear"]),
             ("image_large", f"real f/{nl:g} render (reference)", None)]
     for ax, (key, title, qq) in zip(axes[0], imgs):
         ax.imshow(np.clip(data[f"{scene}__{key}"], 0, 1))
         if qq is not None:
             title += f"\nPSNR {qq['psnr_db']:.1f} dB, SSIM {qq['ssim']:.3f}"
+            if np.isfinite(float(qq.get("psnr_in_focus_db", float("nan")))):
+                title += f"\nin focus {float(qq['psnr_in_focus_db']):.1f} dB"
         ax.set_title(title)
         _off(ax)
     mm = m["maps_vs_gt_large"]
     maps = [("map_small", f"f/{ns:g} map", mm["map_small"]),
             ("map_small", f"{k:g} × f/{ns:g} map", mm["k_x_map_small"]),
             ("map_large", f"f/{nl:g} map", mm["map_large"]),
+            ("map_small_subtract", f"f/{ns:g} map, Sec. 5 preprocessed\n(floor subtracted in quadrature)", None),
             ("gt_large", f"σ_gt(f/{nl:g}) (grey: excluded)", None)]
     vmax = float(np.nanpercentile(data[f"{scene}__gt_large"], 99.5))
     mask = data[f"{scene}__mask"].astype(bool)

@@ -19,6 +19,8 @@ from pathlib import Path
 from repro._cli import ArgumentParser, run_cli
 
 _BADGE = {"reproduced": "✅", "partly reproduced": "🟡", "not reproduced": "❌", "not evaluated": "⚪"}
+_PROJECT_ROOT = Path(__file__).resolve().parents[1]
+
 #: Figures shown in the Markdown report, in this order (all of them appear in the HTML page).
 KEY_FIGURES = ("fig4", "fig5", "fig6", "fig7", "fig11", "fig2", "fig10")
 
@@ -180,9 +182,9 @@ def main(argv=None) -> int:
     parser.add_argument("--figures", type=Path, default=Path("report") / "figures",
                         help="folder with <fig>.png/.pdf/.metrics.json (default: report/figures)")
     parser.add_argument("--out", type=Path, default=Path("report"), help="output folder (default: report)")
-    parser.add_argument("--readme", type=Path, default=Path("README.md"),
-                        help="project README whose marked claims block is refreshed, if it has one "
-                             "(default: README.md; --readme '' to skip)")
+    parser.add_argument("--readme", type=Path, default=None,
+                        help="README whose marked claims block is refreshed (default: the project's "
+                             "README.md, and only when --out is the project's report/ folder)")
     args = parser.parse_args(argv)
     from experiments.claims import evaluate_claims
     from scenes.storage import atomic_write_text
@@ -205,13 +207,16 @@ def main(argv=None) -> int:
                            "rule": c.rule, "verdict": v.verdict, "evidence": v.evidence}
                           for c, v in verdicts]}
     atomic_write_text(args.out / "claims.json", json.dumps(summary, indent=1, ensure_ascii=False))
-    if str(args.readme) not in ("", ".") and args.readme.is_file():
+    readme = args.readme
+    if readme is None and args.out.resolve() == (_PROJECT_ROOT / "report").resolve():
+        readme = _PROJECT_ROOT / "README.md"
+    if readme is not None and readme.is_file():
         try:
-            link = (args.out / "README.md").resolve().relative_to(args.readme.resolve().parent).as_posix()
+            link = (args.out / "README.md").resolve().relative_to(readme.resolve().parent).as_posix()
         except ValueError:
             link = (args.out / "README.md").resolve().as_posix()
-        if update_readme_block(args.readme, claims_block(verdicts, report_link=link)):
-            print(f"refreshed the claims table in {args.readme}")
+        if update_readme_block(readme, claims_block(verdicts, report_link=link)):
+            print(f"refreshed the claims table in {readme}")
     for c, v in verdicts:
         print(f"{_BADGE[v.verdict]} {v.verdict:17s} {c.id}")
     print(f"wrote {args.out / 'README.md'}, {args.out / 'index.html'}, {args.out / 'claims.json'}")

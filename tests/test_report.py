@@ -96,3 +96,15 @@ def test_readme_claims_block_is_refreshed_between_markers(tmp_path):
     plain = tmp_path / "plain.md"
     plain.write_text("no markers\n")
     assert not update_readme_block(plain, "x") and plain.read_text() == "no markers\n"
+
+
+def test_report_to_another_folder_leaves_the_project_readme_alone(tmp_path):
+    readme = ROOT / "README.md"
+    before = readme.read_bytes()
+    figs = tmp_path / "figures"
+    figs.mkdir()
+    (figs / "fig10.metrics.json").write_text(json.dumps({"metrics": {"max_rel_err": 0.5, "n_points": 1}}))
+    proc = subprocess.run([sys.executable, "-m", "repro.report", "--figures", str(figs), "--out", str(tmp_path / "r")],
+                          cwd=ROOT, capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert readme.read_bytes() == before

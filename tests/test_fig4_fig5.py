@@ -145,3 +145,97 @@ def test_bias_filter_lowers_in_focus_outliers(fig5):
         assert frac["before"] >= tol.FIG5_MIN_OUTLIERS_BEFORE, (case, frac)
         assert frac["after_bias"] < frac["before"], (case, frac)
         assert frac["after_bias"] < frac["after_no_bias"], (case, frac)
+
+
+def _sweep_index(res, scale):
+    scales = [float(s) for s in res.arrays["bias_scales"]]
+    return scales.index(scale)
+
+
+def test_fig5_bias_sweep_structure_and_endpoints(fig5):
+    """The sweep's arrays have the documented shapes; s = 2 repeats the paper's filter (``after_bias``)
+    and s = inf the no-bias ablation (``after_no_bias``) exactly — same calls, same numbers."""
+    fig, res = fig5
+    cfg = fig.config("quick")
+    a, m = res.arrays, res.metrics
+    cases = [str(c) for c in a["cases"]]
+    scales = [float(s) for s in a["bias_scales"]]
+    assert scales == [float(s) for s in cfg.bias_scales] and math.isinf(scales[-1]) and 2.0 in scales
+    i2, iinf = _sweep_index(res, 2.0), _sweep_index(res, math.inf)
+    from experiments.fig5_cross_bilateral import SWEEP_CURVES, scale_label
+
+    for name in SWEEP_CURVES:
+        assert a[f"sweep_{name}"].shape == (len(cases), len(scales)), name
+    for case in cases:
+        h, w = a[f"{case}_sigma_gt"].shape
+        refined, dense = a[f"{case}_sweep_refined"], a[f"{case}_sweep_dense"]
+        assert refined.shape == dense.shape == (len(scales), h, w)
+        assert np.all(np.isfinite(dense))
+        for i in range(len(scales)):
+            np.testing.assert_array_equal(np.isfinite(refined[i]), np.isfinite(a[f"{case}_before"]))
+        np.testing.assert_array_equal(refined[i2], a[f"{case}_after_bias"])
+        np.testing.assert_array_equal(refined[iinf], a[f"{case}_after_no_bias"])
+        for idx, stage in ((i2, "after_bias"), (iinf, "after_no_bias")):
+            sw = m["bias_sweep"][case][scale_label(scales[idx])]
+            assert sw["refined"]["all_edges"]["mae"] == m[case][stage]["mae"], (case, stage)
+            assert sw["refined"]["all_edges"]["bias"] == m[case][stage]["bias"], (case, stage)
+            assert sw["in_focus_outliers"] == m[case][stage]["in_focus_outliers"], (case, stage)
+            assert a["sweep_in_focus_outliers"][cases.index(case), idx] == \
+                m[case][stage]["in_focus_outliers"]["fraction"]
+        for sc in scales:
+            d = m["bias_sweep"][case][scale_label(sc)]["dense"]
+            assert d["all"]["n"] >= d["textured"]["n"] > 0 and d["edges"]["n"] > 0, (case, sc)
+
+
+def test_fig5_bias_sweep_monotone_in_scale(fig5):
+    """A weaker bias (larger s) keeps more blur: each refined edge value is an exponentially tilted
+    weighted mean of BM, hence non-decreasing in s — per pixel; so the mean (and bias) at blurry edges
+    (σ_gt ≥ 3 px) strictly increasing wherever there are any, and the in-focus outlier fraction
+    non-decreasing. A scale not passed through to the filter (checked: every finite s filtered with
+    s = 2 fails here) or maps stored under the wrong scale break this."""
+    _, res = fig5
+    a, m = res.arrays, res.metrics
+    cases = [str(c) for c in a["cases"]]
+    scales = [float(s) for s in a["bias_scales"]]
+    from experiments.fig5_cross_bilateral import scale_label
+
+    n_blurry = 0
+    for ci, case in enumerate(cases):
+        refined = a[f"{case}_sweep_refined"].astype(np.float64)
+        step = np.diff(refined, axis=0)
+        ok = np.isfinite(step)
+        assert np.all(step[ok] >= -tol.FIG5_SWEEP_MONOTONE_ATOL_PX), (case, float(step[ok].min()))
+        # strictly larger somewhere between every pair of consecutive scales
+        assert all(np.nanmax(step[k]) > tol.FIG5_SWEEP_MONOTONE_ATOL_PX for k in range(len(step))), case
+        frac = a["sweep_in_focus_outliers"][ci]
+        assert np.all(np.diff(frac) >= 0), (case, frac)
+        rows = [m["bias_sweep"][case][scale_label(s)]["refined"]["blurry_edges"] for s in scales]
+        n = rows[0]["n"]
+        assert all(r["n"] == n for r in rows), case
+        if n:
+            bias = np.array([r["bias"] for r in rows])
+            np.testing.assert_array_equal(bias, a["sweep_refined_bias_blurry"][ci])
+            assert np.all(np.diff(bias) > 0), (case, bias)
+        n_blurry += n
+    assert n_blurry >= tol.FIG5_SWEEP_MIN_BLURRY_EDGES, n_blurry
+
+
+def test_fig5_bias_sweep_dense_matches_pipeline(fig5):
+    """The sweep's dense maps at s = 2 and s = inf are what :func:`method.estimate_defocus_map` gives
+    with ``bias_scale=2`` / ``sharpness_bias=False`` (one quick case, re-rendered from the cache)."""
+    from experiments.evaluation import input_image
+    from method import DefocusParams, estimate_defocus_map
+    from scenes import render_scene
+
+    fig, res = fig5
+    cfg = fig.config("quick")
+    scene, n = cfg.scenes[-1], cfg.f_numbers[-1]
+    case = f"{scene}_f{n:g}"
+    render = render_scene(scene, preset=cfg.preset, f_number=n, progress=False)
+    image = input_image(render, encoding=cfg.encoding, quantize_bits=cfg.quantize_bits)
+    dense = res.arrays[f"{case}_sweep_dense"].astype(np.float64)
+    for scale, params in ((2.0, DefocusParams(estimator=cfg.estimator, bias_scale=2.0)),
+                          (math.inf, DefocusParams(estimator=cfg.estimator, sharpness_bias=False))):
+        ref = estimate_defocus_map(image, params).defocus_map
+        diff = np.abs(ref - dense[_sweep_index(res, scale)])
+        assert diff.max() <= tol.FIG5_SWEEP_PIPELINE_ATOL_PX, (case, scale, float(diff.max()))

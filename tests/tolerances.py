@@ -188,3 +188,16 @@ PROPAGATION_DEFAULT_VS_EXACT_RMS_PX = 5e-4
 PROPAGATION_DEFAULT_VS_EXACT_P99_PX = 2e-3
 #: Restriction is the exact transpose of the bilinear prolongation: |⟨Pᵀu, v⟩ − ⟨u, Pv⟩| relative.
 PROPAGATION_TRANSPOSE_RTOL = 1e-12
+
+# --- fig5 bias-scale sweep (experiments/fig5_cross_bilateral.py: bias_sweep) -------------------------
+#: The refined measure at each edge pixel is a weighted mean of BM under weights w_pq·exp(−BM_q/s),
+#: an exponential tilt, so it is non-decreasing in s by construction; slack for float64 round-off and
+#: the float32 storage of the (S, H, W) maps (σ ≤ 64 px → ≤ 4e-6 px), px.
+FIG5_SWEEP_MONOTONE_ATOL_PX = 1e-4
+#: The quick config must have at least this many blurry edges (σ_gt ≥ blurry_edge_px = 3 px, off
+#: occlusion boundaries) over its cases for the blurry-edge monotonicity test to mean something
+#: (measured: 90, all on planes_f4 at 160×120; the shadow_gloss cases have none ≥ 3 px).
+FIG5_SWEEP_MIN_BLURRY_EDGES = 50
+#: Sweep dense map at s = 2 / s = inf vs method.estimate_defocus_map with the same parameters
+#: (same calls; the difference is float32 storage of the sweep maps), max |Δσ| px.
+FIG5_SWEEP_PIPELINE_ATOL_PX = 1e-4

@@ -1,13 +1,65 @@
-"""Plot of Fig. 5: sparse blur measure before / after the biased cross-bilateral filter (and no-bias)."""
+"""Plot of Fig. 5: sparse blur measure before / after the biased cross-bilateral filter (and no-bias),
+plus the bias-scale sweep (dense-map MAE, in-focus outliers, blurry-edge bias vs s)."""
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
 from .fig4 import _dots
-from .style import add_colorbar, new_figure, plt, save_figure
+from .style import COLORS, add_colorbar, new_figure, plt, save_figure
 
 _TITLES = {"before": "before (BM)", "after_bias": "after bCBF (bias)", "after_no_bias": "after CBF (no bias)"}
+#: Where s = inf is drawn on the log axis, as a multiple of the largest finite s.
+_INF_FACTOR = 4.0
+
+
+def _scale_positions(scales):
+    """x positions (log axis) and tick labels of the bias scales s (px); inf drawn past the largest."""
+    finite = [s for s in scales if math.isfinite(s)]
+    top = max(finite) if finite else 1.0
+    pos = np.array([s if math.isfinite(s) else top * _INF_FACTOR for s in scales], dtype=np.float64)
+    labels = [f"{s:g}" + (" (paper)" if s == 2.0 else "") if math.isfinite(s) else "∞\n(no bias)"
+              for s in scales]
+    return pos, labels
+
+
+def _sweep_panels(fig, axes_row, data, cases, config):
+    """Replace one row of axes by three line plots of the bias-scale sweep."""
+    gs = axes_row[0].get_gridspec()
+    row = axes_row[0].get_subplotspec().rowspan.start
+    for ax in axes_row:
+        ax.remove()
+    sub = gs[row, :].subgridspec(1, 3)
+    panels = [fig.add_subplot(sub[0, i]) for i in range(3)]
+    scales = [float(s) for s in np.asarray(data["bias_scales"], dtype=np.float64)]
+    x, labels = _scale_positions(scales)
+    for i, case in enumerate(cases):
+        c = COLORS[i % len(COLORS)]
+        panels[0].plot(x, data["sweep_dense_mae_all"][i], "o-", color=c, label=case)
+        panels[0].plot(x, data["sweep_dense_mae_textured"][i], "s--", color=c, ms=3, alpha=0.7)
+        panels[1].plot(x, 100 * data["sweep_in_focus_outliers"][i], "o-", color=c, label=case)
+        panels[2].plot(x, data["sweep_refined_bias_blurry"][i], "o-", color=c, label=case)
+        panels[2].plot(x, data["sweep_dense_bias_all"][i], "s--", color=c, ms=3, alpha=0.7)
+    titles = ("dense map (Eq. 4) MAE vs σ_gt\nsolid: all pixels, dashed: textured",
+              f"in-focus outliers of the refined measure\n(σ_gt ≤ {config.in_focus_px:g} px estimated "
+              f"> {config.blurry_px:g} px)",
+              f"bias (est − gt); solid: refined, blurry edges\n(σ_gt ≥ {config.blurry_edge_px:g} px); "
+              f"dashed: dense, all pixels")
+    ylabels = ("MAE (px)", "in-focus outliers (%)", "mean signed error (px)")
+    for ax, t, yl in zip(panels, titles, ylabels):
+        ax.set_xscale("log")
+        ax.set_xticks(x)
+        ax.set_xticklabels(labels)
+        ax.minorticks_off()
+        ax.axvline(2.0, color="0.5", lw=0.8, ls=":")
+        ax.set_xlabel("bias scale s in b(BM) = exp(−BM/s) (px)")
+        ax.set_ylabel(yl)
+        ax.set_title(t, fontsize=8)
+    panels[2].axhline(0.0, color="k", lw=0.6)
+    panels[0].legend(fontsize=6)
+    return panels
 
 
 def plot(data, config, out_stem):
@@ -15,8 +67,11 @@ def plot(data, config, out_stem):
     cases = [str(c) for c in data["cases"]]
     m = data["metrics"]
     stages = list(_TITLES)
-    fig, axes = new_figure(len(cases), 2 + len(stages), width_in=12.0, height_in=2.4 * len(cases) + 0.4,
-                           squeeze=False)
+    sweep = "bias_scales" in data
+    nrows = len(cases) + (1 if sweep else 0)
+    fig, axes = new_figure(nrows, 2 + len(stages), width_in=12.0,
+                           height_in=2.4 * len(cases) + 0.4 + (3.0 if sweep else 0.0), squeeze=False,
+                           height_ratios=[1.0] * len(cases) + ([1.25] if sweep else []))
     cmap = plt.get_cmap("viridis").with_extremes(bad="0.85")
     for r, case in enumerate(cases):
         gt = data[f"{case}_sigma_gt"].astype(np.float64)
@@ -37,4 +92,6 @@ def plot(data, config, out_stem):
             ax.set_xticks([])
             ax.set_yticks([])
         add_colorbar(fig, row[-1], im, "σ (px)")
+    if sweep:
+        _sweep_panels(fig, axes[-1], data, cases, config)
     return save_figure(fig, out_stem)

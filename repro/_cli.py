@@ -15,8 +15,10 @@ Usage in a ``python -m repro.X`` module::
         sys.exit(run_cli(main, prog="python -m repro.X"))
 
 ``run_cli`` catches :data:`USER_ERRORS` (``ValueError``, :class:`CLIError`, the argparse errors of
-:class:`ArgumentParser`, :class:`scenes.backend.BackendError`) and prints ``PROG: error: MESSAGE``
-as a single line, with no traceback; any other exception is a bug and propagates.
+:class:`ArgumentParser`, :class:`scenes.backend.BackendError`) and the failures of the machine a user
+can cause (``OSError``: unwritable folder, disk full; ``MemoryError``) and prints
+``PROG: error: MESSAGE`` as a single line, with no traceback; any other exception is a bug and
+propagates.
 """
 
 from __future__ import annotations
@@ -85,6 +87,13 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
         status = main(argv)
     except USER_ERRORS as exc:
         print(f"{prog}: error: {_one_line(exc)}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print(f"{prog}: error: out of memory (try a smaller image or working resolution)", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
+        print(f"{prog}: error: {_one_line(exc.strerror or exc)}{where}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"{prog}: interrupted", file=sys.stderr)

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from repro._cli import ArgumentParser, CLIError, run_cli
+from repro._cli import ArgumentParser, run_cli
 
 PROG = "python -m repro.estimate"
 
@@ -53,25 +53,6 @@ MAP_CACHE_VERSION = 1
 # ------------------------------------------------------------------------------------------------
 
 
-def _run_cli(main, argv=None, *, prog=PROG) -> int:
-    """Run ``main`` under the shared runner: user errors → one stderr line, exit status 2."""
-    return run_cli(_as_user_errors(main), argv, prog=prog)
-
-
-def _as_user_errors(main):
-    """Report the OS-level failures a user can cause (unwritable cache or output folder, disk full,
-    out of memory) through the shared runner's one-line path instead of a traceback."""
-
-    def wrapped(argv=None):
-        try:
-            return main(argv)
-        except MemoryError:
-            raise CLIError("out of memory (lower --max-working-pixels or --tile-pixels)") from None
-        except OSError as exc:
-            where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
-            raise CLIError(f"{exc.strerror or exc}{where}") from None
-
-    return wrapped
 
 
 class OneLineParser(ArgumentParser):
@@ -431,7 +412,7 @@ def default_map_path(photo: Path) -> Path:
 
 
 def main(argv=None) -> int:
-    """Entry point; returns the exit status (errors raise; see :func:`_run_cli`)."""
+    """Entry point; returns the exit status (errors raise; see :func:`repro._cli.run_cli`)."""
     args = _parser().parse_args(argv)
     params = defocus_params(args)
     photo_path = Path(args.photo)
@@ -462,4 +443,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(_run_cli(main, prog=PROG))
+    sys.exit(run_cli(main, prog=PROG))

@@ -27,12 +27,12 @@ import math
 import sys
 from pathlib import Path
 
+from repro._cli import run_cli
 from repro.estimate import (
     MAP_OUTPUT_SUFFIXES,
     OneLineParser,
     StageProgress,
     _pixel_count,
-    _run_cli,
     add_estimation_arguments,
     check_output_path,
     defocus_params,
@@ -111,7 +111,7 @@ def default_output_path(photo: Path, factor: float) -> Path:
 
 
 def main(argv=None) -> int:
-    """Entry point; returns the exit status (errors raise; see :func:`repro.estimate._run_cli`)."""
+    """Entry point; returns the exit status (errors raise; see :func:`repro._cli.run_cli`)."""
     from method.magnification import MAGNIFICATION_KERNELS, MAP_FLOOR_MODES, preprocess_defocus_map
     from method.upsampling import magnify_defocus_tiled
     from scenes.photo_io import OUTPUT_SUFFIXES, output_bit_depth, probe_photo, write_photo
@@ -164,4 +164,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(_run_cli(main, prog=PROG))
+    sys.exit(run_cli(main, prog=PROG))

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from scenes.photo_io import write_photo
-from tests.test_estimate_cli import textured_photo
+from tests.photo_cli import textured_photo
 
 ROOT = Path(__file__).resolve().parents[1]
 

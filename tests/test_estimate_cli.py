@@ -14,22 +14,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy import ndimage
 
-from repro.estimate import PROG, _run_cli, main
+from repro.estimate import PROG, main
 from scenes.photo_io import write_photo
+from tests.photo_cli import cli_runner, textured_photo
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def textured_photo(h=96, w=128, *, seed=3, blur_right=2.5):
-    """Blocky colour texture (sharp edges) whose right half is Gaussian-blurred, float in [0, 1]."""
-    rng = np.random.default_rng(seed)
-    blocks = rng.random((h // 8 + 1, w // 8 + 1, 3))
-    img = np.repeat(np.repeat(blocks, 8, axis=0), 8, axis=1)[:h, :w]
-    blurred = np.stack([ndimage.gaussian_filter(img[..., c], blur_right) for c in range(3)], axis=-1)
-    img[:, w // 2:] = blurred[:, w // 2:]
-    return np.clip(img, 0, 1)
 
 
 @pytest.fixture
@@ -44,19 +34,7 @@ def photo(tmp_path):
     return write_photo(tmp_path / "photo.png", textured_photo())
 
 
-def run(argv, capsys):
-    """(exit status, stdout, stderr lines) of the CLI called in-process."""
-    status = _run_cli(main, [str(a) for a in argv], prog=PROG)
-    out, err = capsys.readouterr()
-    return status, out, [line for line in err.splitlines() if line.strip()]
-
-
-def assert_one_line_error(status, err, *needles):
-    assert status == 2
-    assert len(err) == 1, err
-    assert err[0].startswith(f"{PROG}: error: ")
-    for n in needles:
-        assert n.lower() in err[0].lower(), err[0]
+run, assert_one_line_error = cli_runner(main, PROG)
 
 
 # ------------------------------------------------------------------------------------------------

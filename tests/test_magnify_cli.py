@@ -11,9 +11,8 @@ import numpy as np
 import pytest
 
 from repro.magnify import PROG, main
-from repro.estimate import _run_cli
 from scenes.photo_io import read_photo, write_photo
-from tests.test_estimate_cli import textured_photo
+from tests.photo_cli import cli_runner, textured_photo
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -30,18 +29,7 @@ def photo(tmp_path):
     return write_photo(tmp_path / "photo.png", textured_photo())
 
 
-def run(argv, capsys):
-    status = _run_cli(main, [str(a) for a in argv], prog=PROG)
-    out, err = capsys.readouterr()
-    return status, out, [line for line in err.splitlines() if line.strip()]
-
-
-def assert_one_line_error(status, err, *needles):
-    assert status == 2
-    assert len(err) == 1, err
-    assert err[0].startswith(f"{PROG}: error: ")
-    for n in needles:
-        assert n.lower() in err[0].lower(), err[0]
+run, assert_one_line_error = cli_runner(main, PROG)
 
 
 def test_default_output_png_8bit(tmp_path, photo, capsys):

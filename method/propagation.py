@@ -30,7 +30,7 @@ solved on a grid coarsened 2× or 4×; its bilinearly interpolated solution star
 full-resolution system, preconditioned by Jacobi plus a coarse-grid correction through the same
 coarse hierarchy (two-level, matrix-free fine level), 20·s iterations. On the astronaut photo the
 default is 0.012 px RMS / 0.07 px p99 (512²) and 0.014 px RMS / 0.07 px p99 (1024²) from the exact
-solve (report/bench/NOTES.md, "after two-level PCG").
+solve (docs/performance.md, "after two-level PCG").
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ AUTO_MAX_COARSE_PIXELS = 256 * 256
 #: preconditioner's condition number grows like s² (the band of frequencies between the coarse grid
 #: and the Jacobi smoother widens), so CG needs ∝ s iterations for the same accuracy. Two-level:
 #: 20·s, i.e. 40 at 512² (s = 2) and 80 at 1024² (s = 4), which leave the astronaut photo
-#: ≈ 0.012 / 0.014 px RMS and 0.07 px p99 from the exact solve (report/bench/NOTES.md). Jacobi:
+#: ≈ 0.012 / 0.014 px RMS and 0.07 px p99 from the exact solve (docs/performance.md). Jacobi:
 #: the earlier fixed 60 iterations (0.08 / 0.15 px RMS).
 DEFAULT_REFINE_ITERATIONS = {"two_level": (20, "per_factor"), "jacobi": (60, "fixed")}
 
@@ -1136,7 +1136,7 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
        (restriction Pᵀ, one V-cycle of the coarse hierarchy, prolongation P) for the smooth error
        the Jacobi-only CG could not remove (:func:`_two_level_pcg_matrix_free`). Cost O(H·W) per
        iteration plus one V-cycle on the (fixed-size) coarse grid; 20·s iterations by default.
-       Error against the exact solve on the astronaut photo (report/bench/NOTES.md):
+       Error against the exact solve on the astronaut photo (docs/performance.md):
        0.012 px RMS / 0.070 px p99 / 0.13 px max at 512² (coarse 2×, 40 iterations) and
        0.014 / 0.066 / 0.16 px at 1024² (coarse 4×, 80 iterations); the Jacobi-only refinement
        (``refinement="jacobi"``, 60 iterations) leaves 0.083 / 0.49 / 0.88 and 0.152 / 0.73 / 1.18 px.

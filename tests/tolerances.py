@@ -183,7 +183,7 @@ PIPELINE_TWO_REGION_SIGMA_RTOL = 0.15
 #: 1.0e-4 px p99 (2×) and 2.2e-6 / 9.1e-6 px (4×); the earlier Jacobi-only refinement gave
 #: 1.3e-2 / 4.0e-2 px, so these bounds fail on it. On the astronaut photo the default (20·s
 #: two-level iterations: 40 at 512², 80 at 1024²) is 0.0117 / 0.0140 px RMS from the exact solve at
-#: 512² / 1024² (report/bench/NOTES.md, "after two-level PCG").
+#: 512² / 1024² (docs/performance.md, "after two-level PCG").
 PROPAGATION_DEFAULT_VS_EXACT_RMS_PX = 5e-4
 PROPAGATION_DEFAULT_VS_EXACT_P99_PX = 2e-3
 #: Restriction is the exact transpose of the bilinear prolongation: |⟨Pᵀu, v⟩ − ⟨u, Pv⟩| relative.
@@ -201,3 +201,18 @@ FIG5_SWEEP_MIN_BLURRY_EDGES = 50
 #: Sweep dense map at s = 2 / s = inf vs method.estimate_defocus_map with the same parameters
 #: (same calls; the difference is float32 storage of the sweep maps), max |Δσ| px.
 FIG5_SWEEP_PIPELINE_ATOL_PX = 1e-4
+
+# --- model_fit_checked (method/blur_model_fit_checked.py): goodness-of-fit test on Eq. (2c) --------
+#: Fraction of model_fit estimates at analytic step-edge pixels the checked estimator must keep
+#: (DefocusParams.fit_max_residual = 0.05; measured 100 % noise-free and 100 % at noise 2/255 + 8 bits,
+#: max ρ 0.0036 / 0.025).
+MODEL_FIT_CHECKED_KEEP_CLEAN_MIN = 0.99
+MODEL_FIT_CHECKED_KEEP_NOISY_MIN = 0.95
+#: On bars (two opposite edges D = 2σ–4σ apart) and thin lines the fit is poor (measured ρ ≈ 0.11–0.13;
+#: 0–63 % kept per case): the kept fraction there must be at most this, and below the clean-step one.
+MODEL_FIT_CHECKED_KEEP_BAR_MAX = 0.5
+#: SHA-256 of model_fit's (H, W) float64 output on fixed analytic images, computed with the code
+#: before model_fit_checked was added (commit aa5a3b1): the private residual hook must not change it.
+#: Platform-dependent (FFT, numba): regenerate only after checking the change is intended.
+MODEL_FIT_SHA256_NOISY_STEP = "1809db3841d72da51b3cd0b003c94cd5910ed1faac3ba4379186afb7c80bb213"
+MODEL_FIT_SHA256_BAR = "3dd7ba56cb8cb8b6bc7ae4c75b7338ba58e712bb6470fc1fd1f9329dd73ebe24"

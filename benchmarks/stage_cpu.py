@@ -1,6 +1,6 @@
 """Per-stage wall *and* CPU time of ``estimate_defocus_map`` (supplement to ``python -m repro.bench``).
 
-``.venv/bin/python report/bench/stage_cpu.py [--sizes 512 1024] [--repeat 3] [--tree PATH] [--label L]``
+``.venv/bin/python benchmarks/stage_cpu.py [--sizes 512 1024] [--repeat 3] [--tree PATH] [--label L]``
 
 Each size runs in a fresh subprocess (numba cache warm) on the same test image as repro.bench
 (skimage's astronaut, resized). For every stage it records the wall time (time.perf_counter) and
@@ -20,7 +20,7 @@ import sys
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1] / "report" / "bench"  # where results go
 ROOT = HERE.parents[1]
 
 _WORKER = r"""

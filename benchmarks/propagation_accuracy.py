@@ -1,6 +1,6 @@
 """Distance of the default (coarse solve + refinement) propagation from the exact Eq. (4) solve.
 
-``.venv/bin/python report/bench/propagation_accuracy.py [--sizes 512 1024] [--cache DIR]``
+``.venv/bin/python benchmarks/propagation_accuracy.py [--sizes 512 1024] [--cache DIR]``
 
 Inputs per size: skimage's astronaut resized as in ``repro.bench`` (its refined sparse measures from
 the pipeline), and a synthetic textured image (the mid-size test image of tests/test_propagation.py
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1] / "report" / "bench"  # where results go
 sys.path.insert(0, str(HERE.parents[1]))
 
 VARIANTS = {
@@ -62,7 +62,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[512, 1024])
     ap.add_argument("--kinds", nargs="+", default=["astronaut", "textured"])
-    ap.add_argument("--cache", type=Path, default=Path(os.environ.get("DEFOCUS_CACHE_DIR", HERE.parents[1] / ".cache")) / "propagation_exact")
+    ap.add_argument("--cache", type=Path, default=Path(os.environ.get("DEFOCUS_CACHE_DIR", Path(__file__).resolve().parents[1] / ".cache")) / "propagation_exact")
     args = ap.parse_args(argv)
     args.cache.mkdir(parents=True, exist_ok=True)
     rows = []

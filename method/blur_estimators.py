@@ -26,6 +26,7 @@ import numpy as np
 
 from .blur_gradient_ratio import estimate_blur_gradient_ratio
 from .blur_model_fit import estimate_blur_model_fit
+from .blur_model_fit_checked import estimate_blur_model_fit_checked
 from .blur_zero_crossing import estimate_blur_zero_crossing
 from .elder_zucker_edges import check_edge_inputs
 
@@ -34,6 +35,7 @@ __all__ = ["BLUR_ESTIMATORS", "estimate_blur"]
 #: name -> estimator fn(gray, edge_map, *, params) -> (H, W) float64 σ in px, NaN off edges.
 BLUR_ESTIMATORS: dict[str, Callable[..., np.ndarray]] = {
     "model_fit": estimate_blur_model_fit,          # the paper's brute-force fit of Eq. (2c)
+    "model_fit_checked": estimate_blur_model_fit_checked,  # model_fit, NaN where the fit is poor
     "zero_crossing": estimate_blur_zero_crossing,  # Elder & Zucker: 3rd-derivative zero crossings
     "gradient_ratio": estimate_blur_gradient_ratio,  # Zhuo & Sim 2011 re-blur gradient ratio
 }

@@ -122,7 +122,9 @@ def _score(r, a, b, K, table, cum, i, j):
 
 @numba.njit(cache=True, nogil=True)
 def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
-                s_grid, t0_grid, table, cum, coarse_stride, out_s):
+                s_grid, t0_grid, table, cum, coarse_stride, out_s, out_res):
+    # out_res[n]: normalised residual (‖r‖² − best score)/‖r‖² of the best grid fit, in [0, 1]
+    # (NaN where out_s is NaN). It is only written, never read: out_s does not depend on it.
     h, w = ixx.shape
     K = (table.shape[2] - 1) // 2
     n_s = s_grid.shape[0]
@@ -132,6 +134,7 @@ def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
     r = np.zeros(2 * K + 1)
     for n in range(rows.shape[0]):
         out_s[n] = np.nan
+        out_res[n] = np.nan
         i0, j0 = rows[n], cols[n]
         c, s = cos_t[n], sin_t[n]
         if abs(c) >= abs(s):
@@ -228,6 +231,8 @@ def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
                 pos += max(-0.5, min(0.5, delta))
         s_prime = s_grid[0] * (s_grid[1] / s_grid[0]) ** pos
         out_s[n] = s_prime * proj
+        if energy_r > 0.0:
+            out_res[n] = max(0.0, energy_r - best) / energy_r
 
 
 def estimate_blur_model_fit(gray, edge_map, *, params):
@@ -281,14 +286,30 @@ def estimate_blur_model_fit(gray, edge_map, *, params):
     5. Parabolic refinement of the error over log s'; s = s'·proj; σb = √(s² − σ2²) (Eq. 2d),
        clipped to [0, max_sigma].
     """
+    return _model_fit_with_residual(gray, edge_map, params=params)[0]
+
+
+def _model_fit_with_residual(gray, edge_map, *, params):
+    """Private hook: :func:`estimate_blur_model_fit`'s σb map plus the normalised fit residual.
+
+    Returns
+    -------
+    sigma_b : ndarray, shape (H, W), float64
+        Exactly the output of :func:`estimate_blur_model_fit` (same code path), px.
+    residual : ndarray, shape (H, W), float64
+        ρ = (‖r‖² − (r·m)²/(m·m)) / ‖r‖² of the best grid template m of Eq. (2c) over the fit
+        window (dimensionless, in [0, 1]; 1 − ρ is the squared normalised correlation); NaN where
+        σb is NaN or off edges.
+    """
     img = check_edge_inputs(gray, edge_map)
     w_min = (int(params.fit_window_min) - 1) // 2
     w_max = (int(params.fit_window_max) - 1) // 2
     w_min = max(1, w_min)
     out = np.full(img.shape, np.nan)
+    res = np.full(img.shape, np.nan)
     groups = edge_pixels_by_scale(edge_map)
     if not groups:
-        return out
+        return out, res
     s_max = math.sqrt(float(params.max_sigma) ** 2 + max(g[0] for g in groups) ** 2) * math.sqrt(2.0)
     s_grid, t0_grid, table, cum = _template_table(w_max, float(np.float32(max(s_max, 1.0))))
     cached = edge_map.hessians or {}
@@ -305,8 +326,10 @@ def estimate_blur_model_fit(gray, edge_map, *, params):
             ixx, ixy, iyy = bank.hessian(sigma2)
         th = theta[rows, cols]
         s_est = np.empty(rows.size)
+        r_est = np.empty(rows.size)
         _fit_kernel(ixx, ixy, iyy, rows, cols, np.cos(th), np.sin(th), w_min, w_max, FIT_KAPPA,
-                    s_grid, t0_grid, table, cum, COARSE_STRIDE, s_est)
+                    s_grid, t0_grid, table, cum, COARSE_STRIDE, s_est, r_est)
         sigma_b = blur_from_extrema_distance(2.0 * s_est, sigma2)
         out[rows, cols] = np.clip(sigma_b, 0.0, float(params.max_sigma))
-    return out
+        res[rows, cols] = r_est
+    return out, res

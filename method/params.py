@@ -73,7 +73,7 @@ class DefocusParams:
     # "auto": exact solve up to 256², else solve on a grid coarsened s = 2× or 4×, upsample and
     # refine with 20·s iterations of two-level-preconditioned CG (Jacobi + coarse-grid correction)
     # on the exact full-resolution system: 0.012 / 0.014 px RMS, 0.07 px p99 from the exact solve
-    # on a photo at 512² / 1024² (report/bench/NOTES.md); 1 = exact full-resolution solve;
+    # on a photo at 512² / 1024² (docs/performance.md); 1 = exact full-resolution solve;
     # 2, 4, … = that coarsening factor.
     propagation_refinement: str = "two_level"
     # refinement of the upsampled coarse solution (key of method.propagation.PROPAGATION_REFINEMENTS):

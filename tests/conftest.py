@@ -21,6 +21,10 @@ def pytest_addoption(parser):
         "--regen-goldens", action="store_true", default=False,
         help="rewrite tests/golden/*.json from this run instead of comparing (review the diff!)",
     )
+    parser.addoption(
+        "--regen-references", action="store_true", default=False,
+        help="rewrite the rendered reference EXRs in tests/references/ from this run (review them!)",
+    )
 
 
 @pytest.fixture

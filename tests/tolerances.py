@@ -216,3 +216,14 @@ MODEL_FIT_CHECKED_KEEP_BAR_MAX = 0.5
 #: min, max of σ in px). The method is deterministic; the allowance covers FFT/library round-off.
 MODEL_FIT_REGRESSION_RTOL = 1e-6
 MODEL_FIT_REGRESSION_ATOL = 1e-9
+
+# --- rendered reference (tests/test_render_reference.py, tests/references/*.exr) ------------------
+#: RGB RMSE (linear) of the small planes render vs its reference. Same variant + seed renders are
+#: bit-identical (0); a different seed — like the scalar vs llvm sample streams — measured 0.0055.
+REF_RGB_RMSE = 0.011
+#: Mean signed RGB difference (linear): sampling noise averages out; a real change (texture, light) does not.
+REF_RGB_MAX_BIAS = 0.002
+#: Camera-space depth from the lens-centre ray cast vs the reference, relative (float32 round-off).
+REF_DEPTH_RTOL = 1e-5
+#: σ_gt vs the reference, px (float32 round-off).
+REF_SIGMA_ATOL_PX = 1e-5

@@ -7,7 +7,8 @@
 Stages (one module each): :mod:`~method.gaussian_derivatives` and :mod:`~method.noise_thresholds`
 (Eq. 7–9), :mod:`~method.elder_zucker_edges` (Sec. 3.1), :mod:`~method.blur_estimators`
 (Sec. 3.2: ``model_fit``, ``zero_crossing``, ``gradient_ratio``), :mod:`~method.cross_bilateral`
-(Eq. 3), :mod:`~method.propagation` (Eq. 4), :mod:`~method.magnification` (Sec. 5).
+(Eq. 3), :mod:`~method.propagation` (Eq. 4), :mod:`~method.magnification` (Sec. 5),
+:mod:`~method.refocusing` (Sec. 5 / Fig. 8: deconvolution and re-blur).
 """
 
 from .blur_estimators import BLUR_ESTIMATORS, estimate_blur
@@ -17,10 +18,12 @@ from .magnification import MAGNIFICATION_KERNELS, magnify_defocus, preprocess_de
 from .params import DefocusParams
 from .pipeline import DefocusResult, NoEdgesWarning, estimate_defocus_map, luminance
 from .propagation import PROPAGATION_SOLVERS, propagate_defocus
+from .refocusing import DECONVOLUTION_METHODS, deconvolve_defocus, refocus
 
 __all__ = [
     "BILATERAL_METHODS",
     "BLUR_ESTIMATORS",
+    "DECONVOLUTION_METHODS",
     "MAGNIFICATION_KERNELS",
     "PROPAGATION_SOLVERS",
     "DefocusParams",
@@ -28,6 +31,7 @@ __all__ = [
     "EdgeMap",
     "NoEdgesWarning",
     "biased_cross_bilateral",
+    "deconvolve_defocus",
     "detect_edges",
     "estimate_blur",
     "estimate_defocus_map",
@@ -35,4 +39,5 @@ __all__ = [
     "magnify_defocus",
     "preprocess_defocus_map",
     "propagate_defocus",
+    "refocus",
 ]

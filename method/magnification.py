@@ -191,8 +191,14 @@ def _levels(max_sigma):
     return levels
 
 
-def _blur_stack_apply(image, sigma_extra, kernel):
-    """Per-pixel blur by interpolating, in variance, between the two nearest blur-stack levels."""
+def _blur_stack_apply(image, sigma_extra, kernel, *, spectral_filter=None):
+    """Per-pixel filtering by interpolating, in variance, between the two nearest blur-stack levels.
+
+    ``image`` is HxWxC float64, ``sigma_extra`` HxW ≥ 0 (px). By default level ℓ is the image blurred
+    with ``MAGNIFICATION_KERNELS[kernel](σ_ℓ)``. ``spectral_filter(khat, (fh, fw))``, if given, maps
+    the kernel's rfft2 spectrum (fh x fw//2+1, complex) to the filter spectrum applied instead (e.g. a
+    Wiener inverse, :mod:`method.refocusing`); level 0 is always the image itself.
+    """
     h, w, c = image.shape
     make = MAGNIFICATION_KERNELS[kernel]
     levels = _levels(float(sigma_extra.max()))
@@ -222,7 +228,10 @@ def _blur_stack_apply(image, sigma_extra, kernel):
         kpad = np.zeros((fh, fw))
         kpad[:k.shape[0], :k.shape[1]] = k
         kpad = np.roll(kpad, (-r, -r), axis=(0, 1))
-        blurred = sfft.irfft2(spectrum * sfft.rfft2(kpad)[..., None], s=(fh, fw), axes=(0, 1))
+        khat = sfft.rfft2(kpad)
+        if spectral_filter is not None:
+            khat = spectral_filter(khat, (fh, fw))
+        blurred = sfft.irfft2(spectrum * khat[..., None], s=(fh, fw), axes=(0, 1))
         out += weight[..., None] * blurred[pad:pad + h, pad:pad + w]
     return out
 

@@ -108,3 +108,13 @@ def test_report_to_another_folder_leaves_the_project_readme_alone(tmp_path):
                           cwd=ROOT, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     assert readme.read_bytes() == before
+
+
+def test_refocus_claim_compares_with_the_unchanged_photo():
+    def fig8(psnr, ssim):
+        return {"fig8": {"metrics": {"images_vs_d2": {
+            "unchanged_d1": {"psnr_db": 23.0, "ssim": 0.66},
+            "refocused_estimated": {"psnr_db": psnr, "ssim": ssim}}}}}
+    assert _verdicts(fig8(24.0, 0.70))["refocus"].verdict == "reproduced"
+    assert _verdicts(fig8(22.0, 0.70))["refocus"].verdict == "partly reproduced"
+    assert _verdicts(fig8(22.0, 0.60))["refocus"].verdict == "not reproduced"

@@ -159,3 +159,25 @@ def test_fig2_and_fig10_in_parallel(fig10_quick, tmp_path):
     assert m2["max_ratio_rel_err"] < tol.FIG2_RATIO_RTOL
     # the small sensor blurs ~3× less at the same field of view and f-number (Eq. 6)
     assert 2.5 < m2["measured_ratio_median"] < 4.0
+
+
+def test_code_fingerprint_ignores_plots_and_claims_but_not_compute_code(tmp_path, monkeypatch):
+    import experiments.registry as reg
+
+    for rel, text in {"method/a.py": "x = 1\n", "experiments/fig.py": "y = 1\n",
+                      "experiments/claims.py": "z = 1\n", "experiments/plotting/p.py": "w = 1\n"}.items():
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_text(text)
+    monkeypatch.setattr(reg, "__file__", str(tmp_path / "experiments" / "registry.py"))
+
+    def fp():
+        reg.code_fingerprint.cache_clear()
+        return reg.code_fingerprint()
+
+    base = fp()
+    (tmp_path / "experiments/claims.py").write_text("z = 2\n")
+    (tmp_path / "experiments/plotting/p.py").write_text("w = 2\n")
+    assert fp() == base
+    (tmp_path / "method/a.py").write_text("x = 2\n")
+    assert fp() != base
+    reg.code_fingerprint.cache_clear()

@@ -61,7 +61,7 @@ ENCODINGS = ("srgb", "linear")
 #: Folder under the project cache holding per-case evaluation results.
 EVAL_CACHE_SUBDIR = "evaluate"
 #: Version of :func:`evaluate_case`'s output layout; part of its cache key.
-EVAL_VERSION = 1
+EVAL_VERSION = 2  # 2: stage attribution (experiments.stage_attribution) in every case's metrics
 
 
 def validate_estimators(names) -> tuple[str, ...]:
@@ -285,16 +285,16 @@ class EvaluationCase:
     cached: bool
 
 
-def evaluate_case(estimator: str, scene: str, *, f_number: float = 8.0, preset: str = "small",
+def evaluate_case(estimator: str | None, scene: str, *, f_number: float = 8.0, preset: str = "small",
                   encoding: str = "srgb", quantize_bits: int | None = 8, convention: str = "line_spread",
-                  params=None, variant: str | None = None, use_cache: bool = True, force: bool = False,
-                  cache_dir=None) -> EvaluationCase:
+                  params=None, method_preset: str | None = None, variant: str | None = None,
+                  use_cache: bool = True, force: bool = False, cache_dir=None) -> EvaluationCase:
     """Render (cached), run the whole pipeline with one estimator, and score it; cached per case.
 
     Parameters
     ----------
-    estimator : str
-        Key of :data:`method.BLUR_ESTIMATORS`.
+    estimator : str or None
+        Key of :data:`method.BLUR_ESTIMATORS`; None keeps the estimator of ``params`` / the preset.
     scene : str
         Key of :data:`scenes.SCENES`.
     f_number : float, keyword-only
@@ -307,7 +307,10 @@ def evaluate_case(estimator: str, scene: str, *, f_number: float = 8.0, preset: 
     convention : {"line_spread", "erf_fit"}, keyword-only
         σ_gt convention.
     params : DefocusParams, optional, keyword-only
-        Pipeline parameters; ``estimator`` overrides ``params.estimator``.
+        Pipeline parameters; ``estimator`` overrides ``params.estimator``. Default: the preset
+        ``method_preset`` (``"paper"`` when that is None too).
+    method_preset : str, optional, keyword-only
+        Name of :data:`method.PRESETS` (recorded in the key; gives ``params`` when those are None).
     variant : str, optional, keyword-only
         Mitsuba variant.
     use_cache, force : bool, keyword-only
@@ -334,13 +337,19 @@ def evaluate_case(estimator: str, scene: str, *, f_number: float = 8.0, preset: 
     from scenes.storage import Cache
 
     from .registry import code_fingerprint, to_jsonable
+    from .stage_attribution import stage_errors
 
+    label = method_preset or ("paper" if params is None else "custom")
+    if params is None:
+        params = DefocusParams.preset(label)
+    if estimator is None:
+        estimator = params.estimator
     validate_estimators([estimator])
     if encoding not in ENCODINGS:
         raise ValueError(f"encoding={encoding!r} is invalid; allowed: {list(ENCODINGS)}")
     validate_render_options(scene, preset=preset, f_number=f_number, sigma_convention=convention)
-    params = (DefocusParams() if params is None else params).replace(estimator=estimator)
-    key_fields = {"estimator": estimator, "scene": scene, "f_number": float(f_number), "preset": preset,
+    params = params.replace(estimator=estimator)
+    key_fields = {"estimator": estimator, "method_preset": label, "scene": scene, "f_number": float(f_number), "preset": preset,
                   "encoding": encoding, "quantize_bits": quantize_bits, "convention": convention}
     chosen = select_variant(variant)
 
@@ -353,6 +362,8 @@ def evaluate_case(estimator: str, scene: str, *, f_number: float = 8.0, preset: 
             warnings.simplefilter("ignore", NoEdgesWarning)
             result = estimate_defocus_map(image, params)
         metrics = evaluate_result(result, render, image=image, convention=convention)
+        metrics["stages"] = stage_errors(image, ground_truth_sigma(render, convention=convention), params=params,
+                                         valid=~np.asarray(render.occlusion_boundary, dtype=bool), result=result)
         metrics["timings"] = {"render_load_s": t_render, **{f"{k}_s": v for k, v in result.timings.items()}}
         arrays = {"sparse_sigma": result.sparse_sigma, "refined_sigma": result.refined_sigma,
                   "defocus_map": result.defocus_map, "edges": result.edges,

@@ -15,9 +15,10 @@ from .blur_estimators import BLUR_ESTIMATORS, estimate_blur
 from .cross_bilateral import BILATERAL_METHODS, biased_cross_bilateral
 from .elder_zucker_edges import EdgeMap, detect_edges
 from .magnification import MAGNIFICATION_KERNELS, magnify_defocus, preprocess_defocus_map
-from .params import DefocusParams
+from .params import PRESETS, DefocusParams
 from .pipeline import DefocusResult, NoEdgesWarning, estimate_defocus_map, luminance
 from .propagation import PROPAGATION_SOLVERS, propagate_defocus
+from .propagation_methods import PROPAGATION_METHODS, propagate_blur_measures
 from .refocusing import DECONVOLUTION_METHODS, deconvolve_defocus, refocus
 
 __all__ = [
@@ -25,6 +26,8 @@ __all__ = [
     "BLUR_ESTIMATORS",
     "DECONVOLUTION_METHODS",
     "MAGNIFICATION_KERNELS",
+    "PRESETS",
+    "PROPAGATION_METHODS",
     "PROPAGATION_SOLVERS",
     "DefocusParams",
     "DefocusResult",
@@ -38,6 +41,7 @@ __all__ = [
     "luminance",
     "magnify_defocus",
     "preprocess_defocus_map",
+    "propagate_blur_measures",
     "propagate_defocus",
     "refocus",
 ]

@@ -12,6 +12,7 @@ around the edge pixel, along the gradient direction, using both the bright and t
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 
@@ -23,6 +24,7 @@ from .gaussian_derivatives import GaussianDerivativeBank
 
 __all__ = [
     "FIT_KAPPA",
+    "apply_fit_rules",
     "S_GRID_RATIO",
     "T0_GRID_STEP",
     "blur_from_extrema_distance",
@@ -122,9 +124,10 @@ def _score(r, a, b, K, table, cum, i, j):
 
 @numba.njit(cache=True, nogil=True)
 def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
-                s_grid, t0_grid, table, cum, coarse_stride, out_s, out_res):
+                s_grid, t0_grid, table, cum, coarse_stride, out_s, out_res, out_win):
     # out_res[n]: normalised residual (‖r‖² − best score)/‖r‖² of the best grid fit, in [0, 1]
-    # (NaN where out_s is NaN). It is only written, never read: out_s does not depend on it.
+    # (NaN where out_s is NaN); out_win[n]: number of samples b − a + 1 in the fit window (0 where
+    # no window). Both are only written, never read: out_s does not depend on them.
     h, w = ixx.shape
     K = (table.shape[2] - 1) // 2
     n_s = s_grid.shape[0]
@@ -135,6 +138,7 @@ def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
     for n in range(rows.shape[0]):
         out_s[n] = np.nan
         out_res[n] = np.nan
+        out_win[n] = 0
         i0, j0 = rows[n], cols[n]
         c, s = cos_t[n], sin_t[n]
         if abs(c) >= abs(s):
@@ -190,6 +194,7 @@ def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
         b = min(hb, kmax)
         if b - a + 1 < 3:
             continue
+        out_win[n] = b - a + 1
         energy_r = 0.0
         for k in range(a, b + 1):
             energy_r += r[k + K] * r[k + K]
@@ -286,7 +291,57 @@ def estimate_blur_model_fit(gray, edge_map, *, params):
     5. Parabolic refinement of the error over log s'; s = s'·proj; σb = √(s² − σ2²) (Eq. 2d),
        clipped to [0, max_sigma].
     """
-    return _model_fit_with_residual(gray, edge_map, params=params)[0]
+    if _paper_rules(params):
+        return _model_fit_with_residual(gray, edge_map, params=params)[0]
+    return apply_fit_rules(_model_fit_diagnostics(gray, edge_map, params=params), params=params)
+
+
+def _paper_rules(params) -> bool:
+    """True when every beyond-the-paper model-fit switch of ``params`` is off."""
+    return (getattr(params, "fit_max_scale", None) is None and getattr(params, "fit_min_samples", 3) <= 3
+            and not np.isfinite(getattr(params, "fit_max_width_ratio", np.inf))
+            and getattr(params, "fit_below_scale", "zero") == "zero")
+
+
+def apply_fit_rules(diagnostics, *, params) -> np.ndarray:
+    """σb of the model fit with the beyond-the-paper plausibility rules of ``params`` applied.
+
+    Parameters
+    ----------
+    diagnostics : dict of ndarray, (H, W)
+        Output of :func:`_model_fit_diagnostics` (``sigma_b``, ``window``, ``width``, ``sigma2``).
+    params : DefocusParams, keyword-only
+        ``fit_min_samples`` (samples), ``fit_max_width_ratio`` (dimensionless),
+        ``fit_below_scale`` ("zero" | "nan") and ``sigma2_scales`` (px).
+
+    Returns
+    -------
+    ndarray, (H, W), float64
+        σb, px; NaN where a rule rejects the fit ("no measure").
+
+    Notes
+    -----
+    1. ``fit_min_samples``: fewer samples than this in the fit window → NaN (with 3 samples the
+       two-parameter fit (s, t0) is exactly determined and noise alone can give any width).
+    2. ``fit_max_width_ratio``: a fitted width s = d/2 above this fraction of the window's
+       half-length extrapolates the model beyond the samples → NaN.
+    3. ``fit_below_scale="nan"``: d/2 ≤ σ2 means the blur is below what σ2 resolves; at the
+       finest σ2 that is a sharp edge (σb = 0 is kept), at a coarser σ2 it is no measure (NaN)
+       instead of the paper's σb = 0.
+    """
+    sb = np.array(diagnostics["sigma_b"], dtype=np.float64, copy=True)
+    win = diagnostics["window"]
+    width = diagnostics["width"]
+    s2 = diagnostics["sigma2"]
+    with np.errstate(invalid="ignore"):
+        bad = win < int(params.fit_min_samples)
+        ratio = float(params.fit_max_width_ratio)
+        if np.isfinite(ratio):
+            bad |= width > ratio * 0.5 * (win - 1)
+        if params.fit_below_scale == "nan":
+            bad |= (width <= s2) & (s2 > min(params.sigma2_scales))
+    sb[bad & np.isfinite(sb)] = np.nan
+    return sb
 
 
 def _model_fit_with_residual(gray, edge_map, *, params):
@@ -294,12 +349,31 @@ def _model_fit_with_residual(gray, edge_map, *, params):
 
     Returns
     -------
-    sigma_b : ndarray, shape (H, W), float64
+    sigma_b, residual : ndarray, shape (H, W), float64
+        See :func:`_model_fit_diagnostics`.
+    """
+    d = _model_fit_diagnostics(gray, edge_map, params=params)
+    return d["sigma_b"], d["residual"]
+
+
+def _model_fit_diagnostics(gray, edge_map, *, params):
+    """Private hook: :func:`estimate_blur_model_fit`'s σb map plus per-pixel fit diagnostics.
+
+    Returns
+    -------
+    dict of ndarray, shape (H, W)
+    sigma_b : float64
         Exactly the output of :func:`estimate_blur_model_fit` (same code path), px.
-    residual : ndarray, shape (H, W), float64
+    residual : float64
         ρ = (‖r‖² − (r·m)²/(m·m)) / ‖r‖² of the best grid template m of Eq. (2c) over the fit
         window (dimensionless, in [0, 1]; 1 − ρ is the squared normalised correlation); NaN where
         σb is NaN or off edges.
+    window : int64
+        Number of response samples in the fit window (0 off edges and where the fit failed).
+    width : float64
+        Fitted model width s = d/2 = √(σb² + σ2²) before Eq. (2d), px; NaN off edges / failed fits.
+    sigma2 : float64
+        The σ2 of the responses that were fitted (the edge's minimum reliable σ2), px; NaN off edges.
     """
     img = check_edge_inputs(gray, edge_map)
     w_min = (int(params.fit_window_min) - 1) // 2
@@ -307,9 +381,17 @@ def _model_fit_with_residual(gray, edge_map, *, params):
     w_min = max(1, w_min)
     out = np.full(img.shape, np.nan)
     res = np.full(img.shape, np.nan)
+    win = np.zeros(img.shape, dtype=np.int64)
+    width = np.full(img.shape, np.nan)
+    s2_map = np.full(img.shape, np.nan)
+    diag = {"sigma_b": out, "residual": res, "window": win, "width": width, "sigma2": s2_map}
+    max_scale = getattr(params, "fit_max_scale", None)
+    if max_scale is not None:  # fit at min(σ2, max_scale): a finer response than the detector's
+        edge_map = dataclasses.replace(edge_map, sigma2=np.where(
+            np.isfinite(edge_map.sigma2), np.minimum(edge_map.sigma2, float(max_scale)), edge_map.sigma2))
     groups = edge_pixels_by_scale(edge_map)
     if not groups:
-        return out, res
+        return diag
     s_max = math.sqrt(float(params.max_sigma) ** 2 + max(g[0] for g in groups) ** 2) * math.sqrt(2.0)
     s_grid, t0_grid, table, cum = _template_table(w_max, float(np.float32(max(s_max, 1.0))))
     cached = edge_map.hessians or {}
@@ -327,9 +409,13 @@ def _model_fit_with_residual(gray, edge_map, *, params):
         th = theta[rows, cols]
         s_est = np.empty(rows.size)
         r_est = np.empty(rows.size)
+        w_est = np.empty(rows.size, dtype=np.int64)
         _fit_kernel(ixx, ixy, iyy, rows, cols, np.cos(th), np.sin(th), w_min, w_max, FIT_KAPPA,
-                    s_grid, t0_grid, table, cum, COARSE_STRIDE, s_est, r_est)
+                    s_grid, t0_grid, table, cum, COARSE_STRIDE, s_est, r_est, w_est)
         sigma_b = blur_from_extrema_distance(2.0 * s_est, sigma2)
         out[rows, cols] = np.clip(sigma_b, 0.0, float(params.max_sigma))
         res[rows, cols] = r_est
-    return out, res
+        win[rows, cols] = w_est
+        width[rows, cols] = s_est
+        s2_map[rows, cols] = sigma2
+    return diag

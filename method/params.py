@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 
-__all__ = ["DefocusParams"]
+__all__ = ["PRESETS", "ROBUST_CHANGES", "ZHUO_SIM_CHANGES", "DefocusParams"]
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -44,6 +44,22 @@ class DefocusParams:
     # 8 bits (100 % kept), 99.2 % ≤ 0.05 at 5/255 (twice noise_std); bars/thin lines whose two
     # opposite edges are 1–3σ apart give median ρ ≈ 0.12–0.13 (rejected), at 4σ 0.04–0.12.
     # On the rendered scenes it keeps only ~55 % of the model-fit estimates. 1 keeps every estimate.
+    fit_max_scale: float | None = None
+    # beyond the paper (robust preset): fit Eq. (2c) to the responses at min(σ2(p), fit_max_scale) px
+    # instead of the detector's minimum reliable σ2(p). At coarse σ2 (4–16 px) the fit window spans
+    # neighbouring texture edges that widen the response (model fit +2.6 px bias at σ2 = 8 on the
+    # rendered scenes); the least-squares fit over the window averages the extra noise of the finer
+    # scale. None: the paper (fit at σ2(p)).
+    fit_min_samples: int = 3
+    # beyond the paper: fewest response samples in the fit window for a measure (NaN below). 3 (the
+    # smallest window, paper) fits (s, t0) exactly and lets noise choose any width (MAE 6.9 px on
+    # 3-sample windows of the rendered scenes). Robust: 5.
+    fit_max_width_ratio: float = float("inf")
+    # beyond the paper: largest fitted width s = d/2 as a fraction of the fit window's half-length;
+    # wider fits extrapolate beyond the samples (MAE 4.4–38 px where s > half-window). inf: paper.
+    fit_below_scale: str = "zero"
+    # what d/2 ≤ σ2 gives (Eq. 2d has no real root): "zero" (paper: σb = 0) or "nan" (no measure
+    # unless σ2 is the finest scale, where it is a sharp edge).
 
     # --- 3.3 biased cross-bilateral refinement (Eq. 3) ------------------------------------
     bilateral_sigma_spatial: float = 0.10
@@ -56,8 +72,34 @@ class DefocusParams:
     # denominator of the sharpness bias exp(−BM/2), px (Sec. 3.3).
     bilateral_method: str = "grid"
     # "grid" (fast bilateral grid) or "brute_force" (O(N·M) reference oracle).
+    bilateral_range_kernel: str = "sum"
+    # the colour term of w_pq in Eq. (3b): "sum" (paper: Σ_i g_σr(|C_i(p) − C_i(q)|)) or "product"
+    # (beyond the paper: Π_i g_σr(...) = g_σr(‖C(p) − C(q)‖), a joint-colour kernel; with the sum a
+    # pixel that matches in one channel only still gets 1/3 of the weight, so sharp foreground
+    # measures leak into the background).
+    bias_reference: str = "px"
+    # unit of bias_scale: "px" (paper: exp(−BM/2) with BM in px, so the bias depends on the image
+    # resolution) or "image_fraction" (beyond the paper: bias_scale is a fraction of max(H, W)).
+    refinement_robust_iterations: int = 0
+    # beyond the paper: re-weighted iterations of Eq. (3) (an M-estimator): after each pass every
+    # measure q is down-weighted by the Cauchy weight 1/(1 + (r_q / c)²) of its residual r_q from
+    # its refined value, c = refinement_robust_scale. 0: paper (one pass).
+    refinement_robust_scale: float = 0.5
+    # Cauchy scale c of the re-weighting above, as a fraction of the refined value plus 0.5 px
+    # (c = refinement_robust_scale · (bCBF_q + 0.5 px)): relative errors, as blur grows with σ.
 
     # --- 4 propagation (Eq. 4) -------------------------------------------------------------
+    propagation: str = "colorization"
+    # key of method.PROPAGATION_METHODS: "colorization" (paper, Eq. 4: Levin et al. 2004 affinities)
+    # or "matting_laplacian" (Zhuo & Sim 2011: closed-form matting Laplacian of Levin et al. 2008).
+    alpha_confidence: str = "none"
+    # per-edge data weight α_p (Sec. 4.1 sets α_p = α at every edge): "none" (paper) or "agreement"
+    # (beyond the paper: α_p = α · exp(−(BM_p − bCBF_p)² / (2 (0.25·bCBF_p + 0.5 px)²)), the agreement
+    # of the raw measure with its refined value).
+    matting_lambda: float = 0.005
+    # λ of Zhuo & Sim's (L + λD) d = λ D d̂ (propagation="matting_laplacian"), dimensionless.
+    matting_epsilon: float = 1e-5
+    # ε of the matting Laplacian (Levin et al. 2008), image units², for propagation="matting_laplacian".
     alpha: float = 0.5
     # data-term weight α_p at edge pixels; 0 elsewhere (Sec. 4.1, Fig. 6 sweeps 0.1–1).
     propagation_window: int = 7
@@ -120,6 +162,31 @@ class DefocusParams:
             bad("bias_scale", "> 0")
         if self.bilateral_method not in ("grid", "brute_force"):
             bad("bilateral_method", "'grid' or 'brute_force'")
+        if self.bilateral_range_kernel not in ("sum", "product"):
+            bad("bilateral_range_kernel", "'sum' or 'product'")
+        if self.bias_reference not in ("px", "image_fraction"):
+            bad("bias_reference", "'px' or 'image_fraction'")
+        if not (isinstance(self.refinement_robust_iterations, int) and self.refinement_robust_iterations >= 0):
+            bad("refinement_robust_iterations", "integer >= 0")
+        if not self.refinement_robust_scale > 0:
+            bad("refinement_robust_scale", "> 0")
+        if self.fit_max_scale is not None and not self.fit_max_scale > 0:
+            bad("fit_max_scale", "None or > 0 (px)")
+        if not (isinstance(self.fit_min_samples, int) and self.fit_min_samples >= 3):
+            bad("fit_min_samples", "integer >= 3")
+        if not self.fit_max_width_ratio > 0:
+            bad("fit_max_width_ratio", "> 0 (inf: no limit)")
+        if self.fit_below_scale not in ("zero", "nan"):
+            bad("fit_below_scale", "'zero' or 'nan'")
+        if self.alpha_confidence not in ("none", "agreement"):
+            bad("alpha_confidence", "'none' or 'agreement'")
+        if not self.matting_lambda > 0:
+            bad("matting_lambda", "> 0")
+        if not self.matting_epsilon > 0:
+            bad("matting_epsilon", "> 0")
+        from .propagation_methods import PROPAGATION_METHODS  # lazy: the registry imports this module's users
+        if self.propagation not in PROPAGATION_METHODS:
+            bad("propagation", sorted(PROPAGATION_METHODS))
         if not self.alpha > 0:
             bad("alpha", "> 0")
         if not (isinstance(self.propagation_window, int) and self.propagation_window >= 3
@@ -147,3 +214,58 @@ class DefocusParams:
     def replace(self, **changes) -> "DefocusParams":
         """A validated copy with some fields changed."""
         return dataclasses.replace(self, **changes)
+
+    @classmethod
+    def preset(cls, name: str, **changes) -> "DefocusParams":
+        """A named parameter set of :data:`PRESETS` (``"paper"``, ``"robust"``, ``"zhuo_sim"``), optionally changed.
+
+        Parameters
+        ----------
+        name : str
+            Key of :data:`PRESETS`.
+        **changes
+            Fields to override (validated).
+
+        Raises
+        ------
+        ValueError
+            Unknown name (the message lists the presets) or bad field values.
+        """
+        if not isinstance(name, str) or name not in PRESETS:
+            raise ValueError(f"unknown preset {name!r}; allowed: {sorted(PRESETS)}")
+        return PRESETS[name].replace(**changes) if changes else PRESETS[name]
+
+    def changes_from(self, other: "DefocusParams") -> dict:
+        """Fields whose value differs from ``other``: {name: (value here, value in other)}."""
+        return {f.name: (getattr(self, f.name), getattr(other, f.name)) for f in dataclasses.fields(self)
+                if getattr(self, f.name) != getattr(other, f.name)}
+
+
+#: The robust preset's departures from the paper, one named field each (so each is an ablation row
+#: of ``experiments.stage_attribution``); the measurements behind every value are in the README's
+#: "Choices" section and docs/dense-map.md.
+ROBUST_CHANGES: dict = {
+    "fit_max_scale": 2.0,
+    "fit_min_samples": 5,
+    "fit_max_width_ratio": 0.75,
+    "fit_below_scale": "nan",
+    "bilateral_range_kernel": "product",
+    "sharpness_bias": False,
+    "refinement_robust_iterations": 2,
+}
+
+#: Zhuo & Sim 2011 inside the harness: gradient-ratio blur at the (Elder–Zucker) edges, a plain
+#: joint bilateral filter of the sparse map (their Sec. 3.2 error correction; no sharpness bias),
+#: matting-Laplacian propagation (their Sec. 4).
+ZHUO_SIM_CHANGES: dict = {
+    "estimator": "gradient_ratio",
+    "sharpness_bias": False,
+    "propagation": "matting_laplacian",
+}
+
+#: name -> DefocusParams. ``"paper"`` is the literal reproduction and equals ``DefocusParams()``.
+PRESETS: dict[str, DefocusParams] = {
+    "paper": DefocusParams(),
+    "robust": DefocusParams(**ROBUST_CHANGES),
+    "zhuo_sim": DefocusParams(**ZHUO_SIM_CHANGES),
+}

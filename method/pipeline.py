@@ -23,10 +23,11 @@ from .blur_estimators import estimate_blur
 from .cross_bilateral import biased_cross_bilateral
 from .elder_zucker_edges import EdgeMap, detect_edges
 from .params import DefocusParams
-from .propagation import propagate_defocus
+from .propagation_methods import propagate_blur_measures
 from .validation import validate_image
 
-__all__ = ["DefocusResult", "NoEdgesWarning", "estimate_defocus_map", "luminance"]
+__all__ = ["DefocusResult", "NoEdgesWarning", "edge_confidence", "estimate_defocus_map", "luminance",
+           "propagate_stage", "refine_stage"]
 
 #: Rec. 709 luma weights applied to the (encoded) RGB values to get the edge detector's input.
 LUMA_WEIGHTS = (0.2126, 0.7152, 0.0722)
@@ -167,28 +168,11 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
         )
 
     t = stage("cross_bilateral")
-    refined = biased_cross_bilateral(
-        sparse, rgb,
-        sigma_spatial=params.bilateral_sigma_spatial,
-        sigma_range=params.bilateral_sigma_range,
-        sharpness_bias=params.sharpness_bias,
-        bias_scale=params.bias_scale,
-        method=params.bilateral_method,
-    )
+    refined = refine_stage(sparse, rgb, params=params)
     done("cross_bilateral", t)
 
     t = stage("propagation")
-    dense = propagate_defocus(
-        refined, rgb,
-        alpha=params.alpha,
-        window=params.propagation_window,
-        neighborhood=params.propagation_neighborhood,
-        tol=params.propagation_tol,
-        solver=params.propagation_solver,
-        downsample=params.propagation_downsample,
-        refinement=params.propagation_refinement,
-    )
-    dense = np.clip(np.asarray(dense, dtype=np.float64), 0.0, params.max_sigma)
+    dense = propagate_stage(refined, rgb, params=params, sparse_sigma=sparse)
     done("propagation", t)
     timings["total"] = time.perf_counter() - t_start
     cpu["total"] = time.process_time() - c_start
@@ -196,3 +180,81 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
         edges=edge_map.edges.copy(), sparse_sigma=sparse, refined_sigma=refined,
         defocus_map=dense, edge_map=edge_map, timings=timings, params=params, cpu_timings=cpu,
     )
+
+
+def refine_stage(sparse_sigma, rgb, *, params) -> np.ndarray:
+    """Stage 3: the cross-bilateral refinement of Eq. (3) as ``params`` configure it.
+
+    Parameters
+    ----------
+    sparse_sigma : ndarray, HxW, float
+        Blur σ, px, at edge pixels; NaN elsewhere (the estimator's output, or an oracle's).
+    rgb : ndarray, HxWx3, float in [0, 1]
+        Guide image.
+    params : DefocusParams, keyword-only
+        ``bilateral_*``, ``sharpness_bias``, ``bias_scale`` with ``bias_reference`` (px, or a
+        fraction of max(H, W)), ``refinement_robust_*``.
+
+    Returns
+    -------
+    ndarray, HxW, float64
+        Refined σ, px, at the finite pixels of ``sparse_sigma``; NaN elsewhere.
+    """
+    scale = params.bias_scale
+    if params.bias_reference == "image_fraction":
+        scale = params.bias_scale * max(sparse_sigma.shape)
+    return biased_cross_bilateral(
+        sparse_sigma, rgb,
+        sigma_spatial=params.bilateral_sigma_spatial,
+        sigma_range=params.bilateral_sigma_range,
+        sharpness_bias=params.sharpness_bias,
+        bias_scale=scale,
+        method=params.bilateral_method,
+        range_kernel=params.bilateral_range_kernel,
+        robust_iterations=params.refinement_robust_iterations,
+        robust_scale=params.refinement_robust_scale,
+    )
+
+
+def edge_confidence(sparse_sigma, refined_sigma) -> np.ndarray:
+    """Per-edge confidence of ``alpha_confidence="agreement"``: agreement of BM with bCBF (beyond the paper).
+
+    Parameters
+    ----------
+    sparse_sigma, refined_sigma : ndarray, HxW, float
+        Raw and refined blur σ, px (NaN off edges).
+
+    Returns
+    -------
+    ndarray, HxW, float64 in [0, 1]
+        c_p = exp(−(BM_p − bCBF_p)² / (2 τ_p²)), τ_p = 0.25·bCBF_p + 0.5 px; NaN off edges.
+    """
+    tau = 0.25 * np.maximum(refined_sigma, 0.0) + 0.5
+    with np.errstate(invalid="ignore"):
+        return np.exp(-0.5 * ((sparse_sigma - refined_sigma) / tau) ** 2)
+
+
+def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None) -> np.ndarray:
+    """Stage 4: propagation (Eq. 4, or the registered ``params.propagation``), clipped to [0, max_sigma].
+
+    Parameters
+    ----------
+    refined_sigma : ndarray, HxW, float
+        Blur σ, px, at edge pixels; NaN elsewhere.
+    rgb : ndarray, HxWx3, float in [0, 1]
+        Guide image.
+    params : DefocusParams, keyword-only
+    sparse_sigma : ndarray, HxW, float, or None, keyword-only
+        The raw measures, needed by ``alpha_confidence="agreement"`` (None: refined used as raw).
+
+    Returns
+    -------
+    ndarray, HxW, float64
+        Dense σ, px, in [0, max_sigma].
+    """
+    confidence = None
+    if params.alpha_confidence == "agreement":
+        raw = refined_sigma if sparse_sigma is None else sparse_sigma
+        confidence = np.where(np.isfinite(refined_sigma), edge_confidence(raw, refined_sigma), np.nan)
+    dense = propagate_blur_measures(refined_sigma, rgb, params=params, confidence=confidence)
+    return np.clip(dense, 0.0, params.max_sigma)

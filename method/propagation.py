@@ -311,10 +311,10 @@ def colorization_matrix(reference, *, window=7, neighborhood=3, eps=1e-6) -> sp.
 # --------------------------------------------------------------------------------------------
 # system assembly
 # --------------------------------------------------------------------------------------------
-def _data_term(sparse_sigma, alpha, regularization):
-    """α per pixel, right-hand side and the regulariser's target (mean of the finite BM)."""
+def _data_term(sparse_sigma, alpha, regularization, confidence=None):
+    """α per pixel (× confidence where given), right-hand side and the regulariser's target (mean BM)."""
     edge = np.isfinite(sparse_sigma)
-    a = np.where(edge, alpha, 0.0).ravel()
+    a = (np.where(edge, alpha, 0.0) if confidence is None else np.where(edge, alpha * confidence, 0.0)).ravel()
     bm = np.where(edge, sparse_sigma, 0.0).ravel()
     target = float(np.mean(sparse_sigma[edge])) if edge.any() else 0.0
     lam = regularization * alpha
@@ -1035,7 +1035,7 @@ def _auto_downsample(h, w, max_pixels):
     return s
 
 
-def _coarse_problem(sparse_sigma, ref, s, alpha):
+def _coarse_problem(sparse_sigma, ref, s, alpha, confidence=None):
     """Block-average the guide, α-weighted block mean of BM, α_c = s²·Σ_block α (see Notes)."""
     h, w = sparse_sigma.shape
     hc, wc = -(-h // s), -(-w // s)
@@ -1044,6 +1044,11 @@ def _coarse_problem(sparse_sigma, ref, s, alpha):
     sig = np.pad(sparse_sigma, ((0, ph), (0, pw)), constant_values=np.nan)
     edge = np.isfinite(sig)
     ref_c = refp.reshape(hc, s, wc, s, -1).mean(axis=(1, 3))
+    if confidence is not None:  # α_p = α·c_p: c-weighted block mean, α_c = s²·α·Σ_block c
+        conf = np.pad(np.where(np.isfinite(sparse_sigma), confidence, 0.0), ((0, ph), (0, pw)))
+        cw = conf.reshape(hc, s, wc, s).sum(axis=(1, 3))
+        tw = np.where(edge, sig * conf, 0.0).reshape(hc, s, wc, s).sum(axis=(1, 3))
+        return ref_c, np.where(cw > 0, tw / np.where(cw > 0, cw, 1.0), 0.0), (s * s) * alpha * cw
     count = edge.reshape(hc, s, wc, s).sum(axis=(1, 3))
     total = np.where(edge, sig, 0.0).reshape(hc, s, wc, s).sum(axis=(1, 3))
     bm_c = np.where(count > 0, total / np.maximum(count, 1), 0.0)
@@ -1062,7 +1067,7 @@ def _upsample(coarse, s, shape):
 def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborhood=3, eps=1e-6,
                       regularization=1e-6, tol=1e-6, solver="amg_pcg", downsample="auto",
                       refinement="two_level", refine_iterations=None,
-                      max_coarse_pixels=AUTO_MAX_COARSE_PIXELS) -> np.ndarray:
+                      max_coarse_pixels=AUTO_MAX_COARSE_PIXELS, confidence=None) -> np.ndarray:
     """Dense defocus map B minimising Eq. (4), from sparse blur σ at edge pixels.
 
     Parameters
@@ -1105,6 +1110,9 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
         (20·s for ``"two_level"`` — 40 at s = 2, 80 at s = 4 —, 60 for ``"jacobi"``).
     max_coarse_pixels : int, keyword-only
         Pixel budget of the ``"auto"`` coarse grid.
+    confidence : ndarray, HxW, float in [0, 1], or None, keyword-only
+        Beyond the paper: per-edge confidence c_p, so α_p = alpha·c_p at edge pixels (None: the
+        paper's α_p = alpha). Ignored off edges.
 
     Returns
     -------
@@ -1174,6 +1182,13 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
     if refine_iterations is None:
         refine_iterations = _default_refine_iterations(refinement, s)
 
+    if confidence is not None:
+        confidence = np.asarray(confidence, dtype=np.float64)
+        if confidence.shape != (h, w):
+            raise ValueError(f"confidence has shape {confidence.shape}, expected {(h, w)}")
+        cf = confidence[np.isfinite(sparse_sigma)]
+        if not np.all(np.isfinite(cf)) or (cf.size and (cf.min() < 0 or cf.max() > 1)):
+            raise ValueError("confidence must be finite and in [0, 1] at edge pixels")
     edge = np.isfinite(sparse_sigma)
     if not edge.any():
         return np.zeros((h, w))
@@ -1184,13 +1199,13 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
     solve = PROPAGATION_SOLVERS[solver]
     if s == 1:
         L = colorization_matrix(ref, window=window, neighborhood=neighborhood, eps=eps)
-        a, rhs, lam, _ = _data_term(sparse_sigma, alpha, regularization)
+        a, rhs, lam, _ = _data_term(sparse_sigma, alpha, regularization, confidence)
         A = _assemble(L, a, lam)
         x0 = np.full(h * w, fill)
         return solve(A, rhs, x0=x0, tol=tol).reshape(h, w)
 
     # --- coarse solve + full-resolution refinement --------------------------------------------
-    ref_c, bm_c, a_c = _coarse_problem(sparse_sigma, ref, s, alpha)
+    ref_c, bm_c, a_c = _coarse_problem(sparse_sigma, ref, s, alpha, confidence)
     hc, wc = bm_c.shape
     L_c = colorization_matrix(ref_c, window=window, neighborhood=neighborhood, eps=eps)
     lam_c = regularization * alpha * s * s
@@ -1204,7 +1219,7 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
     if refine_iterations == 0:
         return x0
     weights, offs = _padded_weights(ref, window, neighborhood, eps)
-    a, rhs, lam, _ = _data_term(sparse_sigma, alpha, regularization)
+    a, rhs, lam, _ = _data_term(sparse_sigma, alpha, regularization, confidence)
     a_diag = (a + lam).reshape(h, w)
     x, _res = PROPAGATION_REFINEMENTS[refinement](
         weights, offs, a_diag, rhs.reshape(h, w), x0, coarse=coarse_level, s=s, coarse_shape=(hc, wc),

@@ -1,15 +1,21 @@
 """Compare blur estimators on the rendered scenes: one metrics table per estimator × scene × aperture.
 
-``python -m repro.evaluate [--estimator NAME ...] [--scenes NAME ...] [--fnumber N ...]
-[--preset small|full] [--encoding srgb linear] [--out DIR] [--force] [--variant V]``
+``python -m repro.evaluate [--preset paper robust zhuo_sim] [--estimator NAME ...] [--scenes NAME ...]
+[--fnumber N ...] [--scene-preset small|full] [--encoding srgb linear] [--stages] [--out DIR] [--force]
+[--variant V]``
 
 For every combination, the scene is rendered (cached), the whole pipeline runs with the estimator
 (:func:`experiments.evaluation.evaluate_case`, cached per estimator, scene, f-number, preset and
 encoding, keyed also by the code fingerprint), and the errors against the render's σ_gt are
-tabulated: the sparse blur measure at edge pixels, after the cross-bilateral filter, the dense map
+tabulated, per method preset (:data:`method.PRESETS`) and estimator: the sparse blur measure at edge pixels, after the cross-bilateral filter, the dense map
 over all / edge / textured pixels, RTF-normalised errors and the in-focus outlier fraction
 (occlusion boundaries excluded everywhere). The table is printed and written to
 ``<out>/evaluate.csv`` and ``<out>/evaluate.json`` (atomically).
+
+``--stages`` adds the stage attribution (:mod:`experiments.stage_attribution`): the error after
+each stage (sparse, refined, dense over all / textured / edge pixels) for the estimated measures
+and with oracle inputs (σ_gt at the detected edges fed into Eq. 3, or straight into Eq. 4), per
+σ_gt bin; printed and written to ``<out>/stages.csv`` and ``<out>/stages.json``.
 
 Estimators are read from :data:`method.BLUR_ESTIMATORS` at run time, so a newly registered
 estimator is compared on the same ground truth with no other change. Unknown estimator or scene,
@@ -27,10 +33,9 @@ from pathlib import Path
 
 PROG = "python -m repro.evaluate"
 DEFAULT_OUT = Path("report") / "evaluate"
-DEFAULT_ESTIMATORS = ("model_fit", "zero_crossing", "gradient_ratio")
 
 #: Identifying columns, then metric columns (flattened ``experiments.evaluation.evaluate_result`` keys).
-ID_COLUMNS = ("estimator", "scene", "f_number", "preset", "encoding")
+ID_COLUMNS = ("method_preset", "estimator", "scene", "f_number", "scene_preset", "encoding")
 METRIC_COLUMNS = (
     "sparse_n", "sparse_mae", "sparse_median_ae", "sparse_rmse", "sparse_bias", "sparse_median_rel_error",
     "sparse_outlier_fraction",
@@ -51,20 +56,26 @@ _SHORT = {"sparse_n": "n_edge", "sparse_mae": "BM_MAE", "sparse_median_ae": "BM_
 
 
 def _parser():
-    from method import BLUR_ESTIMATORS
+    from method import BLUR_ESTIMATORS, PRESETS
     from repro._cli import ArgumentParser, add_variant_option, float_type
     from scenes import SCENES
 
     p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     add_variant_option(p)
+    p.add_argument("--preset", nargs="+", default=None, metavar="NAME",
+                   help=f"method presets to compare (registered: {', '.join(PRESETS)}; default: paper). "
+                        "The render resolution is --scene-preset")
     p.add_argument("--estimator", nargs="+", default=None, metavar="NAME",
-                   help=f"estimators to compare (registered: {', '.join(BLUR_ESTIMATORS)}; default: all registered)")
+                   help=f"estimators to compare, overriding each preset's own (registered: {', '.join(BLUR_ESTIMATORS)}; "
+                        "default: all registered with the paper preset alone, else each preset's own estimator)")
     p.add_argument("--scenes", nargs="+", default=None, metavar="NAME",
                    help=f"scenes (default: all: {', '.join(SCENES)})")
     p.add_argument("--fnumber", nargs="+", type=float_type("--fnumber"), default=[8.0, 4.0], metavar="N",
                    help="apertures (default: 8 4)")
-    p.add_argument("--preset", default="small", choices=("small", "full"),
+    p.add_argument("--scene-preset", default="small", choices=("small", "full"),
                    help="render resolution preset (small 160x120, full 640x480; default small)")
+    p.add_argument("--stages", action="store_true",
+                   help="also print and write the stage attribution (errors after each stage, with oracle inputs)")
     p.add_argument("--encoding", nargs="+", default=["srgb"], choices=("srgb", "linear"),
                    help="input encoding(s) given to the method (default: srgb, as a camera stores it)")
     p.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="DIR", help=f"output folder (default: {DEFAULT_OUT})")
@@ -74,11 +85,21 @@ def _parser():
 
 def _validate(args):
     from experiments.evaluation import validate_estimators
-    from method import BLUR_ESTIMATORS
+    from method import BLUR_ESTIMATORS, PRESETS
     from scenes import SCENES
     from scenes.render import validate_render_options
 
-    estimators = validate_estimators(dict.fromkeys(args.estimator or list(BLUR_ESTIMATORS)))
+    presets = list(dict.fromkeys(args.preset or ["paper"]))
+    bad = [p for p in presets if p not in PRESETS]
+    if bad:
+        hint = " (the render resolution is --scene-preset small|full)" if set(bad) & {"small", "full"} else ""
+        raise ValueError(f"unknown preset(s) {', '.join(map(repr, bad))}; allowed: {sorted(PRESETS)}{hint}")
+    if args.estimator:
+        estimators = validate_estimators(dict.fromkeys(args.estimator))
+    elif args.preset is None:
+        estimators = validate_estimators(list(BLUR_ESTIMATORS))
+    else:
+        estimators = (None,)
     scenes = list(dict.fromkeys(args.scenes or list(SCENES)))
     bad = [s for s in scenes if s not in SCENES]
     if bad:
@@ -86,10 +107,10 @@ def _validate(args):
     f_numbers = list(dict.fromkeys(float(n) for n in args.fnumber))
     for s in scenes:
         for n in f_numbers:
-            validate_render_options(s, preset=args.preset, f_number=n)  # ValueError on a bad N
+            validate_render_options(s, preset=args.scene_preset, f_number=n)  # ValueError on a bad N
     if args.out.exists() and not args.out.is_dir():
         raise ValueError(f"--out {str(args.out)!r} is a file; allowed: a folder")
-    return estimators, scenes, f_numbers, list(dict.fromkeys(args.encoding))
+    return presets, estimators, scenes, f_numbers, list(dict.fromkeys(args.encoding))
 
 
 def table_rows(cases) -> list[dict]:
@@ -99,7 +120,7 @@ def table_rows(cases) -> list[dict]:
     rows = []
     for case in cases:
         flat = flatten_metrics(case.metrics)
-        row = {c: case.key[c] for c in ID_COLUMNS}
+        row = {c: case.key["preset" if c == "scene_preset" else c] for c in ID_COLUMNS}
         for c in METRIC_COLUMNS:
             if c == "seconds_total":
                 row[c] = flat.get("timings_total_s")
@@ -119,8 +140,8 @@ def _fmt(v) -> str:
 
 def format_table(rows) -> str:
     """Fixed-width terminal table of the :data:`SHOWN` columns."""
-    head = [*ID_COLUMNS[:3], ID_COLUMNS[4], *(_SHORT[c] for c in SHOWN)]
-    body = [[str(r["estimator"]), str(r["scene"]), f"{r['f_number']:g}", str(r["encoding"]),
+    head = [*ID_COLUMNS[:4], ID_COLUMNS[5], *(_SHORT[c] for c in SHOWN)]
+    body = [[str(r["method_preset"]), str(r["estimator"]), str(r["scene"]), f"{r['f_number']:g}", str(r["encoding"]),
              *(_fmt(r[c]) for c in SHOWN)] for r in rows]
     widths = [max(len(h), *(len(b[i]) for b in body)) if body else len(h) for i, h in enumerate(head)]
     lines = ["  ".join(h.ljust(w) for h, w in zip(head, widths))]
@@ -145,10 +166,64 @@ def write_outputs(rows, out_dir: Path, info: dict) -> list[Path]:
     return [csv_path, json_path]
 
 
+STAGE_ID_COLUMNS = ("method_preset", "estimator", "scene", "f_number", "scene_preset", "encoding")
+
+
+def stage_table_rows(cases) -> list[dict]:
+    """Stage-attribution rows (:func:`experiments.stage_attribution.stage_rows`) of every case."""
+    from experiments.stage_attribution import stage_rows
+
+    rows = []
+    for case in cases:
+        ids = {c: case.key["preset" if c == "scene_preset" else c] for c in STAGE_ID_COLUMNS}
+        rows += stage_rows(case.metrics["stages"], **ids)
+    return rows
+
+
+def format_stage_table(rows) -> str:
+    """Terminal table: MAE (bias) per input × stage, overall and per σ_gt bin with pixels in it."""
+    if not rows:
+        return "(no stage rows)"
+    bins = [k[4:] for k in rows[0] if k.startswith("mae_")]
+    used = [b for b in bins if any((r.get(f"n_{b}") or 0) > 0 for r in rows)]
+    head = ["preset", "scene", "f", "input", "stage", "n", "all", *(f"σ[{b.replace('_', ',')})" for b in used)]
+
+    def cell(m, b):
+        return "-" if m is None else f"{m:.2f}({b:+.2f})"
+
+    body = [[str(r["method_preset"]), str(r["scene"]), f"{r['f_number']:g}", r["input"], r["stage"], str(r["n"]),
+             cell(r["mae"], r["bias"]), *(cell(r[f"mae_{b}"], r[f"bias_{b}"]) for b in used)] for r in rows]
+    widths = [max(len(h), *(len(b[i]) for b in body)) for i, h in enumerate(head)]
+    lines = ["MAE (bias), px, per σ_gt bin [lo,hi) px; oracle_refine = σ_gt at the detected edges into Eq. 3; "
+             "oracle_propagate = σ_gt at the edges into Eq. 4",
+             "  ".join(h.ljust(w) for h, w in zip(head, widths))]
+    lines += ["  ".join(c.ljust(w) for c, w in zip(b, widths)) for b in body]
+    return "\n".join(lines)
+
+
+def write_stage_outputs(rows, out_dir: Path, info: dict) -> list[Path]:
+    """Write ``stages.csv`` and ``stages.json`` atomically; returns the paths."""
+    from experiments.registry import to_jsonable
+    from scenes.storage import atomic_write_text
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fields = list(rows[0]) if rows else list(STAGE_ID_COLUMNS)
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: ("" if v is None else v) for k, v in r.items()})
+    csv_path, json_path = out_dir / "stages.csv", out_dir / "stages.json"
+    atomic_write_text(csv_path, buf.getvalue())
+    meta = {k: v for k, v in info.items() if k != "columns"}
+    atomic_write_text(json_path, json.dumps(to_jsonable({**meta, "rows": rows}), indent=1, sort_keys=True) + "\n")
+    return [csv_path, json_path]
+
+
 def main(argv=None) -> int:
     """Entry point; returns the exit status."""
     args = _parser().parse_args(argv)
-    estimators, scenes, f_numbers, encodings = _validate(args)
+    presets, estimators, scenes, f_numbers, encodings = _validate(args)
     if args.variant:
         from scenes.backend import select_variant
 
@@ -158,14 +233,15 @@ def main(argv=None) -> int:
     from experiments.evaluation import EVAL_VERSION, evaluate_case
     from experiments.registry import code_fingerprint, library_versions
 
-    combos = [(e, s, n, enc) for s in scenes for n in f_numbers for enc in encodings for e in estimators]
+    combos = [(pr, e, s, n, enc) for s in scenes for n in f_numbers for enc in encodings for pr in presets
+              for e in estimators]
     cases = []
     t0 = time.perf_counter()
     with tqdm(combos, desc="evaluate", unit="case", file=sys.stderr) as bar:
-        for e, s, n, enc in bar:
-            bar.set_postfix_str(f"{e} {s} f/{n:g} {enc}")
-            cases.append(evaluate_case(e, s, f_number=n, preset=args.preset, encoding=enc,
-                                       variant=args.variant, force=args.force))
+        for pr, e, s, n, enc in bar:
+            bar.set_postfix_str(f"{pr} {e or ''} {s} f/{n:g} {enc}")
+            cases.append(evaluate_case(e, s, f_number=n, preset=args.scene_preset, encoding=enc,
+                                       method_preset=pr, variant=args.variant, force=args.force))
     rows = table_rows(cases)
     info = {
         "columns": [*ID_COLUMNS, *METRIC_COLUMNS],
@@ -180,6 +256,11 @@ def main(argv=None) -> int:
     }
     paths = write_outputs(rows, args.out, info)
     print(format_table(rows))
+    if args.stages:
+        srows = stage_table_rows(cases)
+        paths += write_stage_outputs(srows, args.out, info)
+        print()
+        print(format_stage_table(srows))
     for p in paths:
         print(f"  {p}")
     return 0

@@ -35,7 +35,7 @@ def test_evaluate_one_scene_writes_csv_and_json(tmp_path, capsys, goldens):
 
     out = tmp_path / "ev"
     assert _run(["--estimator", "model_fit", "zero_crossing", "gradient_ratio", "--scenes", "planes",
-                 "--fnumber", "8", "--preset", "small", "--out", str(out)]) == 0
+                 "--fnumber", "8", "--scene-preset", "small", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "model_fit" in printed and "gradient_ratio" in printed and "evaluate.csv" in printed
     rows, js = _read(out)
@@ -88,7 +88,9 @@ def test_registered_dummy_estimator_shows_up(tmp_path, monkeypatch):
     (["--fnumber", "0"], "--fnumber"),
     (["--fnumber", "-4"], "--fnumber"),
     (["--fnumber", "inf"], "--fnumber"),
-    (["--preset", "huge"], "--preset"),
+    (["--scene-preset", "huge"], "--scene-preset"),
+    (["--preset", "small"], "--scene-preset"),
+    (["--preset", "nope"], "allowed"),
     (["--encoding", "raw"], "--encoding"),
 ])
 def test_bad_input_one_line_exit_2(argv, needle, capsys, tmp_path):

@@ -1,0 +1,175 @@
+"""Which stage loses accuracy: errors after each stage of the pipeline, with oracle inputs.
+
+For an image with known per-pixel blur σ_gt (an analytic mosaic or a render), the pipeline runs
+once as it is and twice with **oracle inputs** fed in place of an earlier stage's output:
+
+* ``estimated`` — the pipeline: sparse BM at edges (Sec. 3.2) → refined (Eq. 3) → dense (Eq. 4);
+* ``oracle_refine`` — σ_gt at the detected edge pixels fed into Eq. (3), then Eq. (4): what the
+  refinement and the propagation do to perfect measures;
+* ``oracle_propagate`` — σ_gt at the detected edge pixels fed straight into Eq. (4): what the
+  propagation alone does to perfect measures.
+
+The stage that first departs from the truth is the one that loses the accuracy: e.g. a good
+``estimated`` sparse error but a bad ``oracle_refine`` dense error points at Eq. (3).
+
+Every error is reported overall and per σ_gt bin (:data:`SIGMA_BINS`, px), as MAE, mean signed
+error (bias) and the number of pixels, over the pixels where σ_gt is valid (``valid``: not an
+occlusion boundary / tile seam): at edge pixels for the sparse and refined stages; for the dense
+map over ``all``, ``textured`` and ``edges`` pixels (:func:`experiments.metrics.region_masks`).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+__all__ = ["INPUTS", "SIGMA_BINS", "ablation_params", "stage_errors", "stage_rows"]
+
+#: σ_gt bin edges, px: each bin is [edges[i], edges[i+1]).
+SIGMA_BINS = (0.0, 0.75, 1.25, 1.75, 2.5, 3.5, 5.0, 7.0, 10.0, np.inf)
+
+#: The three ways the stages are fed (see the module docstring).
+INPUTS = ("estimated", "oracle_refine", "oracle_propagate")
+
+
+def _errors(estimate, truth, mask, bins) -> dict:
+    ok = mask & np.isfinite(estimate) & np.isfinite(truth)
+    e = estimate[ok] - truth[ok]
+    t = truth[ok]
+    out = {"n": int(e.size), "mae": float(np.mean(np.abs(e))) if e.size else None,
+           "bias": float(np.mean(e)) if e.size else None,
+           "coverage": float(ok.sum() / max(1, (mask & np.isfinite(truth)).sum()))}
+    per = []
+    for lo, hi in zip(bins[:-1], bins[1:]):
+        sel = (t >= lo) & (t < hi)
+        n = int(sel.sum())
+        per.append({"lo": float(lo), "hi": float(hi), "n": n,
+                    "mae": float(np.mean(np.abs(e[sel]))) if n else None,
+                    "bias": float(np.mean(e[sel])) if n else None})
+    out["bins"] = per
+    return out
+
+
+def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, texture_threshold=0.02,
+                 result=None) -> dict:
+    """Errors after every stage for the estimated and the two oracle inputs.
+
+    Parameters
+    ----------
+    image : ndarray, HxWx3 or HxW, float in [0, 1]
+        The input the method sees.
+    sigma_gt : ndarray, HxW, float
+        Ground-truth blur σ, px (NaN where undefined).
+    params : DefocusParams, keyword-only
+        Pipeline parameters (a preset or an ablation).
+    valid : ndarray, HxW, bool, optional, keyword-only
+        Pixels where σ_gt is trusted (default: finite σ_gt); occlusion boundaries / tile seams off.
+    bins : sequence of float, keyword-only
+        σ_gt bin edges, px.
+    texture_threshold : float, keyword-only
+        Local luminance std above which a pixel is textured (image units).
+    result : method.DefocusResult, optional, keyword-only
+        The pipeline's result for (image, params) if already computed.
+
+    Returns
+    -------
+    dict
+        ``{input: {stage: errors}}`` with inputs :data:`INPUTS`; stages ``sparse`` (estimated
+        only), ``refined`` (not for ``oracle_propagate``), ``dense_all``, ``dense_textured``,
+        ``dense_edges``. ``errors`` = ``n``, ``mae``, ``bias`` (px), ``coverage`` (fraction of the
+        region's valid pixels with a finite value) and ``bins`` (per σ_gt bin: ``lo``, ``hi``,
+        ``n``, ``mae``, ``bias``). Also ``n_edges``.
+
+    Notes
+    -----
+    1. Run :func:`method.estimate_defocus_map` (unless ``result`` is given).
+    2. Oracle sparse map: σ_gt at the detected edge pixels (``result.edges``), NaN elsewhere.
+    3. ``oracle_refine``: :func:`method.pipeline.refine_stage` then
+       :func:`method.pipeline.propagate_stage` on it; ``oracle_propagate``: ``propagate_stage``
+       directly (both with ``params``).
+    4. Errors per stage and per σ_gt bin, over valid pixels (edges for the sparse/refined stages).
+    """
+    from method import NoEdgesWarning, estimate_defocus_map
+    from method.pipeline import propagate_stage, refine_stage
+
+    from .metrics import region_masks
+
+    image = np.asarray(image, dtype=np.float64)
+    gt = np.asarray(sigma_gt, dtype=np.float64)
+    if gt.shape != image.shape[:2]:
+        raise ValueError(f"sigma_gt has shape {gt.shape}; expected {image.shape[:2]}")
+    valid = np.isfinite(gt) if valid is None else (np.asarray(valid, dtype=bool) & np.isfinite(gt))
+    if result is None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NoEdgesWarning)
+            result = estimate_defocus_map(image, params)
+    rgb = image if image.ndim == 3 else np.repeat(image[..., None], 3, axis=2)
+    edges = np.asarray(result.edges, dtype=bool)
+    regions = region_masks(image, gt, edges=edges, exclude=~valid, texture_threshold=texture_threshold)
+    at_edges = edges & valid
+
+    def dense_block(dense):
+        return {f"dense_{k}": _errors(dense, gt, regions[k], bins) for k in ("all", "textured", "edges")}
+
+    out = {"estimated": {"sparse": _errors(result.sparse_sigma, gt, at_edges, bins),
+                         "refined": _errors(result.refined_sigma, gt, at_edges, bins),
+                         **dense_block(result.defocus_map)},
+           "n_edges": int(edges.sum())}
+    oracle = np.where(edges & np.isfinite(gt), gt, np.nan)
+    if np.isfinite(oracle).any():
+        refined = refine_stage(oracle, rgb, params=params)
+        out["oracle_refine"] = {"refined": _errors(refined, gt, at_edges, bins),
+                                **dense_block(propagate_stage(refined, rgb, params=params))}
+        out["oracle_propagate"] = dense_block(propagate_stage(oracle, rgb, params=params, sparse_sigma=oracle))
+    else:
+        out["oracle_refine"] = {}
+        out["oracle_propagate"] = {}
+    return out
+
+
+def stage_rows(errors: dict, **ids) -> list[dict]:
+    """Flatten :func:`stage_errors` into table rows (one per input × stage, bins as columns).
+
+    Returns
+    -------
+    list of dict
+        ``ids`` + ``input``, ``stage``, ``n``, ``mae``, ``bias``, ``coverage`` and, per bin i,
+        ``mae_<lo>_<hi>`` / ``bias_<lo>_<hi>`` / ``n_<lo>_<hi>`` (px).
+    """
+    rows = []
+    for inp in INPUTS:
+        for stage, err in errors.get(inp, {}).items():
+            row = {**ids, "input": inp, "stage": stage, "n": err["n"], "mae": err["mae"], "bias": err["bias"],
+                   "coverage": err["coverage"]}
+            for b in err["bins"]:
+                tag = f"{float(b['lo']):g}_{float(b['hi']):g}"
+                row[f"n_{tag}"] = b["n"]
+                row[f"mae_{tag}"] = b["mae"]
+                row[f"bias_{tag}"] = b["bias"]
+            rows.append(row)
+    return rows
+
+
+def ablation_params(base, changes: dict) -> dict:
+    """One-switch-off ablations of a preset: ``{"all": base, "no <field>": base with that field reset}``.
+
+    Parameters
+    ----------
+    base : DefocusParams
+        The preset (e.g. ``DefocusParams.preset("robust")``).
+    changes : dict
+        Its departures from the paper (:data:`method.params.ROBUST_CHANGES`): each ablation row
+        resets one of them to the paper's value.
+
+    Returns
+    -------
+    dict of str -> DefocusParams
+    """
+    from method import DefocusParams
+
+    paper = DefocusParams()
+    rows = {"all": base}
+    for field in changes:
+        rows[f"no {field}"] = base.replace(**{field: getattr(paper, field)})
+    return rows

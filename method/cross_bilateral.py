@@ -120,8 +120,11 @@ def _brute_force_product(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, 
 
 
 #: Cell size of the 5-D (y, x, R, G, B) grid of the product kernel, as a fraction of σ: coarser
-#: than the 3-D grids' σ/3 to keep the grid small (≤ ~(10/0.5)³ range cells at σr = 10 %).
-GRID_CELL_PER_SIGMA_PRODUCT = 1.0 / 2.0
+#: than the 3-D grids' σ/3 to keep the grid small; its size does not grow with the image (σs is a
+#: fraction of it). Measured against the brute-force oracle (128² astronaut, 10 % random measures
+#: 0–4 px): σ/2 → 2.8 % max relative / 0.005 px RMS error in 3–4 s; 0.75σ → 7.6 % / 0.012 px in
+#: 0.4–0.6 s (the value used); σ → 23 % / 0.026 px in 0.14 s (loaded 2-core machine).
+GRID_CELL_PER_SIGMA_PRODUCT = 0.75
 
 
 def _grid_product(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, cell=GRID_CELL_PER_SIGMA_PRODUCT):

@@ -1,6 +1,11 @@
 """Estimate the defocus map of a photo (Bae & Durand 2007) and write it.
 
-``python -m repro.estimate PHOTO [-o MAP.exr|MAP.png|MAP.npy] [--estimator NAME] [--alpha A]``
+``python -m repro.estimate PHOTO [-o MAP.exr|MAP.png|MAP.npy] [--preset NAME] [--estimator NAME] [--alpha A]``
+
+``--preset`` names a parameter set of ``method.PRESETS``: ``robust`` (the default here: beyond the
+paper, measured better dense maps), ``paper`` (the literal reproduction, ``DefocusParams()``),
+``zhuo_sim`` (the Zhuo & Sim 2011 baseline); ``--estimator``/``--alpha`` override the preset's value.
+The preset in use is said in one line on stderr (not with ``-q``).
 
 Output (``-o``; default ``<photo folder>/<photo stem>.defocus.exr``):
 
@@ -47,6 +52,18 @@ PREVIEW_MAX_PIXELS = 2_000_000
 #: Version of the map-cache layout (bump when the entry's files or their meaning change).
 MAP_CACHE_VERSION = 1
 
+#: Parameter set (key of ``method.PRESETS``) of the photo tools when ``--preset`` is not given:
+#: photographers want the map that works, so the tools go beyond the literal reproduction.
+DEFAULT_PRESET = "robust"
+
+#: What each preset is, for the help text and the "preset: NAME (...)" line. A preset of the
+#: registry missing here is described by the fields it changes from the paper.
+PRESET_BLURBS = {
+    "paper": "the literal reproduction of Bae & Durand 2007, DefocusParams()",
+    "robust": "beyond the paper, measured better dense maps",
+    "zhuo_sim": "Zhuo & Sim 2011 baseline: gradient-ratio blur, matting-Laplacian propagation",
+}
+
 
 # ------------------------------------------------------------------------------------------------
 # CLI plumbing shared with repro.magnify
@@ -69,16 +86,50 @@ def _pixel_count(text: str) -> int:
     return int(value)
 
 
+def _presets() -> dict:
+    """The registry ``method.PRESETS`` (name -> DefocusParams), read at run time."""
+    from method.params import PRESETS
+
+    return PRESETS
+
+
+def _preset_blurb(name: str) -> str:
+    from method.params import DefocusParams
+
+    if name in PRESET_BLURBS:
+        return PRESET_BLURBS[name]
+    changed = sorted(_presets()[name].changes_from(DefocusParams()))
+    return f"changes {', '.join(changed)} from the paper" if changed else "the paper's parameters"
+
+
+def _by_preset(field: str) -> str:
+    """'model_fit (paper, robust), gradient_ratio (zhuo_sim)': a field's value in each preset."""
+    groups: dict = {}
+    for name, params in _presets().items():
+        value = getattr(params, field)
+        groups.setdefault(f"{value:g}" if isinstance(value, float) else str(value), []).append(name)
+    if len(groups) == 1:
+        return f"{next(iter(groups))} in every preset"
+    return ", ".join(f"{value} ({', '.join(names)})" for value, names in groups.items())
+
+
 def add_estimation_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by repro.estimate and repro.magnify."""
+    from method.blur_estimators import BLUR_ESTIMATORS
     from method.upsampling import DEFAULT_MAX_WORKING_PIXELS
     from scenes.photo_io import DEFAULT_MAX_PIXELS
 
-    p.add_argument("--estimator", default="model_fit", metavar="NAME",
-                   help="blur estimator at edges: model_fit (the paper's, default), zero_crossing "
-                        "(Elder–Zucker), gradient_ratio")
+    presets = "; ".join(f"{name} ({_preset_blurb(name)})" for name in _presets())
+    p.add_argument("--preset", default=DEFAULT_PRESET, metavar="NAME",
+                   help=f"named parameter set (method.PRESETS): {presets}. Default {DEFAULT_PRESET}; "
+                        "--estimator and --alpha override the preset's value")
+    p.add_argument("--estimator", default=None, metavar="NAME",
+                   help=f"blur estimator at edges: {', '.join(sorted(BLUR_ESTIMATORS))} (model_fit is the "
+                        f"paper's, zero_crossing Elder–Zucker's). Default: the preset's, "
+                        f"{_by_preset('estimator')}")
     p.add_argument("--alpha", default=None, metavar="A",
-                   help="propagation data weight α > 0 (Eq. 4; default 0.5, Fig. 6 sweeps 0.1–1)")
+                   help=f"propagation data weight α > 0 (Eq. 4; Fig. 6 sweeps 0.1–1). Default: the "
+                        f"preset's, {_by_preset('alpha')}")
     p.add_argument("--max-working-pixels", type=_pixel_count, default=DEFAULT_MAX_WORKING_PIXELS,
                    metavar="N",
                    help=f"estimate at most N pixels (default {DEFAULT_MAX_WORKING_PIXELS:,}); a bigger "
@@ -96,13 +147,23 @@ def add_estimation_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def defocus_params(args):
-    """DefocusParams from --estimator / --alpha, validated (ValueError naming the bad value)."""
+    """DefocusParams of --preset changed by --estimator / --alpha, validated.
+
+    Raises ``ValueError`` naming the bad value and the allowed ones (an unknown preset lists the
+    registry ``method.PRESETS``).
+    """
     from method.blur_estimators import BLUR_ESTIMATORS
     from method.params import DefocusParams
 
-    if args.estimator not in BLUR_ESTIMATORS:
-        raise ValueError(f"--estimator {args.estimator!r} is unknown; choose one of {', '.join(sorted(BLUR_ESTIMATORS))}")
-    changes = {"estimator": args.estimator}
+    presets = _presets()
+    if args.preset not in presets:
+        raise ValueError(f"--preset {args.preset!r} is unknown; allowed: {', '.join(presets)}")
+    changes = {}
+    if args.estimator is not None:
+        if args.estimator not in BLUR_ESTIMATORS:
+            raise ValueError(f"--estimator {args.estimator!r} is unknown; choose one of "
+                             f"{', '.join(sorted(BLUR_ESTIMATORS))}")
+        changes["estimator"] = args.estimator
     if args.alpha is not None:
         try:
             alpha = float(args.alpha)
@@ -111,7 +172,20 @@ def defocus_params(args):
         if not (math.isfinite(alpha) and alpha > 0):
             raise ValueError(f"--alpha {args.alpha} is invalid; allowed: a finite number > 0")
         changes["alpha"] = alpha
-    return DefocusParams().replace(**changes)
+    return DefocusParams.preset(args.preset, **changes)
+
+
+def preset_line(args) -> str:
+    """'preset: robust (beyond the paper; --preset paper for the literal reproduction)', plus overrides."""
+    name = args.preset
+    if name == "paper":
+        text = f"preset: paper ({PRESET_BLURBS['paper'].split(',')[0]})"
+    else:
+        text = f"preset: {name} ({'beyond the paper' if name == 'robust' else _preset_blurb(name)}; "
+        text += "--preset paper for the literal reproduction)"
+    overrides = [f"--{flag} {getattr(args, flag)}" for flag in ("estimator", "alpha")
+                 if getattr(args, flag) is not None]
+    return text + (f", with {' '.join(overrides)}" if overrides else "")
 
 
 def check_output_path(path, *, photo, overwrite, allowed, what="output") -> Path:
@@ -216,7 +290,12 @@ def _versions() -> dict:
 
 
 def map_cache_key(photo, params, working_shape_) -> dict:
-    """Everything that determines a working-resolution map (JSON-able)."""
+    """Everything that determines a working-resolution map (JSON-able).
+
+    ``params`` enters field by field (every field of ``DefocusParams``), so two presets, or a preset
+    and its ``--estimator``/``--alpha`` variant, never share an entry; the preset's *name* is not in
+    the key (equal parameters give the same map whatever they are called).
+    """
     import dataclasses
 
     from scenes.storage import sha256_file
@@ -233,7 +312,7 @@ def map_cache_key(photo, params, working_shape_) -> dict:
     }
 
 
-def _build_map(folder: Path, working, params, progress) -> None:
+def _build_map(folder: Path, working, params, progress, preset=None) -> None:
     from method.pipeline import NoEdgesWarning, estimate_defocus_map
 
     # no RNG seeding needed: the pipeline is deterministic (tests/test_determinism_method.py)
@@ -247,7 +326,8 @@ def _build_map(folder: Path, working, params, progress) -> None:
     with open(folder / "map.npy", "wb") as fh:
         np.save(fh, np.ascontiguousarray(result.defocus_map, dtype=np.float64), allow_pickle=False)
     meta = {"no_edges": no_edges, "edge_pixels": int(result.edges.sum()),
-            "timings_s": {k: float(v) for k, v in result.timings.items()}}
+            "timings_s": {k: float(v) for k, v in result.timings.items()},
+            "preset": preset}  # informational: the name it was built under (the key holds the params)
     (folder / "meta.json").write_text(json.dumps(meta, indent=1, sort_keys=True))
 
 
@@ -260,7 +340,7 @@ def _load_entry(folder: Path, shape):
 
 
 def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, progress=None,
-                       log=lambda msg: None):
+                       log=lambda msg: None, preset=None):
     """Defocus map of a photo at full resolution, estimated at the working resolution, cached.
 
     Parameters
@@ -274,13 +354,17 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, pro
         ``progress(stage_name)``.
     log : callable, keyword-only
         Receives one-line notes (working resolution, cache reuse).
+    preset : str, optional, keyword-only
+        Name of the preset ``params`` came from, recorded in the cache entry's ``meta.json``
+        (informational; the entry is keyed by ``params`` itself).
 
     Returns
     -------
     sigma : ndarray, HxW, float64
         σ in px of the full-resolution photo.
     info : dict
-        ``scale``, ``working_shape``, ``no_edges``, ``cached`` (reused an existing entry).
+        ``scale``, ``working_shape``, ``no_edges``, ``cached`` (reused an existing entry),
+        ``preset`` (as given).
     """
     from method.upsampling import downscale_image, upsample_defocus_map, working_shape
     from scenes.backend import cache_root
@@ -302,7 +386,7 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, pro
 
     def build(folder):
         built.append(True)
-        _build_map(Path(folder), working, params, progress)
+        _build_map(Path(folder), working, params, progress, preset)
 
     if use_cache:
         cache = Cache(cache_root() / "maps")
@@ -327,7 +411,7 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, pro
     else:
         sigma = m
     return sigma, {"scale": scale, "working_shape": (h, w), "no_edges": bool(meta["no_edges"]),
-                   "cached": not built}
+                   "cached": not built, "preset": preset}
 
 
 def write_map_preview(path, sigma) -> Path:
@@ -423,13 +507,14 @@ def main(argv=None) -> int:
     check_output_path(out, photo=photo_path, overwrite=args.overwrite, allowed=MAP_OUTPUT_SUFFIXES,
                       what="output map")
     photo = load_photo(args, prog=PROG)
+    note(PROG, preset_line(args), quiet=args.quiet)
     for n in photo.notes:
         note(PROG, n, quiet=args.quiet)
     progress = StageProgress(PROG, quiet=args.quiet)
     try:
         sigma, info = estimate_photo_map(photo, params, max_working_pixels=args.max_working_pixels,
                                          use_cache=not args.no_cache, progress=progress,
-                                         log=lambda m: note(PROG, m, quiet=args.quiet))
+                                         log=lambda m: note(PROG, m, quiet=args.quiet), preset=args.preset)
         progress("write")
         write_map(out, sigma)
     finally:

@@ -2,7 +2,11 @@
 ``factor`` × its estimated blur, as if shot with a ``factor``× wider aperture.
 
 ``python -m repro.magnify PHOTO --factor 2 [-o OUT.jpg] [--save-map MAP.exr] [--kernel gaussian|disk]
-[--floor clamp|subtract|shift]``
+[--floor clamp|subtract|shift] [--preset NAME]``
+
+``--preset`` (a key of ``method.PRESETS``; default ``robust``, beyond the paper; ``paper`` is the
+literal reproduction) chooses the parameters of the defocus map and of its Sec. 5 preprocessing, as
+in ``repro.estimate``; the preset in use is said in one line on stderr (not with ``-q``).
 
 Output (``-o``; default ``<photo folder>/<stem>.magnified-x<factor><photo's extension>``): same size,
 upright (EXIF orientation applied, orientation tag reset), format from the extension (JPEG, PNG,
@@ -32,6 +36,7 @@ from repro.estimate import (
     MAP_OUTPUT_SUFFIXES,
     OneLineParser,
     StageProgress,
+    _by_preset,
     _pixel_count,
     add_estimation_arguments,
     check_output_path,
@@ -40,6 +45,7 @@ from repro.estimate import (
     load_photo,
     map_summary,
     note,
+    preset_line,
     write_map,
 )
 
@@ -66,14 +72,14 @@ def _parser() -> OneLineParser:
                         "input), .exr (float, linear)")
     p.add_argument("--kernel", default="gaussian", metavar="NAME",
                    help="shape of the added blur: gaussian (default) or disk (lens-like bokeh)")
-    p.add_argument("--floor", default="clamp", metavar="MODE",
-                   help="how the paper's 'clamp the map's minimum to 0' is read: clamp (default, "
-                        "literal: only negative values are raised to 0, so the estimated map's "
+    p.add_argument("--floor", default=None, metavar="MODE",
+                   help="how the paper's 'clamp the map's minimum to 0' is read: clamp (the "
+                        "literal reading: only negative values are raised to 0, so the estimated map's "
                         "in-focus floor, about 0.3-0.7 px of pixel/sensor blur, is magnified too and "
                         "sharp regions soften) or subtract (the map's lower-5%% value is removed in "
                         "quadrature, sqrt(max(σ² − floor², 0)): pixels at that floor get no extra "
                         "blur, in-focus pixels estimated above it still get some); shift subtracts "
-                        "it linearly")
+                        f"it linearly. Default: the preset's map_floor, {_by_preset('map_floor')}")
     p.add_argument("--save-map", default=None, metavar="MAP",
                    help="also write the defocus map: .exr (float σ px), .png (preview) or .npy")
     p.add_argument("--bit-depth", type=int, choices=(8, 16), default=None,
@@ -120,9 +126,10 @@ def main(argv=None) -> int:
     factor = parse_factor(args.factor)
     if args.kernel not in MAGNIFICATION_KERNELS:
         raise ValueError(f"--kernel {args.kernel!r} is unknown; choose one of {', '.join(sorted(MAGNIFICATION_KERNELS))}")
-    if args.floor not in MAP_FLOOR_MODES:
+    if args.floor is not None and args.floor not in MAP_FLOOR_MODES:
         raise ValueError(f"--floor {args.floor!r} is unknown; choose one of {', '.join(MAP_FLOOR_MODES)}")
     params = defocus_params(args)
+    floor = args.floor or params.map_floor
     photo_path = Path(args.photo)
     probe_photo(photo_path)  # a missing/bad photo is reported before anything about the output
     out = Path(args.output) if args.output else default_output_path(photo_path, factor)
@@ -134,19 +141,20 @@ def main(argv=None) -> int:
             raise ValueError(f"--save-map {map_path} is the output photo's path; choose another name")
     photo = load_photo(args, prog=PROG)
     bits = args.bit_depth or output_bit_depth(out.suffix, photo.bit_depth)
+    note(PROG, preset_line(args), quiet=args.quiet)
     for n in photo.notes:
         note(PROG, n, quiet=args.quiet)
     progress = StageProgress(PROG, quiet=args.quiet)
     try:
         sigma, info = estimate_photo_map(photo, params, max_working_pixels=args.max_working_pixels,
                                          use_cache=not args.no_cache, progress=progress,
-                                         log=lambda m: note(PROG, m, quiet=args.quiet))
+                                         log=lambda m: note(PROG, m, quiet=args.quiet), preset=args.preset)
         if args.save_map:
             progress("save map")
             write_map(args.save_map, sigma)
         # Sec. 5 preprocessing on the whole map (a global operation), then tiled magnification
         processed = preprocess_defocus_map(sigma, clip_percent=params.map_clip_percent,
-                                           smoothing=params.map_smoothing, floor=args.floor)
+                                           smoothing=params.map_smoothing, floor=floor)
         result = magnify_defocus_tiled(
             photo.image, processed, factor=factor, kernel=args.kernel, preprocess=False,
             tile_pixels=args.tile_pixels, progress=progress,
@@ -158,7 +166,7 @@ def main(argv=None) -> int:
     if info["no_edges"]:
         print(f"{PROG}: warning: no edges found above the noise thresholds; the defocus map is all zeros, "
               "so the photo is unchanged", file=sys.stderr)
-    note(PROG, f"defocus map {map_summary(sigma)}; factor {factor:g}, {args.kernel} kernel, {args.floor} floor", quiet=args.quiet)
+    note(PROG, f"defocus map {map_summary(sigma)}; factor {factor:g}, {args.kernel} kernel, {floor} floor", quiet=args.quiet)
     print(out)
     return 0
 

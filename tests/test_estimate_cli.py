@@ -141,6 +141,88 @@ def test_estimator_and_alpha_change_the_map(tmp_path, photo, cache_dir, capsys):
 
 
 # ------------------------------------------------------------------------------------------------
+# --preset (registry method.PRESETS; default robust)
+# ------------------------------------------------------------------------------------------------
+
+
+def test_default_preset_is_robust_and_says_so(tmp_path, photo, cache_dir, capsys):
+    status, _, err = run([photo, "-o", tmp_path / "d.npy"], capsys)
+    assert status == 0, err
+    assert [line for line in err if "preset:" in line] == [
+        f"{PROG}: preset: robust (beyond the paper; --preset paper for the literal reproduction)"]
+    status, _, err = run([photo, "-o", tmp_path / "r.npy", "--preset", "robust"], capsys)
+    assert status == 0 and any("reused from the cache" in line for line in err)  # same parameters
+    np.testing.assert_array_equal(np.load(tmp_path / "d.npy"), np.load(tmp_path / "r.npy"))
+    status, _, err = run([photo, "-o", tmp_path / "q.npy", "-q"], capsys)
+    assert status == 0 and err == []  # -q: not even the preset line
+
+
+def test_presets_paper_and_robust_round_trip(tmp_path, photo, cache_dir, capsys):
+    from method import DefocusParams
+    from method.pipeline import estimate_defocus_map
+    from method.upsampling import DEFAULT_MAX_WORKING_PIXELS
+    from scenes.photo_io import read_photo
+
+    maps = {}
+    for name in ("paper", "robust"):
+        out = tmp_path / f"{name}.npy"
+        status, stdout, err = run([photo, "-o", out, "--preset", name], capsys)
+        assert status == 0, err
+        assert stdout.strip() == str(out)
+        assert any(line.startswith(f"{PROG}: preset: {name} (") for line in err), err
+        maps[name] = np.load(out)
+        assert maps[name].shape == (96, 128) and np.all(np.isfinite(maps[name])) and maps[name].min() >= 0
+    assert not np.array_equal(maps["paper"], maps["robust"])
+    # 96x128 is below the working-resolution budget: the tool estimates the decoded photo as is
+    image = read_photo(photo).image
+    assert image.shape[0] * image.shape[1] <= DEFAULT_MAX_WORKING_PIXELS
+    np.testing.assert_array_equal(maps["paper"], estimate_defocus_map(image, DefocusParams()).defocus_map)
+    # the cache is keyed by the full parameter set: one entry per preset, the name recorded
+    entries = [p for p in (cache_dir / "maps").iterdir() if p.is_dir() and not p.name.startswith(".")]
+    assert sorted(json.loads((e / "meta.json").read_text())["preset"] for e in entries) == ["paper", "robust"]
+
+
+def test_preset_zhuo_sim_runs(tmp_path, cache_dir, capsys):
+    small = write_photo(tmp_path / "small.png", textured_photo(48, 64))  # matting propagation: keep it small
+    status, stdout, err = run([small, "-o", tmp_path / "z.npy", "--preset", "zhuo_sim"], capsys)
+    assert status == 0, err
+    assert stdout.strip() == str(tmp_path / "z.npy")
+    assert any(line.startswith(f"{PROG}: preset: zhuo_sim (Zhuo & Sim 2011") for line in err), err
+    z = np.load(tmp_path / "z.npy")
+    assert z.shape == (48, 64) and np.all(np.isfinite(z)) and z.min() >= 0
+
+
+def test_preset_with_override_is_its_own_cache_entry(tmp_path, photo, cache_dir, capsys):
+    status, _, err = run([photo, "-o", tmp_path / "a.npy", "--preset", "paper", "--alpha", "0.1"], capsys)
+    assert status == 0
+    assert f"{PROG}: preset: paper (the literal reproduction of Bae & Durand 2007), with --alpha 0.1" in err
+    assert run([photo, "-o", tmp_path / "b.npy", "--preset", "paper"], capsys)[0] == 0
+    assert not np.array_equal(np.load(tmp_path / "a.npy"), np.load(tmp_path / "b.npy"))
+    assert len([p for p in (cache_dir / "maps").iterdir() if p.is_dir()]) == 2
+
+
+def test_unknown_preset_is_one_line_exit_2(tmp_path, photo, cache_dir, capsys):
+    from method import PRESETS
+
+    status, stdout, err = run([photo, "-o", tmp_path / "m.npy", "--preset", "magic"], capsys)
+    assert_one_line_error(status, err, "--preset", "magic", *PRESETS)
+    assert stdout == "" and not (tmp_path / "m.npy").exists() and not (cache_dir / "maps").exists()
+
+
+def test_presets_come_from_the_registry(monkeypatch, tmp_path, photo, capsys):
+    from method import PRESETS, DefocusParams
+
+    monkeypatch.setitem(PRESETS, "test_only", DefocusParams(alpha=0.25))
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert all(name in text for name in PRESETS)
+    assert "test_only (changes alpha from the paper)" in text
+    status, _, err = run([photo, "-o", tmp_path / "m.npy", "--preset", "nope"], capsys)
+    assert_one_line_error(status, err, "test_only", "paper", "robust", "zhuo_sim")
+
+
+# ------------------------------------------------------------------------------------------------
 # bad input: one line on stderr, exit status 2, nothing written
 # ------------------------------------------------------------------------------------------------
 
@@ -196,6 +278,7 @@ def test_pillow_bomb_guard_is_one_line(tmp_path, cache_dir, capsys):
 
 @pytest.mark.parametrize("argv,needles", [
     (["--estimator", "magic"], ["--estimator", "magic", "model_fit"]),
+    (["--preset", "magic"], ["--preset", "magic", "paper", "robust", "zhuo_sim"]),
     (["--alpha", "0"], ["--alpha", "> 0"]),
     (["--alpha", "abc"], ["--alpha", "not a number"]),
     (["--alpha", "nan"], ["--alpha"]),

@@ -143,6 +143,56 @@ def test_working_resolution_path(tmp_path, photo, capsys):
     assert read_photo(tmp_path / "o.png").image.shape == (96, 128, 3)
 
 
+def test_default_preset_is_robust_and_says_so(tmp_path, photo, capsys):
+    status, _, err = run([photo, "-o", tmp_path / "d.png", "--save-map", tmp_path / "d.npy"], capsys)
+    assert status == 0, err
+    assert [line for line in err if "preset:" in line] == [
+        f"{PROG}: preset: robust (beyond the paper; --preset paper for the literal reproduction)"]
+    status, _, err = run([photo, "-o", tmp_path / "r.png", "--preset", "robust"], capsys)
+    assert status == 0 and any("reused from the cache" in line for line in err)
+    np.testing.assert_array_equal(read_photo(tmp_path / "d.png").image, read_photo(tmp_path / "r.png").image)
+    status, _, err = run([photo, "-o", tmp_path / "q.png", "-q"], capsys)
+    assert status == 0 and err == []
+
+
+def test_presets_paper_and_robust_round_trip(tmp_path, photo, capsys):
+    from method import DefocusParams
+    from method.pipeline import estimate_defocus_map
+
+    maps, results = {}, {}
+    for name in ("paper", "robust"):
+        out, saved = tmp_path / f"{name}.png", tmp_path / f"{name}.npy"
+        status, stdout, err = run([photo, "-o", out, "--save-map", saved, "--preset", name], capsys)
+        assert status == 0, err
+        assert stdout.strip() == str(out)
+        assert any(line.startswith(f"{PROG}: preset: {name} (") for line in err), err
+        maps[name], results[name] = np.load(saved), read_photo(out).image
+        assert results[name].shape == (96, 128, 3)
+    assert not np.array_equal(maps["paper"], maps["robust"])
+    assert not np.array_equal(results["paper"], results["robust"])
+    # the photo is below the working-resolution budget: the map is the pipeline's on the decoded photo
+    expected = estimate_defocus_map(read_photo(photo).image, DefocusParams()).defocus_map
+    np.testing.assert_array_equal(maps["paper"], expected)
+
+
+def test_preset_zhuo_sim_runs(tmp_path, capsys):
+    small = write_photo(tmp_path / "small.png", textured_photo(48, 64))  # matting propagation: keep it small
+    status, stdout, err = run([small, "-o", tmp_path / "z.png", "--preset", "zhuo_sim"], capsys)
+    assert status == 0, err
+    assert stdout.strip() == str(tmp_path / "z.png")
+    assert any(line.startswith(f"{PROG}: preset: zhuo_sim (Zhuo & Sim 2011") for line in err), err
+    assert read_photo(tmp_path / "z.png").image.shape == (48, 64, 3)
+
+
+def test_unknown_preset_is_one_line_exit_2(tmp_path, photo, capsys):
+    from method import PRESETS
+
+    argv = [photo, "-o", tmp_path / "o.png", "--save-map", tmp_path / "m.npy", "--preset", "magic"]
+    status, out, err = run(argv, capsys)
+    assert_one_line_error(status, err, "--preset", "magic", *PRESETS)
+    assert out == "" and not (tmp_path / "o.png").exists() and not (tmp_path / "m.npy").exists()
+
+
 @pytest.mark.parametrize("factor,needles", [
     ("0", ["--factor", ">= 1"]),
     ("-2", ["--factor", ">= 1"]),

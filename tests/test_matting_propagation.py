@@ -1,0 +1,189 @@
+"""Zhuo & Sim (2011) propagation with the matting Laplacian: direct-solve oracle, known answer,
+trivial inputs, bad inputs."""
+
+import numpy as np
+import pymatting
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from method.matting_propagation import (
+    DEFAULT_EPSILON,
+    DEFAULT_LAMBDA,
+    MATTING_SOLVERS,
+    matting_system,
+    propagate_defocus_matting,
+)
+
+# Tolerances of this file (named here rather than in tests/tolerances.py only because this change
+# may not touch that file; move them there when it is convenient).
+#: CG (tol 1e-6) vs an independent sparse LU of (L + λD) d = λDd̂ on a 40×50 image, max |Δ| px.
+#: Measured ≤ 1e-5 px with both preconditioners; the direct solver agrees to round-off.
+MATTING_VS_DIRECT_ATOL_PX = 1e-4
+#: Two-colour image, σ = 1 / 3 px on a 6-px grid (70 samples), colour noise 0.005: max |d − truth|
+#: at pixels ≥ 2 px from the colour edge. Measured 0.04 px with the defaults (the weak data term
+#: λ = 0.005 lets the smoothness term pull both sides slightly toward each other; it is 0.01 px
+#: without noise and grows with it, because the colour-line model treats noise as misfit).
+MATTING_TWO_COLOUR_ATOL_PX = 0.1
+#: A constant sparse map must come back as exactly that constant (returned without solving).
+MATTING_CONSTANT_ATOL = 0.0
+
+
+def _photo(rng, h, w):
+    yy, xx = np.mgrid[0:h, 0:w] / max(h, w)
+    ref = np.stack([0.5 + 0.4 * np.sin(6 * xx + 2 * yy), 0.5 + 0.3 * np.cos(5 * yy), 0.3 + 0.4 * (xx > 0.5)], -1)
+    return np.clip(ref + 0.03 * rng.standard_normal((h, w, 3)), 0, 1)
+
+
+def _sparse(rng, ref, density=0.05):
+    h, w = ref.shape[:2]
+    mask = rng.random((h, w)) < density
+    truth = 1.0 + 3.0 * ref[..., 2] + np.linspace(0, 1, w)[None, :]
+    return np.where(mask, truth, np.nan)
+
+
+def _oracle(sparse_sigma, ref, lam, epsilon, radius):
+    """Independent build of the same system with pymatting + SciPy, solved by sparse LU."""
+    known = np.isfinite(sparse_sigma).ravel()
+    L = pymatting.cf_laplacian(np.ascontiguousarray(ref, dtype=np.float64), epsilon=epsilon, radius=radius)
+    D = sp.diags(known.astype(float))
+    rhs = lam * np.where(known, sparse_sigma.ravel(), 0.0)
+    return spla.spsolve((L + lam * D).tocsc(), rhs).reshape(sparse_sigma.shape)
+
+
+def test_solver_registry():
+    assert set(MATTING_SOLVERS) == {"cg_vcycle", "cg_ichol", "direct"}
+
+
+# --- 1. equal to a direct sparse solve of the same system ------------------------------------
+@pytest.mark.parametrize("solver", sorted(MATTING_SOLVERS))
+def test_matches_direct_solve(rng, solver):
+    ref = _photo(rng, 40, 50)
+    bm = _sparse(rng, ref)
+    expected = _oracle(bm, ref, DEFAULT_LAMBDA, DEFAULT_EPSILON, 1)
+    got = propagate_defocus_matting(bm, ref, solver=solver)
+    assert got.shape == (40, 50) and got.dtype == np.float64
+    np.testing.assert_allclose(got, expected, rtol=0, atol=MATTING_VS_DIRECT_ATOL_PX)
+
+
+@pytest.mark.parametrize("lam, epsilon, radius", [(0.05, 1e-6, 1), (0.001, 9e-7, 1), (0.005, 1e-4, 2)])
+def test_options_reach_the_system(rng, lam, epsilon, radius):
+    ref = _photo(rng, 31, 37)
+    bm = _sparse(rng, ref, density=0.08)
+    expected = _oracle(bm, ref, lam, epsilon, radius)
+    for solver in ("cg_vcycle", "direct"):
+        got = propagate_defocus_matting(bm, ref, lam=lam, epsilon=epsilon, radius=radius, solver=solver)
+        np.testing.assert_allclose(got, expected, rtol=0, atol=MATTING_VS_DIRECT_ATOL_PX)
+    A, b = matting_system(bm, ref, lam=lam, epsilon=epsilon, radius=radius)
+    assert abs(A - A.T).max() < 1e-12
+    assert np.all(b[~np.isfinite(bm).ravel()] == 0)
+
+
+def test_grey_reference_is_repeated_to_three_channels(rng):
+    grey = _photo(rng, 24, 30)[..., 0]
+    bm = _sparse(rng, grey[..., None].repeat(3, axis=2))
+    a = propagate_defocus_matting(bm, grey, solver="direct")
+    b = propagate_defocus_matting(bm, np.repeat(grey[..., None], 3, axis=2), solver="direct")
+    np.testing.assert_array_equal(a, b)
+
+
+# --- 2. known answer: a two-colour image ------------------------------------------------------
+def test_two_colour_image_keeps_each_side_value():
+    rng = np.random.default_rng(20110321)
+    h, w = 40, 60
+    ref = np.empty((h, w, 3))
+    ref[:, : w // 2] = (0.8, 0.3, 0.2)
+    ref[:, w // 2:] = (0.2, 0.4, 0.9)
+    ref = np.clip(ref + 0.005 * rng.standard_normal(ref.shape), 0, 1)
+    grid = np.zeros((h, w), bool)
+    grid[3::6, 3::6] = True
+    left = np.zeros((h, w), bool)
+    left[:, : w // 2] = True
+    bm = np.full((h, w), np.nan)
+    bm[grid & left] = 1.0
+    bm[grid & ~left] = 3.0
+    for solver in ("cg_vcycle", "cg_ichol"):
+        d = propagate_defocus_matting(bm, ref, solver=solver)
+        np.testing.assert_allclose(d[:, : w // 2 - 2], 1.0, atol=MATTING_TWO_COLOUR_ATOL_PX)
+        np.testing.assert_allclose(d[:, w // 2 + 2:], 3.0, atol=MATTING_TWO_COLOUR_ATOL_PX)
+
+
+# --- 3. trivial inputs -------------------------------------------------------------------------
+def test_constant_input_gives_constant_output(rng):
+    ref = _photo(rng, 20, 25)
+    bm = np.where(rng.random((20, 25)) < 0.1, 1.75, np.nan)
+    for solver in MATTING_SOLVERS:
+        d = propagate_defocus_matting(bm, ref, solver=solver)
+        np.testing.assert_allclose(d, 1.75, rtol=0, atol=MATTING_CONSTANT_ATOL)
+        assert d.dtype == np.float64
+
+
+def test_no_finite_value_gives_zeros(rng):
+    ref = _photo(rng, 20, 25)
+    d = propagate_defocus_matting(np.full((20, 25), np.nan), ref)
+    assert d.shape == (20, 25) and d.dtype == np.float64 and not d.any()
+
+
+def test_non_convergence_is_reported(rng):
+    ref = _photo(rng, 40, 50)
+    with pytest.raises(RuntimeError, match="max_iterations=1"):
+        propagate_defocus_matting(_sparse(rng, ref), ref, tol=1e-12, max_iterations=1)
+
+
+# --- 4. bad inputs -----------------------------------------------------------------------------
+def _ok(rng):
+    ref = _photo(rng, 12, 14)
+    return _sparse(rng, ref, density=0.2), ref
+
+
+def test_shape_mismatch(rng):
+    bm, ref = _ok(rng)
+    with pytest.raises(ValueError, match="shape"):
+        propagate_defocus_matting(bm[:-1], ref)
+    with pytest.raises(ValueError, match="HxW or HxWx3"):
+        propagate_defocus_matting(bm, np.ones((12, 14, 2)))
+
+
+def test_inf_and_negative_sigma(rng):
+    bm, ref = _ok(rng)
+    bad = bm.copy()
+    bad[0, 0] = np.inf
+    with pytest.raises(ValueError, match="Inf"):
+        propagate_defocus_matting(bad, ref)
+    bad[0, 0] = -0.5
+    with pytest.raises(ValueError, match=">= 0"):
+        propagate_defocus_matting(bad, ref)
+
+
+def test_non_float_and_non_finite_reference(rng):
+    bm, ref = _ok(rng)
+    with pytest.raises(ValueError, match="float"):
+        propagate_defocus_matting(np.zeros((12, 14), dtype=int), ref)
+    with pytest.raises(ValueError, match="float"):
+        propagate_defocus_matting(bm, (ref * 255).astype(np.uint8))
+    bad = ref.copy()
+    bad[1, 1, 1] = np.nan
+    with pytest.raises(ValueError, match="NaN or Inf"):
+        propagate_defocus_matting(bm, bad)
+
+
+def test_unknown_solver_names_the_allowed_ones(rng):
+    bm, ref = _ok(rng)
+    with pytest.raises(ValueError, match=r"allowed: \['cg_ichol', 'cg_vcycle', 'direct'\]"):
+        propagate_defocus_matting(bm, ref, solver="amg")
+
+
+@pytest.mark.parametrize("name, value", [
+    ("lam", 0.0), ("lam", -1.0), ("lam", np.nan), ("lam", "big"),
+    ("epsilon", 0.0), ("radius", 0), ("radius", 1.5), ("radius", True),
+    ("tol", 0.0), ("tol", 1.0), ("max_iterations", 0),
+])
+def test_bad_options(rng, name, value):
+    bm, ref = _ok(rng)
+    with pytest.raises(ValueError, match=name):
+        propagate_defocus_matting(bm, ref, **{name: value})
+
+
+def test_image_smaller_than_window(rng):
+    with pytest.raises(ValueError, match="2\\*radius\\+1"):
+        propagate_defocus_matting(np.full((4, 9), 1.0), np.zeros((4, 9, 3)), radius=2)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .blur_model_fit import _model_fit_with_residual
+from .blur_model_fit import _model_fit_diagnostics, _paper_rules, apply_fit_rules
 
 __all__ = ["estimate_blur_model_fit_checked"]
 
@@ -50,7 +50,10 @@ def estimate_blur_model_fit_checked(gray, edge_map, *, params):
 
        i.e. one minus the squared normalised correlation between the response and the model; it
        does not depend on the edge contrast.
-    2. Keep σb where ρ ≤ ``params.fit_max_residual``; NaN elsewhere.
+    2. With any of the model fit's plausibility rules switched on (``fit_max_scale``,
+       ``fit_min_samples``, ``fit_max_width_ratio``, ``fit_below_scale``; the robust preset), apply
+       them (:func:`~method.blur_model_fit.apply_fit_rules`).
+    3. Keep σb where ρ ≤ ``params.fit_max_residual``; NaN elsewhere.
 
     For a blurred step edge the model is exact up to sampling, noise and the window's truncation
     (measured ρ ≤ 0.004 noise-free, ≤ 0.03 with noise 2.5/255 + 8 bits); two opposite edges 1–3σ
@@ -60,7 +63,10 @@ def estimate_blur_model_fit_checked(gray, edge_map, *, params):
     guarantee a good σb: at coarse σ2 a well-fitting d can still give a large σb error through
     Eq. (2d).
     """
-    sigma_b, residual = _model_fit_with_residual(gray, edge_map, params=params)
+    diagnostics = _model_fit_diagnostics(gray, edge_map, params=params)
+    sigma_b, residual = diagnostics["sigma_b"], diagnostics["residual"]
+    if not _paper_rules(params):  # the beyond-the-paper plausibility rules (robust preset) first
+        sigma_b = apply_fit_rules(diagnostics, params=params)
     with np.errstate(invalid="ignore"):
         good = residual <= float(params.fit_max_residual)  # False where residual is NaN
     return np.where(good, sigma_b, np.nan)

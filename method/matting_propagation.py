@@ -27,42 +27,48 @@ channels; its Laplacian is then the grey one with ε/3 (the covariance is rank o
 
 Parameter values and where they come from
 -----------------------------------------
-The paper's text was not available to this reproduction (searched stored pages, documentation and
-code); the values below are therefore **not taken from the paper**:
+The paper's text was not available to this reproduction (stored pages, documentation and code were
+searched), so **none of the defaults is taken from the paper**:
 
-* ``lam`` λ = 0.005 and ``epsilon`` ε = 1e-5: the harness's chosen defaults (pymatting's own default
-  ε is 1e-7). The authors' public MATLAB release (``demo.m``/``defocusEstimation.m``, "Shaojie Zhuo @
-  2011") calls the propagation with ``lambda = 0.001`` and its ``getLaplacian`` adds ``1e-7·I₃`` to
-  Σ_k, i.e. ε = 9e-7 in Levin's (and pymatting's) convention ε/|w_k| with |w_k| = 9; pass
-  ``lam=0.001, epsilon=9e-7`` to follow that code.
+* ``lam`` λ = 0.005 and ``epsilon`` ε = 1e-5: fallback values chosen for this harness (pymatting's
+  own default ε is 1e-7). The authors' public MATLAB release (``demo.m`` / ``defocusEstimation.m``,
+  "Shaojie Zhuo @ 2011") calls the propagation with ``lambda = 0.001``, and its ``getLaplacian``
+  adds ``1e-7·I₃`` to Σ_k, i.e. ε = 9e-7 in Levin's (and pymatting's) convention ε/|w_k| with
+  |w_k| = 9; pass ``lam=0.001, epsilon=9e-7`` to follow that code. (That release also marks only
+  σ > 1e-4 as known, after clipping σ to a maximum and a sparse bilateral filter — steps outside
+  this module; here every finite σ, 0 included, is a constraint.)
 * ``radius`` r = 1 (3×3 windows): the same in the authors' release (``getLaplacian(I, 1)``) and in
   Levin et al.'s default.
 
 Solver (measured; see :data:`MATTING_SOLVERS`)
 ----------------------------------------------
-Conjugate gradients (:func:`pymatting.cg`) started from the mean of the sparse values (exact when
-they are all equal, since L·1 = 0), preconditioned by pymatting's geometric multigrid V-cycle
-(:func:`pymatting.vcycle`, 1 pre-/post-Jacobi sweep, ω = 0.8) or by its thresholded incomplete
-Cholesky factor (:func:`pymatting.ichol`, discard threshold 1e-4). On the astronaut photo with
-canny-edge sparse values (8–11 % of pixels; 2-core machine, another job running, single runs,
-``tol=1e-6``; max |error| against ``"direct"`` where that was run):
+Conjugate gradients (:func:`pymatting.cg`, BLAS limited to one thread) started from the mean of the
+sparse values (exact when they are all equal, since L·1 = 0), preconditioned by pymatting's
+geometric multigrid V-cycle (:func:`pymatting.vcycle`: 1 pre-/post-Jacobi sweep, ω = 0.8) or by its
+thresholded incomplete Cholesky factor (:func:`pymatting.ichol`: discard threshold 1e-4). Wall
+time of :func:`propagate_defocus_matting` (Laplacian included) on the astronaut photo with
+canny-edge sparse values (8–11 % of pixels), ``tol=1e-6``, on this 2-core machine while other jobs
+ran (load 3–4); CG iterations and max |error| against ``"direct"`` (where run) from the same
+photo with slightly noisier sparse values:
 
-=========  =============================  ==============================  ===================
-size       ``"cg_vcycle"`` (default)      ``"cg_ichol"``                  ``"direct"`` (LU)
-=========  =============================  ==============================  ===================
-256²       2.5–2.7 s, 206 it, 3.6e-6 px   2.0–2.2 s, 19 it, 3.7e-6 px     10 s
-512²       10.8 s, 212 it, 1.1e-5 px      14.0 s, 31 it, 4.8e-6 px        70 s
-1024²      36 s, 168 it                   100 s, 63 it                    not run (> 512² px)
-=========  =============================  ==============================  ===================
+=========  ===============================  ===============================  ============
+size       ``"cg_vcycle"`` (default)        ``"cg_ichol"``                   ``"direct"``
+=========  ===============================  ===============================  ============
+256²       2.5–3.0 s, 206 it, 3.6e-6 px     2.0–2.3 s, 19 it, 3.7e-6 px      10 s
+512²       10.1 s, 212 it, 1.1e-5 px        16.5–20 s, 31 it, 4.8e-6 px      70 s
+1024²      35–55 s (34 s CPU), 168 it,      128 s (88 s CPU), 63 it,         refused
+           peak RSS 1.0 GB                  peak RSS 2.5 GB                  (> 512² px)
+=========  ===============================  ===============================  ============
 
-At 256² the two are within 20 % (ichol slightly faster, equally accurate, both ~1e-6 px from the
-exact solve), but ichol's factor has ~3× the non-zeros of L + λD, its set-up and its sequential
-triangular solves grow faster than linearly, and its iteration count grows with the image
-(19 → 31 → 63); the V-cycle's iteration count stays ~170–210, so at 1024² it is ~3× faster and the
-default. ``tol=1e-8`` costs ~1.3× the iterations of ``tol=1e-6`` with either and reaches ~1e-7 px.
-Jacobi-preconditioned CG (not offered) needed ~2000–2900 iterations and was 2.5–5× slower.
-Memory at 1024²: ≈ 0.4 GB for L (pymatting stores 25 slots per row), ≈ 0.4 GB for L + λD,
-≈ 1.4 GB more for the ichol factor.
+At 256² incomplete Cholesky is ~15 % faster and as accurate (both a few 1e-6 px from the exact solve),
+but its factor has ~3× the non-zeros of L + λD, its set-up and sequential triangular solves grow
+faster than linearly, and its iteration count grows with the image (19 → 31 → 63) while the
+V-cycle's stays ~150–330 over the photos tried (astronaut, coffee, chelsea, rocket, noise; odd sizes
+included). On coffee at 1024² the thresholded factorisation also broke down twice before a
+diagonal shift of 1e-3 made it succeed (113 s vs 50 s CPU for the V-cycle). Hence the V-cycle is
+the default: 2× faster at 512², 2.3–3.7× at 1024², and less than half the memory. ``tol=1e-8``
+costs ~1.3× the iterations of ``tol=1e-6`` with either and reaches ~1e-7 px. Jacobi-preconditioned
+CG (not offered) needed 2000–2900 iterations and was 2.5–5× slower than either.
 """
 
 from __future__ import annotations
@@ -85,7 +91,7 @@ __all__ = [
 DEFAULT_LAMBDA = 0.005
 #: ε of the matting Laplacian, Levin's convention (Σ_k + ε/|w_k| I₃) (not from the paper).
 DEFAULT_EPSILON = 1e-5
-#: Largest image (pixels) accepted by ``solver="direct"`` (sparse LU: ~70 s and several GB at 512²).
+#: Largest image (pixels) accepted by ``solver="direct"`` (sparse LU took ~70 s at 512² here).
 DIRECT_MAX_PIXELS = 512 * 512
 
 
@@ -226,8 +232,19 @@ def matting_system(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, epsilon=DEFAU
 # solvers of the assembled system
 # --------------------------------------------------------------------------------------------
 def _pcg(A, b, x0, tol, max_iterations, M):
+    """pymatting's CG with BLAS limited to one thread (its dot products and norms are BLAS calls).
+
+    Measured on the 256² astronaut case with other jobs on this 2-core machine: 2.5–2.9 s with one
+    BLAS thread against 7.8–9.5 s with OpenBLAS's default threads (the worker thread competes for
+    the second core and the main thread waits on it); one thread also makes the reductions, hence
+    the result, independent of the thread count. Only the BLAS API is limited (as in
+    :mod:`method.propagation`), not numba's.
+    """
+    from threadpoolctl import threadpool_limits
+
     try:
-        return _pymatting().cg(A, b, x0=x0, rtol=tol, maxiter=max_iterations, M=M)
+        with threadpool_limits(limits=1, user_api="blas"):
+            return _pymatting().cg(A, b, x0=x0, rtol=tol, maxiter=max_iterations, M=M)
     except ValueError as exc:  # pymatting signals non-convergence with ValueError
         raise RuntimeError(
             f"conjugate gradients did not reach tol={tol:g} within max_iterations={max_iterations} "
@@ -304,15 +321,16 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
         ~1e-5 px from the exact solve on photos up to 512²; ignored by ``"direct"``.
     solver : str, keyword-only
         Key of :data:`MATTING_SOLVERS`: ``"cg_vcycle"`` (default; CG + pymatting's multigrid
-        V-cycle), ``"cg_ichol"`` (CG + incomplete Cholesky; about as fast at 256², ~3× slower at
-        1024²) or ``"direct"`` (sparse LU; ≤ 512² px, for tests and small images).
+        V-cycle), ``"cg_ichol"`` (CG + incomplete Cholesky; ~15 % faster at 256², 2–4× slower and
+        2.5× the memory at 1024²) or ``"direct"`` (sparse LU; ≤ 512² px, for tests and small images).
     max_iterations : int, keyword-only
         Most CG iterations (≥ 1; default 2000, ~10× what the V-cycle needed up to 1024²).
 
     Returns
     -------
     ndarray, HxW, float64
-        Dense blur σ, px. Not clipped (the quadratic can overshoot slightly near colour edges).
+        Dense blur σ, px. Not clipped: L has positive off-diagonal entries, so nothing guarantees
+        the range of the sparse σ (no value outside it was seen on the photos tried).
         All zeros when ``sparse_sigma`` has no finite value; the constant map when all its finite
         values are equal.
 
@@ -336,7 +354,8 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
     4. Solve A d = b with ``solver``: CG to relative residual ``tol`` from d₀ = mean of the
        sparse σ, preconditioned by a V-cycle (``"cg_vcycle"``) or an incomplete Cholesky factor
        (``"cg_ichol"``), or sparse LU (``"direct"``).
-    5. Reshape to HxW. Deterministic: no random numbers are drawn.
+    5. Reshape to HxW. Deterministic: no random numbers are drawn and CG's BLAS reductions run
+       on one thread.
     """
     sparse_sigma, ref, lam, epsilon, radius = _validate(sparse_sigma, reference, lam, epsilon, radius)
     if not isinstance(solver, str) or solver not in MATTING_SOLVERS:
@@ -345,8 +364,10 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
     if not tol < 1:
         raise ValueError(f"tol={tol!r} is invalid; allowed: 0 < tol < 1")
     max_iterations = _check_int("max_iterations", max_iterations, 1)
-
     h, w = sparse_sigma.shape
+    if solver == "direct" and h * w > DIRECT_MAX_PIXELS:
+        raise ValueError(f"solver='direct' is for small images; got {h * w} px, allowed <= {DIRECT_MAX_PIXELS}")
+
     known = np.isfinite(sparse_sigma)
     if not known.any():
         return np.zeros((h, w))

@@ -245,11 +245,14 @@ class DefocusParams:
 #: of ``experiments.stage_attribution``); the measurements behind every value are in the README's
 #: "Choices" section and docs/dense-map.md.
 ROBUST_CHANGES: dict = {
+    "estimator": "model_fit_checked",
+    "fit_max_residual": 0.03,
     "fit_max_scale": 2.0,
     "fit_min_samples": 5,
     "fit_max_width_ratio": 0.75,
     "fit_below_scale": "nan",
     "bilateral_range_kernel": "product",
+    "bilateral_sigma_spatial": 0.05,
     "sharpness_bias": False,
     "refinement_robust_iterations": 2,
 }

@@ -187,3 +187,9 @@ def test_bad_options(rng, name, value):
 def test_image_smaller_than_window(rng):
     with pytest.raises(ValueError, match="2\\*radius\\+1"):
         propagate_defocus_matting(np.full((4, 9), 1.0), np.zeros((4, 9, 3)), radius=2)
+
+
+def test_direct_solver_refuses_large_images():
+    h, w = 513, 512  # one row over DIRECT_MAX_PIXELS = 512²; rejected before the Laplacian is built
+    with pytest.raises(ValueError, match="solver='direct'"):
+        propagate_defocus_matting(np.full((h, w), np.nan), np.zeros((h, w)), solver="direct")

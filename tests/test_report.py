@@ -118,3 +118,26 @@ def test_refocus_claim_compares_with_the_unchanged_photo():
     assert _verdicts(fig8(24.0, 0.70))["refocus"].verdict == "reproduced"
     assert _verdicts(fig8(22.0, 0.70))["refocus"].verdict == "partly reproduced"
     assert _verdicts(fig8(22.0, 0.60))["refocus"].verdict == "not reproduced"
+
+
+def _stage_case(kind, mae_sparse, mae_dense, bias):
+    est = {"sparse": {"mae": mae_sparse, "bias": 0.0}, "dense_textured": {"mae": mae_dense, "bias": bias}}
+    return {"kind": kind, "paper": {"estimated": est}, "robust": {"estimated": est}}
+
+
+def test_preset_tables_one_table_per_scene_set():
+    from repro.report import build_markdown, preset_tables
+
+    metrics = {"stages": {"mode": "quick", "metrics": {
+        "presets": ["paper", "robust"],
+        "cases": {"mosaic:dead_leaves": _stage_case("mosaic", 1.0, 0.5, -0.25),
+                  "portrait f/8": _stage_case("render", 2.0, None, None)}}}}
+    tables = preset_tables(metrics)
+    assert [t["title"].split()[0] for t in tables] == ["Analytic", "Rendered"]
+    assert tables[0]["header"] == ["case", "paper: edge MAE", "paper: dense MAE (bias)",
+                                   "robust: edge MAE", "robust: dense MAE (bias)"]
+    assert tables[0]["rows"] == [["mosaic:dead_leaves", "1.00", "0.50 (-0.25)", "1.00", "0.50 (-0.25)"]]
+    assert tables[1]["rows"][0][2] == "–"  # a missing value is shown as missing, not as a number
+    md = build_markdown(metrics, [], figures_rel="figures", bench=None)
+    assert "## Presets side by side" in md and "| mosaic:dead_leaves | 1.00 |" in md
+    assert preset_tables({}) == [] and "Presets side by side" not in build_markdown({}, [], figures_rel="f", bench=None)

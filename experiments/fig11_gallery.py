@@ -15,6 +15,11 @@ Notes
 3. :func:`method.estimate_defocus_map` (paper defaults), timed per stage (wall time on a shared
    2-core machine: indicative only).
 4. :func:`method.magnify_defocus` with ``factor`` (Sec. 5 preprocessing, Gaussian kernel).
+5. Method presets (``config.presets``; the first is always ``"paper"`` = ``DefocusParams()``, the
+   reproduction, whose metrics are the top-level ones): steps 3–4 again with every further preset
+   of :data:`method.PRESETS` (e.g. ``"robust"``, beyond the paper; Sec. 5 preprocessing with its
+   ``map_clip_percent`` / ``map_smoothing``) on the same inputs, scored the same way, under
+   ``metrics["presets"][name]`` = {``items``, ``summary``} with the paper's keys.
 """
 
 from __future__ import annotations
@@ -54,6 +59,9 @@ class Fig11Config:
     # local luminance std above which a rendered pixel is "textured", image units.
     render_seed: int = 0
     # Mitsuba sampler seed.
+    presets: tuple[str, ...] = ("paper", "robust")
+    # method parameter presets (method.PRESETS); the first is "paper" (the reproduction, top-level
+    # metrics), the others go to metrics["presets"][name] (not to be confused with the render `preset`).
 
 
 FULL = Fig11Config()
@@ -101,16 +109,18 @@ def load_photo(name: str, max_side: int = 0) -> tuple[np.ndarray, float]:
     return img, 1.0
 
 
-def _run(image, config):
-    from method import estimate_defocus_map, magnify_defocus
+def _run(image, config, params=None):
+    from method import DefocusParams, estimate_defocus_map, magnify_defocus
 
+    params = DefocusParams() if params is None else params
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        res = estimate_defocus_map(image)
+        res = estimate_defocus_map(image, params)
     t_est = time.perf_counter() - t0
     t0 = time.perf_counter()
-    out = magnify_defocus(image, res.defocus_map, factor=config.factor, kernel=config.kernel)
+    out = magnify_defocus(image, res.defocus_map, factor=config.factor, kernel=config.kernel,
+                          clip_percent=params.map_clip_percent, smoothing=params.map_smoothing)
     t_mag = time.perf_counter() - t0
     timings = {f"estimate_{k}_s": float(v) for k, v in res.timings.items()}
     timings.update(estimate_wall_s=t_est, magnify_wall_s=t_mag)
@@ -140,53 +150,80 @@ def compute(config: Fig11Config) -> dict:
         ``<item>__input`` (H, W, 3), ``<item>__map`` (H, W) σ px, ``<item>__magnified`` (H, W, 3),
         ``<item>__sparse`` (H, W) σ px at edges (NaN elsewhere); for scenes also ``<item>__gt``
         (H, W) σ_gt px and ``<item>__occlusion`` (H, W) bool; ``metrics``: per item map statistics
-        and timings, for scenes dense MAE / bias per region vs σ_gt, and means over scenes.
+        and timings, for scenes dense MAE / bias per region vs σ_gt, and means over scenes — all for
+        the ``"paper"`` preset. Every further preset P of ``config.presets``: ``<item>__<P>__map``
+        (H, W) σ px, ``<item>__<P>__magnified`` (H, W, 3), ``<item>__<P>__sparse`` (H, W) σ px, and
+        ``metrics.presets.<P>`` = {``items``, ``summary`` (the paper's keys), ``compute_seconds``}.
     """
     from scenes import render_scene
 
+    from .fig6_alpha_sweep import method_presets
     from .metrics import dense_metrics, region_masks, rtf_normalized_errors
 
+    presets = method_presets(config.presets)
     t_start = time.perf_counter()
-    data, per_item, items = {}, {}, []
+    data, items = {}, []
+    per_preset = {p: {} for p in presets}  # preset -> item -> metrics
+    seconds = dict.fromkeys(presets, 0.0)
+
+    def store(item, pname, res, out):
+        tag = "" if pname == "paper" else f"__{pname}"
+        data.update({f"{item}{tag}__map": res.defocus_map.astype(np.float32),
+                     f"{item}{tag}__magnified": out.astype(np.float32),
+                     f"{item}{tag}__sparse": res.sparse_sigma.astype(np.float32)})
+
     for name in config.scenes:
         render = render_scene(name, preset=config.preset, f_number=config.f_number, seed=config.render_seed,
                               progress=False)
         image = render.image(encoding="srgb", quantize_bits=config.quantize_bits)
-        res, out, timings = _run(image, config)
         gt = np.asarray(render.sigma_px, dtype=np.float64)
-        regions = region_masks(image, gt, edges=res.edges, exclude=render.occlusion_boundary,
-                               texture_threshold=config.texture_threshold)
-        dm = dense_metrics(res.defocus_map, gt, regions=regions)
         item = f"scene:{name}"
         items.append(item)
-        per_item[item] = {
-            **{f"{r}_{k}": dm[r][k] for r in dm for k in ("mae", "bias")},
-            **{f"rtf_{k}": v for k, v in rtf_normalized_errors(res.defocus_map, gt, mask=regions["all"]).items()
-               if k != "n"},
-            **_map_stats(res), "timings": timings, "shape": list(image.shape[:2]),
-            "sigma_gt_range_px": [float(np.nanmin(gt)), float(np.nanmax(gt))],
-        }
-        data.update({f"{item}__gt": gt.astype(np.float32), f"{item}__occlusion": render.occlusion_boundary})
-        data.update({f"{item}__input": image.astype(np.float32), f"{item}__map": res.defocus_map.astype(np.float32),
-                     f"{item}__magnified": out.astype(np.float32),
-                     f"{item}__sparse": res.sparse_sigma.astype(np.float32)})
+        data.update({f"{item}__gt": gt.astype(np.float32), f"{item}__occlusion": render.occlusion_boundary,
+                     f"{item}__input": image.astype(np.float32)})
+        for pname, params in presets.items():
+            t0 = time.perf_counter()
+            res, out, timings = _run(image, config, params)
+            regions = region_masks(image, gt, edges=res.edges, exclude=render.occlusion_boundary,
+                                   texture_threshold=config.texture_threshold)
+            dm = dense_metrics(res.defocus_map, gt, regions=regions)
+            per_preset[pname][item] = {
+                **{f"{r}_{k}": dm[r][k] for r in dm for k in ("mae", "bias")},
+                **{f"rtf_{k}": v for k, v in rtf_normalized_errors(res.defocus_map, gt, mask=regions["all"]).items()
+                   if k != "n"},
+                **_map_stats(res), "timings": timings, "shape": list(image.shape[:2]),
+                "sigma_gt_range_px": [float(np.nanmin(gt)), float(np.nanmax(gt))],
+            }
+            store(item, pname, res, out)
+            seconds[pname] += time.perf_counter() - t0
     for name in config.photos:
         image, scale = load_photo(name, config.photo_max_side)
-        res, out, timings = _run(image, config)
         item = f"photo:{name}"
         items.append(item)
-        per_item[item] = {**_map_stats(res), "timings": timings, "shape": list(image.shape[:2]),
-                          "scale_from_original": scale, "megapixels": image.shape[0] * image.shape[1] / 1e6}
-        data.update({f"{item}__input": image.astype(np.float32), f"{item}__map": res.defocus_map.astype(np.float32),
-                     f"{item}__magnified": out.astype(np.float32),
-                     f"{item}__sparse": res.sparse_sigma.astype(np.float32)})
+        data[f"{item}__input"] = image.astype(np.float32)
+        for pname, params in presets.items():
+            t0 = time.perf_counter()
+            res, out, timings = _run(image, config, params)
+            per_preset[pname][item] = {**_map_stats(res), "timings": timings, "shape": list(image.shape[:2]),
+                                       "scale_from_original": scale,
+                                       "megapixels": image.shape[0] * image.shape[1] / 1e6}
+            store(item, pname, res, out)
+            seconds[pname] += time.perf_counter() - t0
     scene_items = [f"scene:{n}" for n in config.scenes]
-    summary = {}
-    if scene_items:
-        for key in ("all_mae", "all_bias", "textured_mae", "edges_mae", "rtf_nmae", "rtf_nmse"):
-            summary[f"scenes_mean_{key}"] = float(np.mean([per_item[i][key] for i in scene_items]))
+
+    def summarise(per_item):
+        summary = {}
+        if scene_items:
+            for key in ("all_mae", "all_bias", "textured_mae", "edges_mae", "rtf_nmae", "rtf_nmse"):
+                summary[f"scenes_mean_{key}"] = float(np.mean([per_item[i][key] for i in scene_items]))
+        return summary
+
+    names = list(presets)
+    per_item, summary = per_preset[names[0]], summarise(per_preset[names[0]])
+    extra = {p: {"items": per_preset[p], "summary": summarise(per_preset[p]), "compute_seconds": seconds[p]}
+             for p in names[1:]}
     data["items"] = np.asarray(items)
-    data["metrics"] = {"items": per_item, "summary": summary, "factor": config.factor,
+    data["metrics"] = {"items": per_item, "summary": summary, "presets": extra, "factor": config.factor,
                        "compute_seconds": time.perf_counter() - t_start,
                        "regions_note": "scene metrics exclude occlusion-boundary pixels; photos have no "
                                        "ground truth (map statistics in px of the processed image)"}
@@ -199,5 +236,5 @@ FIGURE = Figure(
     compute=compute,
     plot="experiments.plotting.fig11:plot",
     configs={"quick": QUICK, "full": FULL},
-    version=1,
+    version=2,
 )

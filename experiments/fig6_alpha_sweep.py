@@ -31,6 +31,13 @@ Notes
    of the Eq. (3) output. The biased cross-bilateral filter (σs = 10 % of the image size) already
    makes BM smooth, so with refinement the α values give nearly the same map; without it α decides
    how much of the sparse outliers leak into the map.
+6. Method presets (``config.presets``; the first is always ``"paper"`` = ``DefocusParams()``, the
+   reproduction, whose metrics are the top-level ones): every further preset of
+   :data:`method.PRESETS` (e.g. ``"robust"``, beyond the paper) runs the same sweep — its own
+   stages 2–3, then Eq. (4) with ``preset.replace(alpha=a)`` — on the same inputs, scored the same
+   way (no ablation), under ``metrics["presets"][name]`` with the paper's structure (``scenes``,
+   ``summary``). A preset whose propagation has no α (``"matting_laplacian"``: Zhuo & Sim's λ) is
+   propagated once and that map repeated for every α (``alpha_applies`` = false).
 """
 
 from __future__ import annotations
@@ -43,7 +50,38 @@ import numpy as np
 
 from .registry import Figure
 
-__all__ = ["FIGURE", "FULL", "QUICK", "Fig6Config", "StageOutputs", "compute", "sweep_alpha"]
+__all__ = ["FIGURE", "FULL", "QUICK", "Fig6Config", "StageOutputs", "compute", "method_presets", "sweep_alpha"]
+
+
+def method_presets(names) -> dict:
+    """``name → DefocusParams`` for a figure's ``presets`` field, checked (shared by Fig. 6, 7 and 11).
+
+    Parameters
+    ----------
+    names : sequence of str
+        Keys of :data:`method.PRESETS`, unique; the first must be ``"paper"`` (the reproduction,
+        whose results keep the figure's top-level metric keys).
+
+    Returns
+    -------
+    dict
+        ``{name: DefocusParams.preset(name)}`` in the given order.
+
+    Raises
+    ------
+    ValueError
+        Empty, not starting with ``"paper"``, duplicated or unknown names.
+    """
+    from method import PRESETS, DefocusParams
+
+    names = tuple(names)
+    allowed = f"unique names of method.PRESETS ({', '.join(PRESETS)}), the first 'paper'"
+    if not names or names[0] != "paper" or len(set(names)) != len(names):
+        raise ValueError(f"presets={names!r} is invalid; allowed: {allowed}")
+    unknown = [n for n in names if n not in PRESETS]
+    if unknown:
+        raise ValueError(f"presets={names!r} is invalid (unknown {', '.join(map(repr, unknown))}); allowed: {allowed}")
+    return {n: DefocusParams.preset(n) for n in names}
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -72,6 +110,9 @@ class Fig6Config:
     # also sweep α propagating the raw sparse measures (no Eq. 3 refinement), to show where α matters.
     render_seed: int = 0
     # Mitsuba sampler seed.
+    presets: tuple[str, ...] = ("paper", "robust")
+    # method parameter presets (method.PRESETS) swept; the first is "paper" (the reproduction, top-level
+    # metrics), the others go to metrics["presets"][name] (not to be confused with the render `preset`).
 
 
 FULL = Fig6Config()
@@ -100,7 +141,8 @@ def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageO
     alphas : sequence of float
         Data weights α > 0 of Eq. (4).
     params : DefocusParams, optional
-        Every other pipeline parameter (``params.alpha`` is ignored).
+        Every other pipeline parameter (``params.alpha`` is ignored); default the paper's
+        (``DefocusParams()``), or a preset such as ``DefocusParams.preset("robust")``.
     also_from_sparse : bool, keyword-only
         Also propagate the raw sparse measures (skipping Eq. 3) for every α (an ablation).
 
@@ -111,11 +153,14 @@ def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageO
     Notes
     -----
     Mirrors :func:`method.estimate_defocus_map` stage by stage: luminance → ``detect_edges`` →
-    ``estimate_blur`` → ``biased_cross_bilateral`` once, then ``propagate_defocus`` per α and
-    clipping to [0, ``params.max_sigma``].
+    ``estimate_blur`` → the refinement (:func:`method.pipeline.refine_stage`; Eq. 3 as ``params``
+    configure it) once, then the propagation (:func:`method.pipeline.propagate_stage` with
+    ``params.replace(alpha=a)``, clipped to [0, ``params.max_sigma``]) per α. When
+    ``params.propagation`` has no α (anything but ``"colorization"``, Eq. 4), it runs once and the
+    map is repeated for every α (``timings`` then has one ``"propagation"`` entry).
     """
-    from method import (DefocusParams, biased_cross_bilateral, detect_edges, estimate_blur, luminance,
-                        propagate_defocus)
+    from method import DefocusParams, detect_edges, estimate_blur, luminance
+    from method.pipeline import propagate_stage, refine_stage
 
     params = DefocusParams() if params is None else params
     alphas = [float(a) for a in alphas]
@@ -131,20 +176,22 @@ def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageO
     sparse = np.where(edge_map.edges, sparse, np.nan)
     if not np.any(np.isfinite(sparse)):
         raise ValueError("no edge pixel found in the image; the α sweep needs edge measures")
-    refined = biased_cross_bilateral(
-        sparse, rgb, sigma_spatial=params.bilateral_sigma_spatial, sigma_range=params.bilateral_sigma_range,
-        sharpness_bias=params.sharpness_bias, bias_scale=params.bias_scale, method=params.bilateral_method)
+    refined = refine_stage(sparse, rgb, params=params)
     timings["shared"] = time.perf_counter() - t0
 
     def propagate(bm, a):
-        dense = propagate_defocus(bm, rgb, alpha=a, window=params.propagation_window,
-                                  neighborhood=params.propagation_neighborhood, tol=params.propagation_tol,
-                                  solver=params.propagation_solver, downsample=params.propagation_downsample,
-                                  refinement=params.propagation_refinement)
-        return np.clip(np.asarray(dense, dtype=np.float64), 0.0, params.max_sigma)
+        dense = propagate_stage(bm, rgb, params=params.replace(alpha=a), sparse_sigma=sparse)
+        return np.asarray(dense, dtype=np.float64)
 
     maps, from_sparse = [], []
-    for a in alphas:
+    if not alpha_applies(params):
+        t0 = time.perf_counter()
+        dense = propagate(refined, alphas[0])
+        timings["propagation"] = time.perf_counter() - t0
+        maps = [dense] * len(alphas)
+        if also_from_sparse:
+            from_sparse = [propagate(sparse, alphas[0])] * len(alphas)
+    for a in alphas if alpha_applies(params) else ():
         t0 = time.perf_counter()
         maps.append(propagate(refined, a))
         timings[f"alpha={a:g}"] = time.perf_counter() - t0
@@ -153,6 +200,11 @@ def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageO
     return StageOutputs(edges=edge_map.edges.copy(), sparse_sigma=sparse, refined_sigma=refined,
                         maps=np.stack(maps), maps_from_sparse=np.stack(from_sparse) if also_from_sparse else None,
                         timings=timings)
+
+
+def alpha_applies(params) -> bool:
+    """Whether ``params.propagation`` uses the data weight α (only Eq. 4's ``"colorization"`` does)."""
+    return params.propagation == "colorization"
 
 
 def _fidelity(dense, measures, edges):
@@ -176,7 +228,7 @@ def _score_map(m, gt, regions, bm, sparse, edges, rtf_clip_px):
     }
 
 
-def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, also_from_sparse=False):
+def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, also_from_sparse=False, params=None):
     """Sweep α on one input and score every map against the render's ground truth.
 
     Parameters
@@ -189,6 +241,8 @@ def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, als
         See :class:`Fig6Config`.
     also_from_sparse : bool, keyword-only
         Also score the ablation that propagates the raw sparse measures (no Eq. 3).
+    params : DefocusParams, optional, keyword-only
+        Pipeline parameters (default: the paper's); see :func:`sweep_alpha`.
 
     Returns
     -------
@@ -198,7 +252,7 @@ def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, als
     """
     from .metrics import dense_metrics, region_masks
 
-    stages = sweep_alpha(image, alphas, also_from_sparse=also_from_sparse)
+    stages = sweep_alpha(image, alphas, params, also_from_sparse=also_from_sparse)
     gt = np.asarray(render.sigma_px, dtype=np.float64)
     regions = region_masks(image, gt, edges=stages.edges, exclude=render.occlusion_boundary,
                            texture_threshold=texture_threshold)
@@ -233,15 +287,23 @@ def compute(config: Fig6Config) -> dict:
         (k, H, W) px; ``maps_<scene>_<encoding>`` (k, H, W) px for every scene and encoding;
         ``metrics``: ``scenes.<scene>.<encoding>.alpha=<a>.{all,textured,edges}_{mae,bias,rmse}``,
         ``rtf_nmse``, ``rtf_nmae``, ``edge_rms_to_bm``, … (see the module Notes), plus
-        ``summary.<encoding>.alpha=<a>`` means over scenes, and timings.
+        ``summary.<encoding>.alpha=<a>`` means over scenes, and timings — all for the ``"paper"``
+        preset. Every further preset P of ``config.presets``: ``preset_<P>__maps`` (k, H, W) px and
+        ``preset_<P>__refined`` (H, W) px (its Eq. 3 output, NaN off edges) for the plotted scene and
+        encoding, ``preset_<P>__maps_<scene>_<encoding>`` (k, H, W) px, and
+        ``metrics.presets.<P>`` = {``scenes``, ``summary`` (same keys as the paper's, no
+        ``from_sparse``), ``alpha_applies``, ``compute_seconds``}.
     """
     from scenes import render_scene
 
     if config.plot_encoding not in config.encodings:
         raise ValueError(f"plot_encoding={config.plot_encoding!r} is invalid; allowed: one of {config.encodings}")
+    others = dict(list(method_presets(config.presets).items())[1:])  # "paper" is the top level
     t_start = time.perf_counter()
     data = {"alphas": np.asarray(config.alphas, dtype=np.float64)}
     per_scene = {}
+    extra = {p: {"scenes": {}, "summary": {}, "alpha_applies": alpha_applies(params), "compute_seconds": 0.0}
+             for p, params in others.items()}
     for si, name in enumerate(config.scenes):
         render = render_scene(name, preset=config.preset, f_number=config.f_number, seed=config.render_seed,
                               progress=False)
@@ -263,20 +325,26 @@ def compute(config: Fig6Config) -> dict:
                 data.update(image=image.astype(np.float32), sigma_gt=render.sigma_px.astype(np.float32),
                             occlusion=render.occlusion_boundary.astype(bool), edges=stages.edges,
                             maps=stages.maps.astype(np.float32))
-    summary = {}
-    for enc in config.encodings:
-        summary[enc] = {}
-        for a in config.alphas:
-            key = f"alpha={float(a):g}"
-            rows = [per_scene[s][enc][key] for s in config.scenes]
-            summary[enc][key] = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
-            if config.ablation_from_sparse:
-                rows = [per_scene[s][enc]["from_sparse"][key] for s in config.scenes]
-                summary[enc].setdefault("from_sparse", {})[key] = {
-                    k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
+            for pname, params in others.items():
+                t0 = time.perf_counter()
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    st, mm = evaluate_input(image, render, config.alphas, texture_threshold=config.texture_threshold,
+                                            rtf_clip_px=config.rtf_clip_px, params=params)
+                extra[pname]["scenes"].setdefault(name, {"sigma_gt_range_px": per_scene[name]["sigma_gt_range_px"]})
+                extra[pname]["scenes"][name][enc] = mm
+                data[f"preset_{pname}__maps_{name}_{enc}"] = st.maps.astype(np.float32)
+                if si == 0 and enc == config.plot_encoding:
+                    data[f"preset_{pname}__maps"] = st.maps.astype(np.float32)
+                    data[f"preset_{pname}__refined"] = st.refined_sigma.astype(np.float32)
+                extra[pname]["compute_seconds"] += time.perf_counter() - t0
+    summary = _summary(per_scene, config, from_sparse=config.ablation_from_sparse)
+    for pname in others:
+        extra[pname]["summary"] = _summary(extra[pname]["scenes"], config, from_sparse=False)
     data["metrics"] = {
         "scenes": per_scene,
         "summary": summary,
+        "presets": extra,
         "regions_note": "occlusion-boundary pixels (within a CoC radius + 1 px of a depth discontinuity) "
                         "are excluded from every region; 'all' = finite sigma_gt, 'textured' = local std > "
                         f"{config.texture_threshold}, 'edges' = the method's edge pixels",
@@ -285,11 +353,27 @@ def compute(config: Fig6Config) -> dict:
     return data
 
 
+def _summary(per_scene, config, *, from_sparse):
+    """``{encoding: {"alpha=<a>": mean over scenes of each metric}}`` (and the ablation's, if asked)."""
+    summary = {}
+    for enc in config.encodings:
+        summary[enc] = {}
+        for a in config.alphas:
+            key = f"alpha={float(a):g}"
+            rows = [per_scene[s][enc][key] for s in config.scenes]
+            summary[enc][key] = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
+            if from_sparse:
+                rows = [per_scene[s][enc]["from_sparse"][key] for s in config.scenes]
+                summary[enc].setdefault("from_sparse", {})[key] = {
+                    k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
+    return summary
+
+
 FIGURE = Figure(
     name="fig6",
     title="Eq. (4) data weight alpha in {0.1, 0.2, 0.5, 1}: dense maps vs ground truth (sRGB and linear input)",
     compute=compute,
     plot="experiments.plotting.fig6:plot",
     configs={"quick": QUICK, "full": FULL},
-    version=1,
+    version=2,
 )

@@ -37,6 +37,13 @@ Notes
    (``magnified_estimated_subtract``, ``floor="subtract"`` of :func:`method.magnify_defocus`): the
    map's lower-percentile value p_lo (its in-focus floor, reported as ``map_floor_px``) is removed
    in quadrature before smoothing, so pixels at the floor get no extra blur.
+6. Method presets (``config.presets``; the first is always ``"paper"`` = ``DefocusParams()``, the
+   reproduction, whose metrics are the top-level ones): every further preset of
+   :data:`method.PRESETS` (e.g. ``"robust"``, beyond the paper) estimates both maps with its
+   parameters (steps 2–3 and 5 with its maps; Sec. 5 preprocessing with its ``map_clip_percent`` /
+   ``map_smoothing``) under ``metrics["presets"][name]["scenes"][scene]``, with the paper's structure.
+   The preset-independent rows (naive / filter-aware doubled truth, unchanged f/8 render, oracle
+   magnifications) are repeated there, so each preset's entry reads like the paper's.
 """
 
 from __future__ import annotations
@@ -76,6 +83,9 @@ class Fig7Config:
     # PSNR, px (the rest outside occlusion bands is "defocused").
     render_seed: int = 0
     # Mitsuba sampler seed (same for both apertures).
+    presets: tuple[str, ...] = ("paper", "robust")
+    # method parameter presets (method.PRESETS); the first is "paper" (the reproduction, top-level
+    # metrics), the others go to metrics["presets"][name] (not to be confused with the render `preset`).
 
     @property
     def factor(self) -> float:
@@ -87,12 +97,12 @@ FULL = Fig7Config()
 QUICK = Fig7Config(preset="small")
 
 
-def _estimate(image):
+def _estimate(image, params=None):
     from method import estimate_defocus_map
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        return estimate_defocus_map(image)
+        return estimate_defocus_map(image, params)
 
 
 def _encode(linear, config):
@@ -109,8 +119,8 @@ def _masked_psnr(test, reference, mask):
     return float("inf") if mse == 0 else float(10.0 * np.log10(1.0 / mse))
 
 
-def scene_case(name, config) -> tuple[dict, dict]:
-    """Render, estimate, magnify and score one scene; returns (arrays, metrics).
+def scene_case(name, config) -> tuple[dict, dict, dict]:
+    """Render, estimate, magnify and score one scene for every preset; returns (arrays, metrics, presets).
 
     Parameters
     ----------
@@ -120,21 +130,26 @@ def scene_case(name, config) -> tuple[dict, dict]:
 
     Returns
     -------
-    (dict, dict)
-        Arrays (all HxW or HxWx3): ``image_small`` / ``image_large`` (the f/8 and f/4 inputs),
-        ``map_small`` / ``map_large`` (estimated σ, px), ``gt_small`` / ``gt_large`` (σ_gt, px),
-        ``mask`` (evaluated pixels), ``magnified`` (estimated map, ``floor="clamp"``),
-        ``magnified_subtract`` (estimated map, ``floor="subtract"``), ``map_small_subtract`` (the f/8
-        map after Sec. 5 preprocessing with ``floor="subtract"``, σ px), ``magnified_oracle_srgb``,
-        ``magnified_oracle_linear``; metrics as described in the module Notes.
+    (dict, dict, dict)
+        Arrays of the ``"paper"`` preset (all HxW or HxWx3): ``image_small`` / ``image_large`` (the
+        f/8 and f/4 inputs), ``map_small`` / ``map_large`` (estimated σ, px), ``gt_small`` /
+        ``gt_large`` (σ_gt, px), ``mask`` (evaluated pixels), ``magnified`` (estimated map,
+        ``floor="clamp"``), ``magnified_subtract`` (estimated map, ``floor="subtract"``),
+        ``map_small_subtract`` (the f/8 map after Sec. 5 preprocessing with ``floor="subtract"``, σ
+        px), ``magnified_oracle_srgb``, ``magnified_oracle_linear``; its metrics as described in the
+        module Notes; and ``{preset: (arrays, metrics)}`` for every further preset of
+        ``config.presets`` (arrays: the estimated-map ones above, ``map_small`` … ``map_small_subtract``;
+        metrics: the paper's keys).
     """
-    from method import DefocusParams, magnify_defocus
+    from method import magnify_defocus
     from method.magnification import preprocess_defocus_map
     from scenes import render_scene
     from scenes.render import FILTER_SIGMA_PX
 
+    from .fig6_alpha_sweep import method_presets
     from .metrics import dense_metrics, image_quality
 
+    presets = method_presets(config.presets)
     k = config.factor
     r_s = render_scene(name, preset=config.preset, f_number=config.f_number_small_aperture,
                        seed=config.render_seed, progress=False)
@@ -142,74 +157,88 @@ def scene_case(name, config) -> tuple[dict, dict]:
                        seed=config.render_seed, progress=False)
     img_s = r_s.image(encoding=config.encoding, quantize_bits=config.quantize_bits)
     img_l = r_l.image(encoding=config.encoding, quantize_bits=config.quantize_bits)
-    t0 = time.perf_counter()
-    res_s = _estimate(img_s)
-    res_l = _estimate(img_l)
-    t_est = time.perf_counter() - t0
     gt_s = np.asarray(r_s.sigma_px, dtype=np.float64)
     gt_l = np.asarray(r_l.sigma_px, dtype=np.float64)
     sf = FILTER_SIGMA_PX
     sigma_d_s = np.sqrt(np.maximum(gt_s**2 - sf**2, 0.0))  # defocus-only σ of the f/8 render (c/4)
     mask = np.isfinite(gt_s) & np.isfinite(gt_l) & ~r_s.occlusion_boundary & ~r_l.occlusion_boundary
     regions = {"all": mask}
-    candidates = {
-        "map_small": res_s.defocus_map,
-        "k_x_map_small": k * res_s.defocus_map,
-        "map_large": res_l.defocus_map,
-        "k_x_gt_small_naive": k * gt_s,
-        "gt_small_doubled_filter_aware": np.sqrt(k * k * sigma_d_s**2 + sf**2),
-    }
-    maps = {name_: dense_metrics(m, gt_l, regions=regions)["all"] for name_, m in candidates.items()}
-    maps_vs_gt_small = {"map_small": dense_metrics(res_s.defocus_map, gt_s, regions=regions)["all"]}
+    sigma_d_l = np.sqrt(np.maximum(gt_l**2 - sf**2, 0.0))
+    in_focus = mask & (sigma_d_l <= config.in_focus_sigma_px)
+    defocused = mask & (sigma_d_l > config.in_focus_sigma_px)
 
-    t0 = time.perf_counter()
-    mag = magnify_defocus(img_s, res_s.defocus_map, factor=k, kernel=config.kernel)
-    t_mag = time.perf_counter() - t0
-    clip, smooth = DefocusParams().map_clip_percent, DefocusParams().map_smoothing  # paper: 5 %, 0.5 %
-    mag_subtract = magnify_defocus(img_s, res_s.defocus_map, factor=k, kernel=config.kernel, clip_percent=clip,
-                                   smoothing=smooth, floor="subtract")
-    map_subtract = preprocess_defocus_map(res_s.defocus_map, clip_percent=clip, smoothing=smooth, floor="subtract")
-    map_floor_px = max(float(np.percentile(res_s.defocus_map, clip)), 0.0)  # p_lo, px
+    def score_image(im):
+        q = image_quality(im, img_l)
+        q["psnr_in_focus_db"] = _masked_psnr(im, img_l, in_focus)
+        q["psnr_defocused_db"] = _masked_psnr(im, img_l, defocused)
+        return q
+
+    # preset-independent rows: the doubled truth, the unchanged input and the oracle upper bounds
+    truth_maps = {"k_x_gt_small_naive": k * gt_s,
+                  "gt_small_doubled_filter_aware": np.sqrt(k * k * sigma_d_s**2 + sf**2)}
+    truth_rows = {n: dense_metrics(m, gt_l, regions=regions)["all"] for n, m in truth_maps.items()}
     oracle_srgb = magnify_defocus(img_s, np.where(np.isfinite(sigma_d_s), sigma_d_s, 0.0), factor=k,
                                   kernel=config.kernel, preprocess=False)
     lin = np.clip(np.asarray(r_s.rgb, dtype=np.float64), 0.0, 1.0)
     oracle_linear = _encode(magnify_defocus(lin, np.where(np.isfinite(sigma_d_s), sigma_d_s, 0.0), factor=k,
                                             kernel=config.kernel, preprocess=False), config)
-    images = {
-        "unchanged_small": img_s,
-        "magnified_estimated": mag,
-        "magnified_estimated_subtract": mag_subtract,
-        "magnified_oracle_srgb": oracle_srgb,
-        "magnified_oracle_linear": oracle_linear,
-    }
-    quality = {n: image_quality(im, img_l) for n, im in images.items()}
-    sigma_d_l = np.sqrt(np.maximum(gt_l**2 - sf**2, 0.0))
-    in_focus = mask & (sigma_d_l <= config.in_focus_sigma_px)
-    defocused = mask & (sigma_d_l > config.in_focus_sigma_px)
-    for n, im in images.items():
-        quality[n]["psnr_in_focus_db"] = _masked_psnr(im, img_l, in_focus)
-        quality[n]["psnr_defocused_db"] = _masked_psnr(im, img_l, defocused)
-    metrics = {
-        "maps_vs_gt_large": maps,
-        "maps_vs_gt_small": maps_vs_gt_small,
-        "image_vs_large": quality,
-        "gt_range_px": {"small": [float(np.nanmin(gt_s)), float(np.nanmax(gt_s))],
-                        "large": [float(np.nanmin(gt_l)), float(np.nanmax(gt_l))]},
-        "map_floor_px": map_floor_px,
-        "evaluated_pixels": int(mask.sum()),
-        "in_focus_pixels": int(in_focus.sum()),
-        "defocused_pixels": int(defocused.sum()),
-        "estimate_seconds": t_est,
-        "magnify_seconds": t_mag,
-    }
-    arrays = {
-        "image_small": img_s, "image_large": img_l,
-        "map_small": res_s.defocus_map, "map_large": res_l.defocus_map,
-        "gt_small": gt_s, "gt_large": gt_l, "mask": mask,
-        "magnified": mag, "magnified_subtract": mag_subtract, "map_small_subtract": map_subtract,
-        "magnified_oracle_srgb": oracle_srgb, "magnified_oracle_linear": oracle_linear,
-    }
-    return arrays, metrics
+    fixed_images = {"unchanged_small": img_s, "magnified_oracle_srgb": oracle_srgb,
+                    "magnified_oracle_linear": oracle_linear}
+    fixed_quality = {n: score_image(im) for n, im in fixed_images.items()}
+
+    def estimated(params):
+        t0 = time.perf_counter()
+        res_s = _estimate(img_s, params)
+        res_l = _estimate(img_l, params)
+        t_est = time.perf_counter() - t0
+        candidates = {"map_small": res_s.defocus_map, "k_x_map_small": k * res_s.defocus_map,
+                      "map_large": res_l.defocus_map}
+        maps = {n: dense_metrics(m, gt_l, regions=regions)["all"] for n, m in candidates.items()}
+        maps.update(truth_rows)
+        maps_vs_gt_small = {"map_small": dense_metrics(res_s.defocus_map, gt_s, regions=regions)["all"]}
+        clip, smooth = params.map_clip_percent, params.map_smoothing  # paper: 5 %, 0.5 %
+        t0 = time.perf_counter()
+        mag = magnify_defocus(img_s, res_s.defocus_map, factor=k, kernel=config.kernel, clip_percent=clip,
+                              smoothing=smooth)
+        t_mag = time.perf_counter() - t0
+        mag_subtract = magnify_defocus(img_s, res_s.defocus_map, factor=k, kernel=config.kernel,
+                                       clip_percent=clip, smoothing=smooth, floor="subtract")
+        map_subtract = preprocess_defocus_map(res_s.defocus_map, clip_percent=clip, smoothing=smooth,
+                                              floor="subtract")
+        map_floor_px = max(float(np.percentile(res_s.defocus_map, clip)), 0.0)  # p_lo, px
+        quality = {"unchanged_small": fixed_quality["unchanged_small"],
+                   "magnified_estimated": score_image(mag),
+                   "magnified_estimated_subtract": score_image(mag_subtract),
+                   "magnified_oracle_srgb": fixed_quality["magnified_oracle_srgb"],
+                   "magnified_oracle_linear": fixed_quality["magnified_oracle_linear"]}
+        metrics = {
+            "maps_vs_gt_large": maps,
+            "maps_vs_gt_small": maps_vs_gt_small,
+            "image_vs_large": quality,
+            "gt_range_px": {"small": [float(np.nanmin(gt_s)), float(np.nanmax(gt_s))],
+                            "large": [float(np.nanmin(gt_l)), float(np.nanmax(gt_l))]},
+            "map_floor_px": map_floor_px,
+            "evaluated_pixels": int(mask.sum()),
+            "in_focus_pixels": int(in_focus.sum()),
+            "defocused_pixels": int(defocused.sum()),
+            "estimate_seconds": t_est,
+            "magnify_seconds": t_mag,
+        }
+        arrays = {"map_small": res_s.defocus_map, "map_large": res_l.defocus_map, "magnified": mag,
+                  "magnified_subtract": mag_subtract, "map_small_subtract": map_subtract}
+        return arrays, metrics
+
+    names = list(presets)
+    arrays, metrics = estimated(presets[names[0]])
+    arrays.update({"image_small": img_s, "image_large": img_l, "gt_small": gt_s, "gt_large": gt_l, "mask": mask,
+                   "magnified_oracle_srgb": oracle_srgb, "magnified_oracle_linear": oracle_linear})
+    others = {}
+    for pname in names[1:]:
+        t0 = time.perf_counter()
+        a, m = estimated(presets[pname])
+        m["compute_seconds"] = time.perf_counter() - t0
+        others[pname] = (a, m)
+    return arrays, metrics, others
 
 
 def compute(config: Fig7Config) -> dict:
@@ -224,20 +253,31 @@ def compute(config: Fig7Config) -> dict:
     dict
         ``<scene>__<array>`` for every array of :func:`scene_case` (float32 images/maps, px), and
         ``metrics``: ``scenes.<scene>.maps_vs_gt_large.<candidate>.{mae, bias, …}``,
-        ``scenes.<scene>.image_vs_large.<image>.{psnr_db, ssim}``, the factor k, timings.
+        ``scenes.<scene>.image_vs_large.<image>.{psnr_db, ssim}``, the factor k, timings — all for
+        the ``"paper"`` preset. Every further preset P of ``config.presets``:
+        ``<scene>__<P>__<array>`` for its estimated-map arrays (``map_small``, ``map_large``,
+        ``magnified``, ``magnified_subtract``, ``map_small_subtract``) and
+        ``metrics.presets.<P>.scenes.<scene>`` with the paper's keys (plus ``compute_seconds``).
     """
     if config.factor < 1:
         raise ValueError(f"f_number_small_aperture/f_number_large_aperture = {config.factor:g} is invalid; allowed: >= 1")
     t0 = time.perf_counter()
     data, per_scene = {}, {}
+    extra = {p: {"scenes": {}, "compute_seconds": 0.0} for p in config.presets[1:]}
     for name in config.scenes:
-        arrays, metrics = scene_case(name, config)
+        arrays, metrics, others = scene_case(name, config)
         per_scene[name] = metrics
         for key, a in arrays.items():
             a = np.asarray(a)
             data[f"{name}__{key}"] = a.astype(np.float32) if a.dtype.kind == "f" else a
+        for pname, (p_arrays, p_metrics) in others.items():
+            extra[pname]["scenes"][name] = p_metrics
+            extra[pname]["compute_seconds"] += p_metrics["compute_seconds"]
+            for key, a in p_arrays.items():
+                data[f"{name}__{pname}__{key}"] = np.asarray(a).astype(np.float32)
     data["metrics"] = {
         "scenes": per_scene,
+        "presets": extra,
         "factor": config.factor,
         "upper_bound_note": "oracle map = defocus-only sigma c/4 = sqrt(sigma_gt^2 - sigma_filter^2) of the "
                             "small-aperture render, no Sec. 5 preprocessing; the box-filter sigma does not "
@@ -253,5 +293,5 @@ FIGURE = Figure(
     compute=compute,
     plot="experiments.plotting.fig7:plot",
     configs={"quick": QUICK, "full": FULL},
-    version=2,
+    version=3,
 )

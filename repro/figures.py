@@ -1,12 +1,16 @@
 """Reproduce the paper's figures: compute (cached), plot, and write metrics.
 
-``python -m repro.figures [NAMES...] [--list] [--quick] [--jobs N] [--out DIR] [--force]``
+``python -m repro.figures [NAMES...] [--list] [--quick] [--jobs N] [--out DIR] [--force] [--preset NAME ...]``
 
 For each figure (default: all registered in :data:`experiments.registry.FIGURES`) this renders
 whatever is missing (render and compute results are cached under ``$DEFOCUS_CACHE_DIR``), runs the
 experiment, and writes ``<out>/<name>.png``, ``<name>.pdf`` and ``<name>.metrics.json`` (metrics,
 the config, the σ convention, library versions). ``--jobs N`` runs independent figures in N
-parallel processes. Unknown names or bad values: one line on stderr, exit status 2. A figure
+parallel processes. ``--preset robust zhuo_sim`` sets the ``presets`` field (method parameter
+presets of :data:`method.PRESETS`) of every selected figure whose config has one, to
+``("paper", "robust", "zhuo_sim")`` — ``"paper"``, the reproduction, always first; ``--preset paper``
+runs the paper alone; figures without that field ignore it. Unknown names or bad values: one line
+on stderr, exit status 2. A figure
 whose computation fails is reported (traceback, then one summary line) and the others still run;
 the exit status is then 1.
 """
@@ -35,20 +39,52 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="DIR",
                    help=f"output folder (default: {DEFAULT_OUT})")
     p.add_argument("--force", action="store_true", help="recompute even when a cached result exists")
+    p.add_argument("--preset", nargs="+", default=None, metavar="NAME",
+                   help="method parameter presets (method.PRESETS, e.g. robust zhuo_sim) for the figures whose "
+                        "config has a 'presets' field (fig6, fig7, fig11, stages); 'paper' is always kept first "
+                        "(--preset paper: the paper alone); default: each config's own; figures without the "
+                        "field ignore it")
     return p
 
 
-def make_figure(name: str, mode: str, out_dir: str, force: bool) -> dict:
+def preset_names(names) -> tuple[str, ...]:
+    """The ``presets`` tuple of ``--preset NAMES``: ``"paper"`` first, then the others in order, without repeats.
+
+    Raises
+    ------
+    ValueError
+        A name not in :data:`method.PRESETS` (the message lists the allowed names).
+    """
+    from method import PRESETS
+
+    unknown = [n for n in names if n not in PRESETS]
+    if unknown:
+        raise ValueError(f"--preset {' '.join(unknown)!s} is invalid; allowed: {', '.join(PRESETS)}")
+    return tuple(dict.fromkeys(["paper", *names]))
+
+
+def figure_config(fig, mode: str, presets=None):
+    """``fig``'s config of ``mode``, with its ``presets`` field set to ``presets`` when it has one (else unchanged)."""
+    import dataclasses
+
+    config = fig.config(mode)
+    if presets is not None and any(f.name == "presets" for f in dataclasses.fields(config)):
+        config = dataclasses.replace(config, presets=tuple(presets))
+    return config
+
+
+def make_figure(name: str, mode: str, out_dir: str, force: bool, presets=None) -> dict:
     """Compute (cached), plot and write the metrics of one figure; returns a summary dict.
 
-    Top-level so that worker processes can run it.
+    ``presets`` (tuple of str or None) replaces the config's ``presets`` field if it has one
+    (see :func:`figure_config`). Top-level so that worker processes can run it.
     """
     from experiments.registry import FIGURES, compute_cached, library_versions, to_jsonable
     from scenes.storage import atomic_write_text
 
     t0 = time.perf_counter()
     fig = FIGURES[name]
-    config = fig.config(mode)
+    config = figure_config(fig, mode, presets)
     result = compute_cached(fig, config, force=force)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -73,10 +109,10 @@ def make_figure(name: str, mode: str, out_dir: str, force: bool) -> dict:
             "files": [str(p) for p in [*paths, metrics_path]], "metrics": result.metrics}
 
 
-def _make_figure_safe(name: str, mode: str, out_dir: str, force: bool) -> dict:
+def _make_figure_safe(name: str, mode: str, out_dir: str, force: bool, presets=None) -> dict:
     # One failing figure must not stop the others: report it and carry on.
     try:
-        return make_figure(name, mode, out_dir, force)
+        return make_figure(name, mode, out_dir, force, presets)
     except Exception as exc:  # noqa: BLE001 - reported to the user, exit status 1
         import traceback
 
@@ -104,6 +140,7 @@ def main(argv=None) -> int:
     if unknown:
         raise ValueError(f"unknown figure(s) {', '.join(map(repr, unknown))}; choose from {', '.join(FIGURES)}")
     mode = "quick" if args.quick else "full"
+    presets = preset_names(args.preset) if args.preset is not None else None
     if args.variant:
         import os
 
@@ -120,7 +157,7 @@ def main(argv=None) -> int:
     if args.jobs == 1 or len(names) == 1:
         for name in names:
             bar.set_postfix_str(name)
-            summaries.append(_make_figure_safe(name, mode, str(args.out), args.force))
+            summaries.append(_make_figure_safe(name, mode, str(args.out), args.force, presets))
             bar.update()
     else:
         import multiprocessing
@@ -129,7 +166,8 @@ def main(argv=None) -> int:
         # spawn, not fork: Dr.Jit/LLVM state does not survive a fork safely.
         ctx = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(max_workers=min(args.jobs, len(names)), mp_context=ctx) as pool:
-            futures = {pool.submit(_make_figure_safe, n, mode, str(args.out), args.force): n for n in names}
+            futures = {pool.submit(_make_figure_safe, n, mode, str(args.out), args.force, presets): n
+                       for n in names}
             for fut in as_completed(futures):
                 summaries.append(fut.result())
                 bar.set_postfix_str(futures[fut])

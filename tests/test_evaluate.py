@@ -130,3 +130,28 @@ def test_binned_abs_error_by_hand():
     np.testing.assert_array_equal(cnt, [2, 1, 0])
     np.testing.assert_allclose(med[:2], [0.2, 0.2])
     assert np.isnan(med[2])
+
+
+@pytest.mark.render
+def test_evaluate_presets_and_stages(tmp_path, capsys):
+    """--preset compares presets (each with its own estimator); --stages writes the stage attribution."""
+    out = tmp_path / "ev"
+    assert _run(["--preset", "paper", "robust", "--scenes", "planes", "--fnumber", "8", "--scene-preset", "small",
+                 "--stages", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "oracle_propagate" in printed and "stages.csv" in printed
+    rows, js = _read(out)
+    assert [(r["method_preset"], r["estimator"]) for r in rows] == [("paper", "model_fit"),
+                                                                    ("robust", "model_fit_checked")]
+    assert rows[0]["dense_textured_mae"] != rows[1]["dense_textured_mae"]
+    stages = json.loads((out / "stages.json").read_text())["rows"]
+    got = {(r["method_preset"], r["input"], r["stage"]) for r in stages}
+    for preset in ("paper", "robust"):
+        assert (preset, "estimated", "sparse") in got and (preset, "oracle_refine", "refined") in got
+        assert (preset, "oracle_propagate", "dense_textured") in got
+    for r in stages:  # per-bin counts add up to the stage's pixel count
+        assert sum(v for k, v in r.items() if k.startswith("n_")) == r["n"]
+    # with σ_gt fed straight into Eq. (4) the dense map at the edges is the truth there (α-weighted fit)
+    op = next(r for r in stages if r["method_preset"] == "paper" and r["input"] == "oracle_propagate"
+              and r["stage"] == "dense_edges")
+    assert op["mae"] < 0.1

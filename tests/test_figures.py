@@ -181,3 +181,62 @@ def test_code_fingerprint_ignores_plots_and_claims_but_not_compute_code(tmp_path
     (tmp_path / "method/a.py").write_text("x = 2\n")
     assert fp() != base
     reg.code_fingerprint.cache_clear()
+
+
+# --- --preset (method parameter presets of the figures with a `presets` config field) ------------
+def test_preset_names_keep_paper_first_and_reject_unknown():
+    from repro.figures import preset_names
+
+    assert preset_names(["robust", "zhuo_sim"]) == ("paper", "robust", "zhuo_sim")
+    assert preset_names(["zhuo_sim", "paper", "zhuo_sim"]) == ("paper", "zhuo_sim")
+    assert preset_names(["paper"]) == ("paper",)
+    with pytest.raises(ValueError, match="paper, robust, zhuo_sim"):
+        preset_names(["robust", "nope"])
+
+
+def test_figure_config_sets_presets_only_where_the_config_has_the_field():
+    from experiments.registry import FIGURES
+    from repro.figures import figure_config
+
+    with_field = set()
+    for name, fig in FIGURES.items():
+        base = fig.config("quick")
+        assert figure_config(fig, "quick") is base  # no --preset: the config as registered
+        cfg = figure_config(fig, "quick", ("paper", "zhuo_sim"))
+        if any(f.name == "presets" for f in dataclasses.fields(base)):
+            with_field.add(name)
+            assert cfg.presets == ("paper", "zhuo_sim")
+            assert dataclasses.replace(cfg, presets=base.presets) == base  # nothing else changed
+        else:
+            assert cfg is base
+    assert {"fig6", "fig7", "fig11"} <= with_field and "fig10" not in with_field
+
+
+def test_cli_preset_reaches_every_selected_figure(tmp_path, monkeypatch):
+    """``--preset`` is passed to every figure (the ones without a `presets` field ignore it)."""
+    import repro.figures as rf
+
+    calls = []
+
+    def fake(name, mode, out_dir, force, presets=None):
+        calls.append((name, mode, presets))
+        return {"name": name, "cached": True, "seconds": 0.0, "files": [], "metrics": {}}
+
+    monkeypatch.setattr(rf, "_make_figure_safe", fake)
+    assert rf.main(["fig6", "fig10", "--quick", "--preset", "zhuo_sim", "robust", "--out", str(tmp_path)]) == 0
+    assert calls == [("fig6", "quick", ("paper", "zhuo_sim", "robust")),
+                     ("fig10", "quick", ("paper", "zhuo_sim", "robust"))]
+    calls.clear()
+    assert rf.main(["fig6", "--out", str(tmp_path)]) == 0
+    assert calls == [("fig6", "full", None)]
+
+
+def test_cli_unknown_preset_exits_2_with_one_line(tmp_path, capsys):
+    from repro._cli import run_cli
+    from repro.figures import PROG, main
+
+    out = tmp_path / "out"
+    assert run_cli(main, ["fig6", "--quick", "--preset", "robust", "nope", "--out", str(out)], prog=PROG) == 2
+    lines = [l for l in capsys.readouterr().err.splitlines() if l.strip()]
+    assert len(lines) == 1 and "nope" in lines[0] and "paper, robust, zhuo_sim" in lines[0], lines
+    assert not out.exists()

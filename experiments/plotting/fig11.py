@@ -1,4 +1,5 @@
-"""Plot of Fig. 11: one row per rendered scene / photo — input, map, magnified result, truth or edges."""
+"""Plot of Fig. 11: one row per rendered scene / photo — input, map and magnified result per method
+preset, truth or edges."""
 
 from __future__ import annotations
 
@@ -10,52 +11,70 @@ from .style import _RC, add_colorbar, plt, save_figure
 def plot(data, config, out_stem):
     """Draw Fig. 11 from :func:`experiments.fig11_gallery.compute`'s dict; returns the paths.
 
-    Columns: input; estimated defocus map (colour bar "σ (px)", shared with column 4 in the row);
-    magnified ×k result; σ_gt (renders, occlusion bands grey) or the sparse blur measures at edge
-    pixels (photos, which have no ground truth).
+    Columns: input; then for every method preset of ``config.presets`` (first ``paper``, the
+    reproduction; e.g. ``robust`` beside it) its estimated defocus map (colour bar "σ (px)", one
+    scale per row shared by every map of the row) and its magnified ×k result; last σ_gt (renders,
+    occlusion bands grey) or the paper preset's sparse blur measures at edge pixels (photos, which
+    have no ground truth).
     """
     items = [str(s) for s in data["items"]]
-    metrics = data["metrics"]["items"]
-    k = data["metrics"]["factor"]
+    metrics = data["metrics"]
+    k = metrics["factor"]
+    presets = ["paper", *[p for p in getattr(config, "presets", ("paper",))[1:] if p in metrics.get("presets", {})]]
+    ncols = 2 + 2 * len(presets)
     with plt.rc_context(_RC):
-        fig = plt.figure(figsize=(10.5, 2.2 * len(items)), layout="constrained")
+        fig = plt.figure(figsize=(2.6 * ncols + 0.6, 2.2 * len(items)), layout="constrained")
         subs = np.atleast_1d(fig.subfigures(len(items), 1))
         for sub, item in zip(subs, items):
-            _row(sub, data, item, metrics[item], k)
+            _row(sub, data, item, presets, k)
     return save_figure(fig, out_stem)
 
 
-def _row(sub, data, item, m, k):
+def _item_metrics(data, item, pname):
+    if pname == "paper":
+        return data["metrics"]["items"][item]
+    return data["metrics"]["presets"][pname]["items"][item]
+
+
+def _row(sub, data, item, presets, k):
     kind, name = item.split(":", 1)
-    axes = sub.subplots(1, 4)
+    axes = sub.subplots(1, 2 + 2 * len(presets))
     img = np.clip(data[f"{item}__input"], 0, 1)
-    dmap = data[f"{item}__map"]
-    t = m["timings"]["estimate_wall_s"]
+    tags = {p: "" if p == "paper" else f"__{p}" for p in presets}
+    dmaps = {p: data[f"{item}{tags[p]}__map"] for p in presets}
+    m = _item_metrics(data, item, "paper")
     h, w = m["shape"]
+    times = ", ".join(f"{p} {_item_metrics(data, item, p)['timings']['estimate_wall_s']:.1f} s" for p in presets)
     axes[0].imshow(img)
-    axes[0].set_title(f"{name} ({'render' if kind == 'scene' else 'photo'}, {w}×{h})\nestimate {t:.1f} s")
+    axes[0].set_title(f"{name} ({'render' if kind == 'scene' else 'photo'}, {w}×{h})\nestimate: {times}")
     if kind == "scene":
         other = data[f"{item}__gt"]
-        vmax = float(np.nanpercentile(np.concatenate([other.ravel(), dmap.ravel()]), 99.5))
-        title4 = "ground truth σ_gt (grey: excluded)"
+        vmax = float(np.nanpercentile(np.concatenate([other.ravel(), *(d.ravel() for d in dmaps.values())]), 99.5))
+        title_last = "ground truth σ_gt (grey: excluded)"
         other = np.ma.masked_where(data[f"{item}__occlusion"].astype(bool) | ~np.isfinite(other), other)
-        title_map = f"defocus map\nMAE {m['all_mae']:.2f} px, bias {m['all_bias']:+.2f} px"
     else:
         other = data[f"{item}__sparse"]
-        vmax = float(np.nanpercentile(dmap, 99.5))
-        title4 = "sparse σ at edge pixels (grey: none)"
+        vmax = float(np.nanpercentile(np.concatenate([d.ravel() for d in dmaps.values()]), 99.5))
+        title_last = "paper: sparse σ at edge pixels\n(grey: none)"
         other = np.ma.masked_invalid(other)
-        title_map = f"defocus map\nmedian {m['map_median_px']:.2f}, p95 {m['map_p95_px']:.2f} px"
     vmax = max(vmax, 1e-3)
-    im = axes[1].imshow(dmap, cmap="viridis", vmin=0, vmax=vmax)
-    axes[1].set_title(title_map)
-    axes[2].imshow(np.clip(data[f"{item}__magnified"], 0, 1))
-    axes[2].set_title(f"defocus magnified ×{k:g}")
-    axes[3].set_facecolor("0.6")
-    axes[3].imshow(other, cmap="viridis", vmin=0, vmax=vmax, interpolation="nearest")
-    axes[3].set_title(title4)
+    map_axes = []
+    for j, pname in enumerate(presets):
+        pm = _item_metrics(data, item, pname)
+        ax_map, ax_mag = axes[1 + 2 * j], axes[2 + 2 * j]
+        im = ax_map.imshow(dmaps[pname], cmap="viridis", vmin=0, vmax=vmax)
+        if kind == "scene":
+            ax_map.set_title(f"{pname}: defocus map\nMAE {pm['all_mae']:.2f} px, bias {pm['all_bias']:+.2f} px")
+        else:
+            ax_map.set_title(f"{pname}: defocus map\nmedian {pm['map_median_px']:.2f}, p95 {pm['map_p95_px']:.2f} px")
+        ax_mag.imshow(np.clip(data[f"{item}{tags[pname]}__magnified"], 0, 1))
+        ax_mag.set_title(f"{pname}: defocus magnified ×{k:g}")
+        map_axes.append(ax_map)
+    axes[-1].set_facecolor("0.6")
+    axes[-1].imshow(other, cmap="viridis", vmin=0, vmax=vmax, interpolation="nearest")
+    axes[-1].set_title(title_last)
     for ax in axes:
         ax.set_xticks([])
         ax.set_yticks([])
         ax.grid(False)
-    add_colorbar(sub, [axes[1], axes[3]], im, "σ (px)")
+    add_colorbar(sub, [*map_axes, axes[-1]], im, "σ (px)")

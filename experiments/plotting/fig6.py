@@ -1,4 +1,4 @@
-"""Plot of Fig. 6: dense maps for each α next to the ground truth, and the errors vs α."""
+"""Plot of Fig. 6: dense maps for each α next to the ground truth, per method preset, and the errors vs α."""
 
 from __future__ import annotations
 
@@ -10,25 +10,93 @@ from .style import _RC, COLORS, add_colorbar, plt, save_figure
 def plot(data, config, out_stem):
     """Draw Fig. 6 from :func:`experiments.fig6_alpha_sweep.compute`'s dict; returns the paths.
 
-    Top row: input, σ_gt, and the map for every α (titles: MAE over all / textured pixels) (one colour scale, colour bar "σ (px)"; occlusion
-    boundaries hatched grey on σ_gt). Bottom row: MAE (all / textured pixels) vs α for each
-    encoding, bias vs α, and the RMS deviation from the data term's measures at edges vs α.
+    Top: one row per method preset of ``config.presets`` (first ``paper``, the reproduction):
+    input and σ_gt (occlusion bands grey) in the paper's row, the preset's name and its Eq. (3)
+    output BM at edge pixels in the others, then the map for every α (titles: MAE over all /
+    textured pixels); one colour scale, colour bar "σ (px)". Bottom: the paper preset's MAE (all /
+    textured pixels) vs α for each encoding, bias vs α and the RMS deviation from the data term's
+    measures at edges vs α; then MAE and bias vs α of every preset (plotted encoding).
     """
     alphas = np.asarray(data["alphas"])
     maps, gt = data["maps"], data["sigma_gt"]
+    others = [p for p in getattr(config, "presets", ("paper",))[1:] if f"preset_{p}__maps" in data]
     k = len(alphas)
     ncols = k + 2
     with plt.rc_context(_RC):
-        fig = plt.figure(figsize=(2.3 * ncols, 5.4), layout="constrained")
-        top, bottom = fig.subfigures(2, 1, height_ratios=(1.0, 1.1))
-        axes_top = top.subplots(1, ncols)
-        ax_mae, ax_bias, ax_fid = bottom.subplots(1, 3)
-        _draw(data, config, alphas, maps, gt, ncols, top, axes_top, ax_mae, ax_bias, ax_fid)
+        fig = plt.figure(figsize=(2.3 * ncols, 2.1 * (1 + len(others)) + 2.9), layout="constrained")
+        top, bottom = fig.subfigures(2, 1, height_ratios=(2.1 * (1 + len(others)), 2.9))
+        axes_top = np.atleast_2d(top.subplots(1 + len(others), ncols))
+        ax_mae, ax_bias, ax_fid, ax_pmae, ax_pbias = bottom.subplots(1, 5)
+        vmax = _vmax(data, gt, maps, others)
+        im = _draw(data, config, alphas, maps, gt, ncols, top, axes_top[0], ax_mae, ax_bias, ax_fid, vmax=vmax)
+        for row, pname in zip(axes_top[1:], others):
+            _preset_row(data, config, alphas, pname, row, vmax)
+        add_colorbar(top, list(axes_top.ravel()), im, "σ (px)")
+        _preset_curves(data, config, alphas, others, ax_pmae, ax_pbias)
     return save_figure(fig, out_stem)
 
 
-def _draw(data, config, alphas, maps, gt, ncols, top, axes_top, ax_mae, ax_bias, ax_fid):
-    vmax = float(np.nanpercentile(np.concatenate([gt[np.isfinite(gt)].ravel(), maps.ravel()]), 99.5))
+def _vmax(data, gt, maps, others):
+    parts = [gt[np.isfinite(gt)].ravel(), maps.ravel(), *(data[f"preset_{p}__maps"].ravel() for p in others)]
+    return float(np.nanpercentile(np.concatenate(parts), 99.5))
+
+
+def _off(ax):
+    ax.set_xticks([])
+    ax.set_yticks([])
+    ax.grid(False)
+
+
+def _preset_row(data, config, alphas, pname, row, vmax):
+    """One preset's row: its name, its BM at edges (Eq. 3 output), its map for every α."""
+    pm = data["metrics"]["presets"][pname]
+    m = pm["scenes"][config.scenes[0]][config.plot_encoding]
+    row[0].axis("off")
+    note = "" if pm.get("alpha_applies", True) else "\n(its propagation has\nno α: one map)"
+    row[0].text(0.5, 0.5, f"preset\n“{pname}”{note}", ha="center", va="center", fontsize=12,
+                transform=row[0].transAxes)
+    row[1].set_facecolor("0.6")
+    row[1].imshow(np.ma.masked_invalid(data[f"preset_{pname}__refined"]), cmap="viridis", vmin=0, vmax=vmax,
+                  interpolation="nearest")
+    row[1].set_title(f"{pname}: Eq. 3 output BM\nat edges (grey: none)")
+    _off(row[1])
+    for i, a in enumerate(alphas):
+        ax = row[i + 2]
+        ax.imshow(data[f"preset_{pname}__maps"][i], cmap="viridis", vmin=0, vmax=vmax)
+        r = m[f"alpha={a:g}"]
+        ax.set_title(f"{pname}, α = {a:g}\nMAE {r['all_mae']:.2f} / {r['textured_mae']:.2f} px")
+        _off(ax)
+
+
+def _preset_curves(data, config, alphas, others, ax_mae, ax_bias):
+    """MAE (all / textured) and bias vs α of every preset, plotted encoding, mean over scenes."""
+    enc = config.plot_encoding
+    metrics = data["metrics"]
+    rows_by = {"paper": metrics["summary"][enc],
+               **{p: metrics["presets"][p]["summary"][enc] for p in others}}
+    for j, (pname, summary) in enumerate(rows_by.items()):
+        col = COLORS[(j + 2) % len(COLORS)]
+        rows = [summary[f"alpha={a:g}"] for a in alphas]
+        ax_mae.plot(alphas, [r["all_mae"] for r in rows], "o-", color=col, label=f"{pname}: all")
+        ax_mae.plot(alphas, [r["textured_mae"] for r in rows], "s--", color=col, label=f"{pname}: textured")
+        ax_bias.plot(alphas, [r["all_bias"] for r in rows], "o-", color=col, label=f"{pname}: all")
+        ax_bias.plot(alphas, [r["textured_bias"] for r in rows], "s--", color=col, label=f"{pname}: textured")
+    for ax in (ax_mae, ax_bias):
+        ax.set_xscale("log")
+        ax.set_xticks(alphas, [f"{a:g}" for a in alphas])
+        ax.set_xlabel("data weight α (Eq. 4)")
+        ax.legend(fontsize=6)
+    ax_mae.set_ylim(bottom=0)
+    ax_mae.set_ylabel("MAE vs σ_gt (px)")
+    ax_mae.set_title(f"presets: MAE ({enc} input)")
+    ax_bias.set_ylabel("mean signed error (px)")
+    ax_bias.axhline(0, color="0.5", lw=0.8)
+    ax_bias.set_title(f"presets: bias ({enc} input)")
+
+
+def _draw(data, config, alphas, maps, gt, ncols, top, axes_top, ax_mae, ax_bias, ax_fid, *, vmax=None):
+    if vmax is None:
+        vmax = float(np.nanpercentile(np.concatenate([gt[np.isfinite(gt)].ravel(), maps.ravel()]), 99.5))
     scene = config.scenes[0]
     axes_top[0].imshow(np.clip(data["image"], 0, 1))
     axes_top[0].set_title(f"input: {scene}\n{config.plot_encoding}, f/{config.f_number:g}")
@@ -41,12 +109,9 @@ def _draw(data, config, alphas, maps, gt, ncols, top, axes_top, ax_mae, ax_bias,
         ax = axes_top[i + 2]
         im = ax.imshow(maps[i], cmap="viridis", vmin=0, vmax=vmax)
         r = m[f"alpha={a:g}"]
-        ax.set_title(f"α = {a:g}\nMAE {r['all_mae']:.2f} / {r['textured_mae']:.2f} px")
+        ax.set_title(f"paper, α = {a:g}\nMAE {r['all_mae']:.2f} / {r['textured_mae']:.2f} px")
     for ax in axes_top:
-        ax.set_xticks([])
-        ax.set_yticks([])
-        ax.grid(False)
-    add_colorbar(top, list(axes_top), im, "σ (px)")
+        _off(ax)
 
     summary = data["metrics"]["summary"]
     for j, enc in enumerate(config.encodings):
@@ -67,12 +132,13 @@ def _draw(data, config, alphas, maps, gt, ncols, top, axes_top, ax_mae, ax_bias,
         ax.set_xticks(alphas, [f"{a:g}" for a in alphas])
         ax.set_xlabel("data weight α (Eq. 4)")
     ax_mae.set_ylabel("MAE vs σ_gt (px)")
-    ax_mae.set_title(f"MAE (mean of {n} scene(s); occlusion bands excluded)")
+    ax_mae.set_title(f"paper: MAE (mean of {n} scene(s);\nocclusion bands excluded)")
     ax_bias.set_ylabel("mean signed error (px)")
     ax_bias.axhline(0, color="0.5", lw=0.8)
-    ax_bias.set_title("bias (estimate − σ_gt)")
+    ax_bias.set_title("paper: bias (estimate − σ_gt)")
     ax_fid.set_ylabel("RMS |B − BM| at edges (px)")
     ax_fid.set_yscale("log")
-    ax_fid.set_title("fidelity to the data term's measures")
+    ax_fid.set_title("paper: fidelity to the\ndata term's measures")
     for ax in (ax_mae, ax_bias, ax_fid):
         ax.legend(fontsize=6)
+    return im

@@ -1,4 +1,4 @@
-"""Plot of Fig. 7: f/8 input, f/4 reference, magnified results; maps; error bars."""
+"""Plot of Fig. 7: f/8 input, f/4 reference, magnified results; maps (per method preset); error bars."""
 
 from __future__ import annotations
 
@@ -19,25 +19,57 @@ _IMAGE_LABELS = {
     "magnified_oracle_srgb": "×2, oracle σ_d (sRGB)",
     "magnified_oracle_linear": "×2, oracle σ_d (linear)",
 }
+#: Rows that depend on the method preset (one bar per preset); the others are the same for all.
+_PRESET_MAPS = ("map_small", "k_x_map_small", "map_large")
+_PRESET_IMAGES = ("magnified_estimated", "magnified_estimated_subtract")
+
+
+def _others(data, config):
+    """The non-paper presets of ``config`` that the data has results for."""
+    return [p for p in getattr(config, "presets", ("paper",))[1:] if p in data["metrics"].get("presets", {})]
+
+
+def _scene_metrics(data, scene, pname):
+    if pname == "paper":
+        return data["metrics"]["scenes"][scene]
+    return data["metrics"]["presets"][pname]["scenes"][scene]
+
+
+def _categories(labels, preset_keys, presets):
+    """Bar categories [(preset, key, label)]: the rows before the first preset-dependent one, every
+    preset's copies of ``preset_keys`` (labelled with the preset's name), then the remaining rows."""
+    keys = list(labels)
+    first = min(keys.index(k) for k in preset_keys)
+    lead = [k for k in keys[:first] if k not in preset_keys]
+    tail = [k for k in keys[first:] if k not in preset_keys]
+    out = [("paper", k, labels[k]) for k in lead]
+    for p in presets:
+        out += [(p, k, labels[k] + (f" ({p})" if len(presets) > 1 else "")) for k in keys if k in preset_keys]
+    return out + [("paper", k, labels[k]) for k in tail]
 
 
 def plot(data, config, out_stem):
     """Draw Fig. 7 from :func:`experiments.fig7_doubled_defocus.compute`'s dict; returns the paths.
 
-    One image row and one map row per scene (maps on one colour scale, "σ (px)"), then bar charts of
-    the map MAE against σ_gt(f/4) and of the PSNR / SSIM against the real f/4 render. The image row
-    shows both readings of Sec. 5's map floor (``floor="clamp"``, the default, and
-    ``floor="subtract"``); the map row the f/8 map after the ``"subtract"`` preprocessing.
+    Per scene: an image row and a map row of the ``paper`` preset (the reproduction; maps on one
+    colour scale, "σ (px)"), then one row per further preset of ``config.presets`` (e.g.
+    ``robust``): its two magnified results and its f/8, 2 × f/8 and f/4 maps. Then bar charts of the
+    map MAE against σ_gt(f/4) and of the PSNR / SSIM against the real f/4 render, every preset's
+    bars labelled with its name. The image rows show both readings of Sec. 5's map floor
+    (``floor="clamp"``, the default, and ``floor="subtract"``); the paper's map row the f/8 map after
+    the ``"subtract"`` preprocessing.
     """
     scenes = config.scenes
     k = config.factor
     nl, ns = config.f_number_large_aperture, config.f_number_small_aperture
+    others = _others(data, config)
+    rows = 2 + len(others)
     with plt.rc_context(_RC):
-        fig = plt.figure(figsize=(13.5, 2.3 * 2 * len(scenes) + 2.8), layout="constrained")
-        subs = fig.subfigures(len(scenes) + 1, 1, height_ratios=[2.0] * len(scenes) + [1.2])
+        fig = plt.figure(figsize=(13.5, 2.3 * rows * len(scenes) + 3.2 + 0.3 * len(others)), layout="constrained")
+        subs = fig.subfigures(len(scenes) + 1, 1, height_ratios=[float(rows)] * len(scenes) + [1.4 + 0.15 * len(others)])
         for sub, scene in zip(subs, scenes):
-            _scene_rows(sub, data, scene, config, k, ns, nl)
-        _bars(subs[-1], data, config)
+            _scene_rows(sub, data, scene, config, k, ns, nl, others)
+        _bars(subs[-1], data, config, others)
     return save_figure(fig, out_stem)
 
 
@@ -47,28 +79,23 @@ def _off(ax):
     ax.grid(False)
 
 
-def _scene_rows(sub, data, scene, config, k, ns, nl):
+def _scene_rows(sub, data, scene, config, k, ns, nl, others=()):
     m = data["metrics"]["scenes"][scene]
-    axes = sub.subplots(2, 5)
+    axes = sub.subplots(2 + len(others), 5)
     q = m["image_vs_large"]
+    pp = "paper: " if others else ""
     imgs = [("image_small", f"{scene}: f/{ns:g} input", q["unchanged_small"]),
-            ("magnified", f"f/{ns:g} ×{k:g}, estimated map\n(Sec. 5 floor: clamp at 0)", q["magnified_estimated"]),
-            ("magnified_subtract", f"f/{ns:g} ×{k:g}, estimated map\n(floor {m['map_floor_px']:.2f} px subtracted)",
+            ("magnified", f"{pp}f/{ns:g} ×{k:g}, estimated map\n(Sec. 5 floor: clamp at 0)", q["magnified_estimated"]),
+            ("magnified_subtract", f"{pp}f/{ns:g} ×{k:g}, estimated map\n(floor {m['map_floor_px']:.2f} px subtracted)",
              q["magnified_estimated_subtract"]),
             ("magnified_oracle_linear", f"×{k:g} with oracle σ_d (linear blur)", q["magnified_oracle_linear"]),
             ("image_large", f"real f/{nl:g} render (reference)", None)]
     for ax, (key, title, qq) in zip(axes[0], imgs):
-        ax.imshow(np.clip(data[f"{scene}__{key}"], 0, 1))
-        if qq is not None:
-            title += f"\nPSNR {qq['psnr_db']:.1f} dB, SSIM {qq['ssim']:.3f}"
-            if np.isfinite(float(qq.get("psnr_in_focus_db", float("nan")))):
-                title += f"\nin focus {float(qq['psnr_in_focus_db']):.1f} dB"
-        ax.set_title(title)
-        _off(ax)
+        _image_panel(ax, data[f"{scene}__{key}"], title, qq)
     mm = m["maps_vs_gt_large"]
-    maps = [("map_small", f"f/{ns:g} map", mm["map_small"]),
-            ("map_small", f"{k:g} × f/{ns:g} map", mm["k_x_map_small"]),
-            ("map_large", f"f/{nl:g} map", mm["map_large"]),
+    maps = [("map_small", f"{pp}f/{ns:g} map", mm["map_small"]),
+            ("map_small", f"{pp}{k:g} × f/{ns:g} map", mm["k_x_map_small"]),
+            ("map_large", f"{pp}f/{nl:g} map", mm["map_large"]),
             ("map_small_subtract", f"f/{ns:g} map, Sec. 5 preprocessed\n(floor subtracted in quadrature)", None),
             ("gt_large", f"σ_gt(f/{nl:g}) (grey: excluded)", None)]
     vmax = float(np.nanpercentile(data[f"{scene}__gt_large"], 99.5))
@@ -78,37 +105,69 @@ def _scene_rows(sub, data, scene, config, k, ns, nl):
         if key == "gt_large":
             arr = np.ma.masked_where(~mask, arr)
             ax.set_facecolor("0.6")
-        im = ax.imshow(arr, cmap="viridis", vmin=0, vmax=vmax)
-        if mt is not None:
-            title += f"\nMAE vs σ_gt(f/{nl:g}) {mt['mae']:.2f} px, bias {mt['bias']:+.2f}"
-        ax.set_title(title)
-        _off(ax)
-    add_colorbar(sub, list(axes[1]), im, "σ (px)")
+        im = _map_panel(ax, arr, title, mt, vmax, nl)
+    map_axes = list(axes[1])
+    for row, pname in zip(axes[2:], others):
+        pm = _scene_metrics(data, scene, pname)
+        pq, pmm = pm["image_vs_large"], pm["maps_vs_gt_large"]
+        _image_panel(row[0], data[f"{scene}__{pname}__magnified"],
+                     f"{pname}: f/{ns:g} ×{k:g}, its map\n(Sec. 5 floor: clamp at 0)", pq["magnified_estimated"])
+        _image_panel(row[1], data[f"{scene}__{pname}__magnified_subtract"],
+                     f"{pname}: f/{ns:g} ×{k:g}, its map\n(floor {pm['map_floor_px']:.2f} px subtracted)",
+                     pq["magnified_estimated_subtract"])
+        _map_panel(row[2], data[f"{scene}__{pname}__map_small"], f"{pname}: f/{ns:g} map", pmm["map_small"], vmax, nl)
+        _map_panel(row[3], k * data[f"{scene}__{pname}__map_small"], f"{pname}: {k:g} × f/{ns:g} map",
+                   pmm["k_x_map_small"], vmax, nl)
+        _map_panel(row[4], data[f"{scene}__{pname}__map_large"], f"{pname}: f/{nl:g} map", pmm["map_large"], vmax, nl)
+        map_axes += list(row[2:])
+    add_colorbar(sub, map_axes, im, "σ (px)")
 
 
-def _bars(sub, data, config):
+def _image_panel(ax, img, title, qq):
+    ax.imshow(np.clip(img, 0, 1))
+    if qq is not None:
+        title += f"\nPSNR {qq['psnr_db']:.1f} dB, SSIM {qq['ssim']:.3f}"
+        if np.isfinite(float(qq.get("psnr_in_focus_db", float("nan")))):
+            title += f"\nin focus {float(qq['psnr_in_focus_db']):.1f} dB"
+    ax.set_title(title)
+    _off(ax)
+
+
+def _map_panel(ax, arr, title, mt, vmax, nl):
+    im = ax.imshow(arr, cmap="viridis", vmin=0, vmax=vmax)
+    if mt is not None:
+        title += f"\nMAE vs σ_gt(f/{nl:g}) {mt['mae']:.2f} px, bias {mt['bias']:+.2f}"
+    ax.set_title(title)
+    _off(ax)
+    return im
+
+
+def _bars(sub, data, config, others=()):
     ax_map, ax_psnr, ax_ssim = sub.subplots(1, 3)
     scenes = config.scenes
+    presets = ["paper", *others]
+    map_cats = _categories(_MAP_LABELS, _PRESET_MAPS, presets)
+    img_cats = _categories(_IMAGE_LABELS, _PRESET_IMAGES, presets)
     width = 0.8 / len(scenes)
     for j, scene in enumerate(scenes):
-        m = data["metrics"]["scenes"][scene]
         col = COLORS[j % len(COLORS)]
-        x = np.arange(len(_MAP_LABELS)) + j * width
-        ax_map.bar(x, [m["maps_vs_gt_large"][key]["mae"] for key in _MAP_LABELS], width, color=col, label=scene)
-        x = np.arange(len(_IMAGE_LABELS)) + j * width
-        ax_psnr.bar(x, [m["image_vs_large"][key]["psnr_db"] for key in _IMAGE_LABELS], width, color=col, label=scene)
-        ax_ssim.bar(x, [m["image_vs_large"][key]["ssim"] for key in _IMAGE_LABELS], width, color=col, label=scene)
+        x = np.arange(len(map_cats)) + j * width
+        ax_map.bar(x, [_scene_metrics(data, scene, p)["maps_vs_gt_large"][key]["mae"] for p, key, _ in map_cats],
+                   width, color=col, label=scene)
+        x = np.arange(len(img_cats)) + j * width
+        q = [_scene_metrics(data, scene, p)["image_vs_large"][key] for p, key, _ in img_cats]
+        ax_psnr.bar(x, [float(v["psnr_db"]) for v in q], width, color=col, label=scene)
+        ax_ssim.bar(x, [v["ssim"] for v in q], width, color=col, label=scene)
     off = 0.4 - width / 2
-    ax_map.set_xticks(np.arange(len(_MAP_LABELS)) + off, list(_MAP_LABELS.values()), rotation=20, ha="right")
+    ax_map.set_xticks(np.arange(len(map_cats)) + off, [c[2] for c in map_cats], rotation=25, ha="right")
     ax_map.set_ylabel(f"MAE vs σ_gt(f/{config.f_number_large_aperture:g}) (px)")
     ax_map.set_title("maps (occlusion bands excluded)")
     for ax, lab in ((ax_psnr, "PSNR vs real f/4 (dB)"), (ax_ssim, "SSIM vs real f/4")):
-        ax.set_xticks(np.arange(len(_IMAGE_LABELS)) + off, list(_IMAGE_LABELS.values()), rotation=20, ha="right")
+        ax.set_xticks(np.arange(len(img_cats)) + off, [c[2] for c in img_cats], rotation=25, ha="right")
         ax.set_ylabel(lab)
-    lo = min(data["metrics"]["scenes"][s]["image_vs_large"][k]["psnr_db"] for s in scenes for k in _IMAGE_LABELS)
-    ax_psnr.set_ylim(bottom=max(0.0, lo - 3.0))
-    lo = min(data["metrics"]["scenes"][s]["image_vs_large"][k]["ssim"] for s in scenes for k in _IMAGE_LABELS)
-    ax_ssim.set_ylim(bottom=max(0.0, lo - 0.05), top=1.0)
+    qs = [_scene_metrics(data, s, p)["image_vs_large"][key] for s in scenes for p, key, _ in img_cats]
+    ax_psnr.set_ylim(bottom=max(0.0, min(float(v["psnr_db"]) for v in qs) - 3.0))
+    ax_ssim.set_ylim(bottom=max(0.0, min(v["ssim"] for v in qs) - 0.05), top=1.0)
     ax_psnr.set_title("images vs the real f/4 render")
     ax_ssim.set_title("images vs the real f/4 render")
     ax_map.legend()

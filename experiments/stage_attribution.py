@@ -120,7 +120,7 @@ def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, textur
     if np.isfinite(oracle).any():
         refined = refine_stage(oracle, rgb, params=params)
         out["oracle_refine"] = {"refined": _errors(refined, gt, at_edges, bins),
-                                **dense_block(propagate_stage(refined, rgb, params=params))}
+                                **dense_block(propagate_stage(refined, rgb, params=params, sparse_sigma=oracle))}
         out["oracle_propagate"] = dense_block(propagate_stage(oracle, rgb, params=params, sparse_sigma=oracle))
     else:
         out["oracle_refine"] = {}

@@ -171,10 +171,11 @@ class DefocusParams:
             bad("bilateral_range_kernel", "'sum' or 'product'")
         if self.bias_reference not in ("px", "image_fraction"):
             bad("bias_reference", "'px' or 'image_fraction'")
-        if not (isinstance(self.refinement_robust_iterations, int) and self.refinement_robust_iterations >= 0):
+        if not (isinstance(self.refinement_robust_iterations, int) and not isinstance(self.refinement_robust_iterations, bool)
+                and self.refinement_robust_iterations >= 0):
             bad("refinement_robust_iterations", "integer >= 0")
-        if not self.refinement_robust_scale > 0:
-            bad("refinement_robust_scale", "> 0")
+        if not (self.refinement_robust_scale > 0 and self.refinement_robust_scale < float("inf")):
+            bad("refinement_robust_scale", "finite and > 0")
         if self.fit_max_scale is not None and not self.fit_max_scale > 0:
             bad("fit_max_scale", "None or > 0 (px)")
         if not (isinstance(self.fit_min_samples, int) and self.fit_min_samples >= 3):
@@ -192,6 +193,8 @@ class DefocusParams:
         from .propagation_methods import PROPAGATION_METHODS  # lazy: the registry imports this module's users
         if self.propagation not in PROPAGATION_METHODS:
             bad("propagation", sorted(PROPAGATION_METHODS))
+        if self.propagation == "matting_laplacian" and self.alpha_confidence != "none":
+            bad("alpha_confidence", "'none' with propagation='matting_laplacian' (its data term has no per-edge weight)")
         if not self.alpha > 0:
             bad("alpha", "> 0")
         if not (isinstance(self.propagation_window, int) and self.propagation_window >= 3

@@ -241,3 +241,55 @@ FIG8_CONSTANT_ROUNDTRIP_ATOL = 0.02
 #: (Measured values behind the two constants above, correcting their comments: same-map refocus
 #: 43.6 dB at λ = 1e-2; constant-σ 1.7 px round trip max |Δ| 0.014 more than 8 px from the border,
 #: 0.025 including the border, so the test compares the interior.)
+
+# --- presets and the robust preset's switches (method/params.py PRESETS / ROBUST_CHANGES,
+#     method/blur_model_fit.py apply_fit_rules, method/cross_bilateral.py range_kernel="product" /
+#     robust_iterations, method/propagation.py confidence=, experiments/stage_attribution.py) ------
+#: The robust preset's blur estimator (model_fit_checked, ρ ≤ 0.03, with the fit rules and
+#: fit_max_scale = 2 px) on straight step edges (σ = 1, 3, 6 px; 8-bit + noise 1/255; 4 angles),
+#: median |σ_est − σ| at edge pixels ≤ this · σ. Measured 0.016 / 0.043 / 0.072 px (0.016σ, 0.014σ,
+#: 0.012σ; at σ = 6 fit_max_scale moves the fit from σ2 = 4 to 2 px: paper 0.047 px), no rejections;
+#: ~2× the measured.
+ROBUST_FIT_STEP_RTOL = 0.025
+#: Dense-map textured MAE on 48×192 dead-leaves mosaics (one row of four 48-px tiles, σ 0.5/1/2/4 px,
+#: 8-bit + noise 1/255, seeds 0–2; tests/test_presets.py): the robust preset must beat the paper's,
+#: seed mean, by at least this (measured paper 0.526 vs robust 0.311 px, i.e. 0.215 px; per seed
+#: 0.268 / 0.253 / 0.125 px).
+MOSAIC_ROBUST_VS_PAPER_MIN_GAIN_PX = 0.10
+#: A switch that helps the dense map: turning it off (others on) must worsen the seed-mean dense
+#: textured MAE by at least this (measured: estimator="model_fit_checked" +0.260, fit_max_scale
+#: +0.039, fit_max_residual +0.028, fit_max_width_ratio +0.082 px).
+MOSAIC_ABLATION_MIN_GAIN_PX = 0.015
+#: "Does not improve by more than a small margin", and the no-effect band: measured fit_below_scale
+#: +0.001 px; the refinement switches' −0.053 / −0.042 / −0.038 px are beyond it (recorded as negative
+#: findings in tests/test_presets.py, DENSE_HURTS).
+MOSAIC_ABLATION_MARGIN_PX = 0.02
+#: A rule with no dense-map effect must lower the sparse-stage seed-mean MAE by at least this
+#: (measured fit_below_scale +0.032 px; the other model-fit switches +0.060 … +0.315 px).
+MOSAIC_SPARSE_MIN_GAIN_PX = 0.01
+#: Issue target: σ_gt fed at the detected edges straight into the propagation (oracle_propagate)
+#: gives a dense textured MAE ≤ this on the mosaic tiles (measured ≤ 0.008 px on the 96² and
+#: 48×192 mosaics, robust preset).
+STAGE_ORACLE_PROPAGATE_MAX_MAE_PX = 0.15
+#: With perfect measures (oracle_refine), each refinement switch of the robust preset must lower
+#: the seed-mean dense textured MAE by at least this (and on every seed). Measured on the 48×192
+#: mosaic, seeds 0–2: robust 0.0169 px vs 0.0323 (sum kernel), 0.0744 (σs = 10 %), 0.0209 (bias on).
+STAGE_ORACLE_REFINE_MIN_GAIN_PX = 0.002
+#: Product-kernel bilateral grid vs its brute-force oracle, max |difference| as a fraction of the BM
+#: range (tests/test_cross_bilateral.py's 18 cases). The 5-D grid's cells are 0.75σ
+#: (GRID_CELL_PER_SIGMA_PRODUCT), much coarser than the 3-D grids' σ/3: measured ≤ 5.3 % (the sum
+#: grid's ≤ 0.9 %); σ/2 cells gave ≤ 1.5 %, σ/3 ≤ 0.5 % on two of the cases.
+BILATERAL_PRODUCT_GRID_REL_TOL = 0.08
+#: Two colours that match in one channel (0.2, 0.2, 0.8) | (0.2, 0.8, 0.2), BM 1 | 5 px, no bias: the
+#: sum kernel must leak at least this much (max |refined − own side's BM|; measured 0.75 px grid,
+#: 0.75 px brute force — 1/3 of the weight crosses); the product kernel keeps both sides to round-off.
+BILATERAL_SUM_LEAK_MIN_PX = 0.3
+#: One 10-px outlier among 2-px measures on a uniform guide: after 2 re-weighted passes its residual
+#: from 2 px must be at most this fraction of the one-pass residual (measured 0.016/0.588 = 0.026).
+BILATERAL_ROBUST_RESIDUAL_FRACTION = 0.1
+#: propagate_defocus(confidence=1) vs confidence=None (α·1 = α: measured bit-identical), px.
+PROPAGATION_CONFIDENCE_ONES_ATOL = 1e-9
+#: A measure with confidence 0 vs the same measure removed, max |Δσ| px: only the λ = 1e-6·α
+#: regulariser's target mean(BM) still counts it (measured 8.5e-6 px, 30×36, while the same 9-px
+#: measure at c = 1 moves the map by 5.8 px).
+PROPAGATION_ZERO_CONFIDENCE_ATOL_PX = 1e-4

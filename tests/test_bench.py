@@ -1,0 +1,216 @@
+"""``python -m repro.bench``: the accuracy benchmark (``--accuracy``) on a tiny configuration, its
+verdict rule on both sides of every target, and the plain speed bench left as it was."""
+
+import copy
+import json
+
+import numpy as np
+import pytest
+
+import repro.bench as bench
+
+#: One small dead-leaves mosaic and one small step-edge mosaic (σ = 1, 5, 8 px: an absolute-MAE bin,
+#: a relative-MAE bin, a bin without target), the robust preset only, no renders, no speed.
+TINY = dict(bench.ACCURACY_CONFIG, datasets=("dead_leaves", "step_edges"), sigmas=(1.0, 5.0, 8.0), tile=48,
+            mosaic_cols=3, noise_stds=(1.0 / 255,), seeds=(0,), presets=("robust",), scenes=(), f_numbers=(),
+            estimators=(), speed_presets=(), speed_sizes=(), speed_single={})
+_TARGETS = ("TARGET_DENSE_MAE_PX", "TARGET_DENSE_REL_MAE", "TARGET_BIAS_PX", "TARGET_ABS_MAE_MAX_SIGMA",
+            "TARGET_REL_MAE_MAX_SIGMA", "TARGET_BIAS_MAX_SIGMA", "TARGET_RENDER_DENSE_RATIO", "TARGET_SPEED_RATIO")
+
+
+def _strict_json(path):
+    def bad(token):
+        raise ValueError(f"non-standard JSON constant {token}")
+
+    return json.loads(path.read_text(encoding="utf-8"), parse_constant=bad)
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    """``main(["--accuracy"])`` with ACCURACY_CONFIG replaced by TINY: (out folder, report, stdout rc)."""
+    out = tmp_path_factory.mktemp("bench")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(bench, "ACCURACY_CONFIG", TINY)
+        rc = bench.main(["--accuracy", "--out", str(out)])
+    return out, _strict_json(out / "accuracy.json"), rc
+
+
+def test_accuracy_report_structure(tiny):
+    out, report, rc = tiny
+    assert rc == 0
+    assert set(report) >= {"config", "analytic", "rendered", "speed", "verdict", "targets", "notes", "machine",
+                           "date", "runtime_s"}
+    assert report["rendered"] == {"cases": []} and report["speed"] == {"rows": []}
+    runs, pooled = report["analytic"]["runs"], report["analytic"]["pooled"]
+    assert [(r["dataset"], r["preset"], r["seed"]) for r in runs] == [("dead_leaves", "robust", 0),
+                                                                      ("step_edges", "robust", 0)]
+    assert len(pooled) == 2
+    for g in pooled:
+        d = g["dense_textured"]
+        # one bin per tile σ, each holding pixels of that σ only
+        assert [b["sigma"] for b in d["bins"]] == [1.0, 5.0, 8.0]
+        assert all(b["lo"] < b["sigma_gt"] < (b["hi"] if b["hi"] is not None else np.inf) for b in d["bins"])
+        assert d["bins"][-1]["hi"] is None  # inf is written as null (strict JSON)
+        assert all(b["n"] > 0 and b["mae"] >= abs(b["bias"]) for b in d["bins"])
+        assert sum(b["n"] for b in d["bins"]) == d["n"]
+        assert g["sparse"]["n"] > 0 and g["sparse"]["mae"] >= 0
+        assert g["oracle_propagate_dense_textured"]["mae"] >= 0
+    v = report["verdict"]
+    assert [(a["dataset"], [b["sigma"] for b in a["bins"]]) for a in v["analytic"]] == [
+        ("dead_leaves", [1.0, 5.0, 8.0]), ("step_edges", [1.0, 5.0, 8.0])]
+    for a, g in zip(v["analytic"], pooled):
+        b1, b5, b8 = a["bins"]
+        assert b1["mae_limit"] == bench.TARGET_DENSE_MAE_PX
+        assert b5["mae_limit"] == pytest.approx(bench.TARGET_DENSE_REL_MAE * 5.0)
+        assert b8["mae_limit"] is None and b8["bias_limit"] is None and b8["pass"] is None
+        # the stored verdicts are the numbers against the limits
+        for vb, mb in zip(a["bins"][:2], g["dense_textured"]["bins"][:2]):
+            assert vb["mae_ok"] == (mb["mae"] <= vb["mae_limit"])
+            assert vb["bias_ok"] == (abs(mb["bias"]) <= vb["bias_limit"])
+            assert vb["pass"] == (vb["mae_ok"] and vb["bias_ok"])
+        assert a["pass"] == (b1["pass"] and b5["pass"])
+    assert v["rendered"]["pass"] is None and v["speed"]["pass"] is None
+    assert v["overall"] == v["analytic_pass"] == all(a["pass"] for a in v["analytic"])
+    md = (out / "accuracy.md").read_text(encoding="utf-8")
+    assert "Dead-leaves texture mosaic" in md and "Step-edge mosaic" in md and "robust verdict" in md
+    assert f"**Overall: {'pass' if v['overall'] else 'FAIL'}**" in md
+    assert "✅" not in md and "❌" not in md
+
+
+def _judge_with(monkeypatch, measured, **targets):
+    for name, value in targets.items():
+        monkeypatch.setattr(bench, name, value)
+    return bench.judge_accuracy(measured)
+
+
+def test_analytic_verdict_flips_with_the_targets(tiny, monkeypatch):
+    _, report, _ = tiny
+    measured = {k: report[k] for k in ("analytic", "rendered", "speed")}
+    # trivially satisfied
+    v = _judge_with(monkeypatch, measured, TARGET_DENSE_MAE_PX=1e9, TARGET_DENSE_REL_MAE=1e9, TARGET_BIAS_PX=1e9)
+    assert v["analytic_pass"] is True and v["overall"] is True
+    assert all(b["pass"] in (True, None) for a in v["analytic"] for b in a["bins"])
+    md = bench.accuracy_markdown({**report, "verdict": v})
+    assert "**Overall: pass**" in md and "FAIL" not in md
+    # impossible MAE target (bias target still trivial): every targeted bin fails on its MAE
+    v = _judge_with(monkeypatch, measured, TARGET_DENSE_MAE_PX=-1.0, TARGET_DENSE_REL_MAE=-1.0)
+    assert v["analytic_pass"] is False and v["overall"] is False
+    assert all(b["mae_ok"] is False and b["bias_ok"] is True for a in v["analytic"] for b in a["bins"][:2])
+    assert "FAIL (MAE)" in bench.accuracy_markdown({**report, "verdict": v})
+    # impossible bias target alone
+    v = _judge_with(monkeypatch, measured, TARGET_DENSE_MAE_PX=1e9, TARGET_DENSE_REL_MAE=1e9, TARGET_BIAS_PX=-1.0)
+    assert v["analytic_pass"] is False
+    assert "FAIL (bias)" in bench.accuracy_markdown({**report, "verdict": v})
+    # the relative-MAE bin alone decides when only it is impossible
+    v = _judge_with(monkeypatch, measured, TARGET_DENSE_MAE_PX=1e9, TARGET_DENSE_REL_MAE=-1.0, TARGET_BIAS_PX=1e9)
+    assert [[b["pass"] for b in a["bins"]] for a in v["analytic"]] == [[True, False, None]] * 2
+    # no bin under any target → nothing to judge
+    v = _judge_with(monkeypatch, measured, TARGET_ABS_MAE_MAX_SIGMA=0.0, TARGET_REL_MAE_MAX_SIGMA=0.0,
+                    TARGET_BIAS_MAX_SIGMA=0.0)
+    assert v["analytic_pass"] is None and v["overall"] is None
+
+
+def test_targeted_bin_without_pixels_fails(tiny, monkeypatch):
+    _, report, _ = tiny
+    measured = copy.deepcopy({k: report[k] for k in ("analytic", "rendered", "speed")})
+    b = measured["analytic"]["pooled"][0]["dense_textured"]["bins"][0]
+    b.update(n=0, mae=None, bias=None)
+    v = _judge_with(monkeypatch, measured, TARGET_DENSE_MAE_PX=1e9, TARGET_DENSE_REL_MAE=1e9, TARGET_BIAS_PX=1e9)
+    assert v["analytic"][0]["bins"][0]["pass"] is False and v["analytic_pass"] is False
+
+
+def _err(mae):
+    return {"n": 100, "mae": mae, "bias": 0.0, "coverage": 1.0}
+
+
+def _case(scene, f_number, paper, robust, robust_sparse, zc, gr):
+    return {"scene": scene, "f_number": f_number, "shape": [120, 160],
+            "presets": {"paper": {"dense_textured": _err(paper), "sparse": _err(1.0)},
+                        "robust": {"dense_textured": _err(robust), "sparse": _err(robust_sparse)}},
+            "estimators": {"zero_crossing": {"dense_textured": _err(9.0), "sparse": _err(zc)},
+                           "gradient_ratio": {"dense_textured": _err(9.0), "sparse": _err(gr)}}}
+
+
+def test_rendered_and_speed_verdicts_both_sides(monkeypatch):
+    monkeypatch.setattr(bench, "TARGET_RENDER_DENSE_RATIO", 0.5)
+    monkeypatch.setattr(bench, "TARGET_SPEED_RATIO", 1.3)
+    speed = {"rows": [{"preset": "paper", "size": bench.TARGET_SPEED_SIZE, "median_s": 2.0},
+                      {"preset": "robust", "size": bench.TARGET_SPEED_SIZE, "median_s": 2.5}]}
+    good = {"rendered": {"cases": [_case("portrait", 8.0, 1.0, 0.4, 0.3, 0.5, 0.6),
+                                   _case("planes", 4.0, 2.0, 0.9, 1.0, 0.5, 0.5)]}, "speed": speed}
+    v = bench.judge_accuracy(good)
+    assert v["rendered"]["pass"] is True and v["speed"]["pass"] is True and v["overall"] is True
+    assert v["rendered"]["mean"]["ratio"] == pytest.approx(1.3 / 3.0)
+    assert v["rendered"]["sparse"]["best_estimator"] == "zero_crossing"
+    assert v["speed"]["ratio"] == pytest.approx(1.25)
+    # one case above the ratio (1.05 / 2 > 0.5) while the mean still meets it (0.725 / 1.5 ≤ 0.5):
+    # that case, hence the whole part, fails
+    bad = copy.deepcopy(good)
+    bad["rendered"]["cases"][1]["presets"]["robust"]["dense_textured"]["mae"] = 1.05
+    v = bench.judge_accuracy(bad)
+    assert [c["pass"] for c in v["rendered"]["cases"]] == [True, False]
+    assert v["rendered"]["mean"]["pass"] is True and v["rendered"]["pass"] is False
+    # and the mean alone
+    bad["rendered"]["cases"][0]["presets"]["robust"]["dense_textured"]["mae"] = 0.5
+    bad["rendered"]["cases"][1]["presets"]["robust"]["dense_textured"]["mae"] = 0.9
+    bad["rendered"]["cases"][0]["presets"]["paper"]["dense_textured"]["mae"] = 1.0
+    bad["rendered"]["cases"][1]["presets"]["paper"]["dense_textured"]["mae"] = 1.8
+    v = bench.judge_accuracy(bad)
+    assert [c["pass"] for c in v["rendered"]["cases"]] == [True, True]
+    assert v["rendered"]["mean"]["pass"] is True  # 0.7 ≤ 0.5 · 1.4
+    bad["rendered"]["cases"][1]["presets"]["paper"]["dense_textured"]["mae"] = 1.7
+    v = bench.judge_accuracy(bad)
+    assert v["rendered"]["cases"][1]["pass"] is False and v["rendered"]["mean"]["pass"] is False
+    # robust sparse worse than the best estimator on the target case
+    bad = copy.deepcopy(good)
+    bad["rendered"]["cases"][0]["presets"]["robust"]["sparse"]["mae"] = 0.55
+    v = bench.judge_accuracy(bad)
+    assert v["rendered"]["sparse"]["pass"] is False and v["rendered"]["pass"] is False
+    assert v["overall"] is False
+    # speed ratio above the target; then the target made trivially satisfied again
+    slow = copy.deepcopy(good)
+    slow["speed"]["rows"][1]["median_s"] = 2.7
+    assert bench.judge_accuracy(slow)["speed"]["pass"] is False
+    monkeypatch.setattr(bench, "TARGET_SPEED_RATIO", 10.0)
+    assert bench.judge_accuracy(slow)["speed"]["pass"] is True
+
+
+def test_step_mosaic_geometry():
+    sigmas, tile = (0.5, 2.0, 8.0), 32
+    image, gt, valid = bench._step_mosaic(sigmas, tile, 0.0, 0)
+    assert image.shape == gt.shape == valid.shape == (2 * tile, 3 * tile)
+    np.testing.assert_array_equal(gt[:, ::tile][0], sigmas)
+    # mirror-image tiles: with one σ everywhere, continuous across the seams (up to 8-bit rounding);
+    # with different σ only the edge's profile changes at a seam
+    same, _, _ = bench._step_mosaic((2.0,) * 3, tile, 0.0, 0)
+    for k in (1, 2):
+        assert np.abs(same[:, k * tile] - same[:, k * tile - 1]).max() <= 1.0 / 255 + 1e-12
+    assert np.abs(same[tile] - same[tile - 1]).max() <= 1.0 / 255 + 1e-12
+    assert np.abs(np.diff(same, axis=1)).max() > 0.1  # there are edges
+    # the masked band: STEP_SEAM_BAND_PX px on each side of interior seams only
+    band = bench.STEP_SEAM_BAND_PX
+    cols = ~valid[tile // 2]  # a row farther than the band from the horizontal seam
+    assert cols.sum() == 2 * 2 * band and not cols[:tile - band].any() and cols[tile - band:tile + band].all()
+    assert (~valid[:, 1]).sum() == 2 * band  # the horizontal seam only; no band at the canvas border
+
+
+def test_sigma_bins_put_each_value_alone():
+    bins = bench._sigma_bins([4.0, 0.5, 1.0, 1.0])
+    assert bins == (0.0, 0.75, 2.5, np.inf)
+
+
+def test_plain_bench_unchanged_without_the_flag(tmp_path, monkeypatch):
+    row = {"size": 16, "pixels": 256, "edge_pixels": 3, "timings_s": {"total": 0.5}, "peak_rss_gib": 0.1}
+    monkeypatch.setattr(bench, "_run_size", lambda size, repeat: dict(row, size=size))
+    monkeypatch.setattr(bench, "run_accuracy", lambda *a, **k: pytest.fail("--accuracy path taken"))
+    assert bench.main(["--sizes", "16", "--repeat", "1", "--out", str(tmp_path)]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bench.json", "bench.md"]
+    assert _strict_json(tmp_path / "bench.json")["rows"][0]["size"] == 16
+
+
+def test_accuracy_cli_rejects_an_unknown_preset(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(bench, "ACCURACY_CONFIG", dict(TINY, presets=("nope",)))
+    assert bench.main(["--accuracy", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "nope" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "accuracy.json").exists()

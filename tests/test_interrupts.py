@@ -61,8 +61,10 @@ def test_figures_ctrl_c_then_resume_from_cache(tmp_path):
     # fig4 renders its own scenes (fig2 reuses fig10's calibration renders and can finish before the
     # interrupt lands), so it is still running when the interrupt arrives.
     cmd = [sys.executable, "-m", "repro.figures", "fig10", "fig4", "--quick", "--out", str(out)]
+    # A shell starts the command with SIGINT at its default; in a full test session an earlier test's
+    # library can leave SIGINT ignored in this process, which a child would inherit (seen in CI-like runs).
     proc = subprocess.Popen(cmd, cwd=ROOT, env=_env(cache), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     finished_first = _wait_for(lambda: (out / "fig10.metrics.json").exists(), proc)
     # Press Ctrl-C, and again each second until it exits, as a user would: a SIGINT that lands while
     # Dr.Jit is inside a kernel launch can be consumed by its own handler without reaching Python.

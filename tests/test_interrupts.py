@@ -66,8 +66,7 @@ def test_figures_ctrl_c_then_resume_from_cache(tmp_path):
     proc = subprocess.Popen(cmd, cwd=ROOT, env=_env(cache), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     finished_first = _wait_for(lambda: (out / "fig10.metrics.json").exists(), proc)
-    # Press Ctrl-C, and again each second until it exits, as a user would: a SIGINT that lands while
-    # Dr.Jit is inside a kernel launch can be consumed by its own handler without reaching Python.
+    # Press Ctrl-C, and again each second until it exits, as a user would.
     deadline = time.monotonic() + WAIT_S
     while finished_first and proc.poll() is None and time.monotonic() < deadline:
         proc.send_signal(signal.SIGINT)

@@ -48,8 +48,11 @@ def sharpness_bias(blur_measure, *, scale=2.0) -> np.ndarray:
 # kernels: both take edge coordinates, guide values at the edges, values and weights (bias)
 # and return the filtered value at every edge pixel.
 # --------------------------------------------------------------------------------------------
-def _brute_force(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, chunk=2048):
-    """O(M²) oracle over the M edge pixels, vectorised in chunks of ``chunk`` outputs."""
+def _brute_force(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, chunk=2048, product=False):
+    """O(M²) oracle over the M edge pixels, vectorised in chunks of ``chunk`` outputs.
+
+    ``product=False``: the paper's Σ_i g_σr(|ΔC_i|) range term; True: the joint-colour Π_i g_σr(|ΔC_i|).
+    """
     m = len(values)
     out = np.empty(m)
     wv = bias * values
@@ -59,8 +62,9 @@ def _brute_force(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, chunk=20
         gs = np.exp(-d2 / (2 * sigma_s**2))
         gr = np.zeros_like(gs)
         for i in range(colors.shape[1]):
-            gr += np.exp(-((colors[sl, None, i] - colors[None, :, i]) ** 2) / (2 * sigma_r**2))
-        wgt = gs * gr
+            dc2 = (colors[sl, None, i] - colors[None, :, i]) ** 2
+            gr += dc2 if product else np.exp(-dc2 / (2 * sigma_r**2))
+        wgt = gs * (np.exp(-gr / (2 * sigma_r**2)) if product else gr)
         out[sl] = (wgt @ wv) / (wgt @ bias)
     return out
 
@@ -105,18 +109,7 @@ def _grid(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, cell=GRID_CELL_
 
 def _brute_force_product(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, chunk=2048):
     """O(M²) oracle of the joint-colour (product-over-channels) range kernel."""
-    m = len(values)
-    out = np.empty(m)
-    wv = bias * values
-    for start in range(0, m, chunk):
-        sl = slice(start, min(m, start + chunk))
-        d2 = (ys[sl, None] - ys[None, :]) ** 2 + (xs[sl, None] - xs[None, :]) ** 2
-        c2 = np.zeros_like(d2)
-        for i in range(colors.shape[1]):
-            c2 += (colors[sl, None, i] - colors[None, :, i]) ** 2
-        wgt = np.exp(-d2 / (2 * sigma_s**2) - c2 / (2 * sigma_r**2))
-        out[sl] = (wgt @ wv) / (wgt @ bias)
-    return out
+    return _brute_force(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, chunk=chunk, product=True)
 
 
 #: Cell size of the 5-D (y, x, R, G, B) grid of the product kernel, as a fraction of σ: coarser

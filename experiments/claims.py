@@ -5,8 +5,18 @@ test it, the rule that turns numbers into a verdict (stated in words in ``rule``
 print it), and a function ``check(metrics_by_figure) -> Verdict``. Verdicts are computed from the
 ``<fig>.metrics.json`` files that ``python -m repro.figures`` wrote; nothing here is hard-coded.
 
-Verdict labels: ``"reproduced"``, ``"partly reproduced"``, ``"not reproduced"``, and
-``"not evaluated"`` (the figure's metrics are missing or lack the needed numbers).
+Verdict labels: ``"reproduced"``, ``"partly reproduced"`` (a weaker form of the claim, stated in the
+rule, holds), ``"not reproduced"``, ``"not evaluated"`` (the figure's metrics are missing or lack the
+needed numbers) and ``"error"`` (the check raised anything else: a failure of the harness, shown as
+such, never hidden as missing data).
+
+Presets and scene sets: figures 5, 6, 7 and 11 store their metrics for the default scene set and
+the ``paper`` preset as flat keys, the other presets under ``"presets"`` and the other scene sets
+under ``"scene_sets"`` (each with its own ``"presets"``); ``"scene_set"`` names the default set.
+:func:`project_metrics` cuts that nesting down to one (preset, scene set); every check reads only
+projected metrics. A figure without ``"presets"`` is the same for every preset, one without
+``"scene_set"``/``"scene_sets"`` the same for every scene set. :func:`claim_matrix` evaluates every
+(preset, scene set) the metrics contain.
 """
 
 from __future__ import annotations
@@ -15,9 +25,13 @@ import dataclasses
 import math
 from collections.abc import Callable, Mapping
 
-__all__ = ["CLAIMS", "Claim", "Verdict", "evaluate_claims", "mismatch_findings", "VERDICTS"]
+__all__ = ["CLAIMS", "Claim", "Verdict", "VERDICTS", "claim_matrix", "evaluate_claims", "mismatch_findings",
+           "project_metrics", "presets_and_scene_sets"]
 
-VERDICTS = ("reproduced", "partly reproduced", "not reproduced", "not evaluated")
+VERDICTS = ("reproduced", "partly reproduced", "not reproduced", "not evaluated", "error")
+
+#: The preset whose metrics are the flat (top-level) keys of a figure.
+DEFAULT_PRESET = "paper"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,8 +55,111 @@ class Claim:
     check: Callable[[Mapping[str, dict]], Verdict]
 
 
-class _Missing(KeyError):
-    pass
+class _Missing(LookupError):
+    """Data a check needs is absent: the verdict is "not evaluated" (any other exception is "error")."""
+
+
+_ABSENT = "_absent"  # key of a projected figure that has no data for the (preset, scene set)
+
+
+def _inner(fig: Mapping) -> Mapping:
+    return fig.get("metrics", fig) if isinstance(fig, Mapping) else fig
+
+
+def _nested(node: Mapping, key: str) -> Mapping | None:
+    """``node[key]`` when it is a nesting mapping (``"presets"`` may also be a plain list of names)."""
+    v = node.get(key)
+    return v if isinstance(v, Mapping) else None
+
+
+def _strip(node: Mapping) -> dict:
+    return {k: v for k, v in node.items()
+            if not (k == "scene_set" or (k in ("presets", "scene_sets") and isinstance(v, Mapping)))}
+
+
+def _project_one(inner: Mapping, preset: str, scene_set: str | None):
+    """One figure's metrics for (preset, scene_set); a str (the reason) when it has none."""
+    if not isinstance(inner, Mapping):
+        return "metrics are not a mapping"
+    node = inner
+    has_sets = "scene_set" in inner or _nested(inner, "scene_sets") is not None
+    if has_sets and scene_set is not None and scene_set != inner.get("scene_set"):
+        sets = _nested(inner, "scene_sets") or {}
+        if scene_set not in sets:
+            return f"no scene set {scene_set!r} (has {sorted([inner.get('scene_set')] + list(sets))})"
+        node = sets[scene_set]
+        if not isinstance(node, Mapping):
+            return f"scene set {scene_set!r} is not a mapping"
+    if preset != DEFAULT_PRESET and _nested(node, "presets") is not None:
+        presets = _nested(node, "presets")
+        if preset not in presets:
+            return f"no preset {preset!r} (has {sorted([DEFAULT_PRESET] + list(presets))})"
+        node = presets[preset]
+        if not isinstance(node, Mapping):
+            return f"preset {preset!r} is not a mapping"
+    return _strip(node)
+
+
+def project_metrics(metrics_by_figure: Mapping[str, dict], *, preset: str = DEFAULT_PRESET,
+                    scene_set: str | None = None) -> dict:
+    """The metrics of every figure for one preset and one scene set.
+
+    Parameters
+    ----------
+    metrics_by_figure : mapping
+        ``{figure name: parsed <fig>.metrics.json}`` (the inner ``"metrics"`` dict, or the whole file).
+    preset : str, keyword-only
+        Method preset; ``"paper"`` is the flat keys, others come from ``"presets"``.
+    scene_set : str or None, keyword-only
+        Scene set name; ``None`` is each figure's default set (its flat keys).
+
+    Returns
+    -------
+    dict
+        ``{figure: {"metrics": flat dict without the nesting keys}}``; a figure that has no data for
+        the combination maps to ``{"_absent": reason}`` (its claims come out "not evaluated").
+
+    Notes
+    -----
+    A figure without ``"presets"`` is the same for every preset; one without ``"scene_set"`` and
+    ``"scene_sets"`` is the same for every scene set (CONTRACT: figures 2, 4, 8, 10).
+    """
+    out = {}
+    for fig, data in metrics_by_figure.items():
+        got = _project_one(_inner(data), preset, scene_set)
+        out[fig] = {_ABSENT: got} if isinstance(got, str) else {"metrics": got}
+    return out
+
+
+def presets_and_scene_sets(metrics_by_figure: Mapping[str, dict]) -> list[tuple[str, str | None]]:
+    """Every (preset, scene set) the metrics contain, paper preset and default set first.
+
+    The scene set is a name when any figure names its default set (``"scene_set"``), else ``None``.
+    """
+    presets, sets = [DEFAULT_PRESET], []
+    default = None
+
+    def add(seq, x):
+        if x not in seq:
+            seq.append(x)
+
+    for data in metrics_by_figure.values():
+        inner = _inner(data)
+        if not isinstance(inner, Mapping):
+            continue
+        if inner.get("scene_set") is not None:
+            default = default or inner["scene_set"]
+            add(sets, inner["scene_set"])
+        others = _nested(inner, "scene_sets") or {}
+        for name in others:
+            add(sets, name)
+        for node in [inner] + [v for v in others.values() if isinstance(v, Mapping)]:
+            for p in _nested(node, "presets") or ():
+                add(presets, p)
+    if default is not None:
+        sets.remove(default)
+        sets.insert(0, default)
+    return [(p, s) for s in (sets or [None]) for p in presets]
 
 
 def _get(metrics: Mapping[str, dict], figure: str, *path):
@@ -50,10 +167,17 @@ def _get(metrics: Mapping[str, dict], figure: str, *path):
     node = metrics.get(figure)
     if node is None:
         raise _Missing(f"{figure}.metrics.json not found")
+    if _ABSENT in node:
+        raise _Missing(f"{figure}: {node[_ABSENT]}")
     node = node.get("metrics", node)
-    for p in path:
+    return _need(node, *path, where=figure)
+
+
+def _need(node, *path, where: str = "metrics"):
+    """``node[path...]``; raises _Missing naming the path when a key is absent."""
+    for i, p in enumerate(path):
         if not isinstance(node, Mapping) or p not in node:
-            raise _Missing(f"{figure}: no metric {'.'.join(path)}")
+            raise _Missing(f"{where}: no metric {'.'.join(map(str, path[:i + 1]))}")
         node = node[p]
     return node
 
@@ -322,19 +446,55 @@ CLAIMS: tuple[Claim, ...] = (
 )
 
 
-def evaluate_claims(metrics_by_figure: Mapping[str, dict]) -> list[tuple[Claim, Verdict]]:
-    """Check every claim against ``{figure name: parsed <fig>.metrics.json}``.
+def evaluate_claims(metrics_by_figure: Mapping[str, dict], *, preset: str = DEFAULT_PRESET,
+                    scene_set: str | None = None) -> list[tuple[Claim, Verdict]]:
+    """Check every claim against ``{figure name: parsed <fig>.metrics.json}`` for one preset and scene set.
 
-    A claim whose figure or numbers are missing gets ``"not evaluated"`` with the reason.
+    Parameters
+    ----------
+    metrics_by_figure : mapping
+        Parsed metrics files by figure name (nested presets and scene sets, see the module docstring).
+    preset : str, keyword-only
+        Method preset to judge (``"paper"`` = the flat keys).
+    scene_set : str or None, keyword-only
+        Scene set to judge; ``None`` = each figure's default set.
+
+    Returns
+    -------
+    list of (Claim, Verdict)
+        In :data:`CLAIMS` order.
+
+    Notes
+    -----
+    Missing figures or numbers give ``"not evaluated"`` with the reason; a check that raises
+    anything else gives ``"error"`` with the exception (a harness failure, never hidden).
     """
+    projected = project_metrics(metrics_by_figure, preset=preset, scene_set=scene_set)
     out = []
     for claim in CLAIMS:
         try:
-            verdict = claim.check(metrics_by_figure)
-        except (_Missing, KeyError, IndexError, TypeError, ValueError, ZeroDivisionError) as exc:
+            verdict = claim.check(projected)
+        except _Missing as exc:
             verdict = Verdict("not evaluated", f"missing data: {exc}", {})
+        except Exception as exc:  # noqa: BLE001 - a raising check is reported, not swallowed as missing
+            verdict = Verdict("error", f"the check raised {type(exc).__name__}: {exc}", {})
+        if verdict.verdict not in VERDICTS:
+            verdict = Verdict("error", f"the check returned an unknown verdict {verdict.verdict!r}", {})
         out.append((claim, verdict))
     return out
+
+
+def claim_matrix(metrics_by_figure: Mapping[str, dict]) -> dict:
+    """Verdicts for every (preset, scene set) found in the metrics.
+
+    Returns
+    -------
+    dict
+        ``{(preset, scene_set): [(Claim, Verdict), ...]}`` in the order of
+        :func:`presets_and_scene_sets` (paper preset and the default scene set first).
+    """
+    return {(p, s): evaluate_claims(metrics_by_figure, preset=p, scene_set=s)
+            for p, s in presets_and_scene_sets(metrics_by_figure)}
 
 
 def mismatch_findings(metrics_by_figure: Mapping[str, dict]) -> list[dict]:

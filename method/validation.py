@@ -4,7 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["MIN_IMAGE_SIDE", "validate_image", "validate_map"]
+__all__ = [
+    "MIN_IMAGE_SIDE",
+    "check_odd",
+    "check_positive",
+    "validate_guide",
+    "validate_image",
+    "validate_map",
+    "validate_propagation_inputs",
+]
 
 #: Smallest accepted image side, px: below this even the finest derivative filter (σ = 0.5 px,
 #: support ±3σ plus the one-pixel zero-crossing test) and the 7×7 propagation window do not fit.
@@ -63,3 +71,102 @@ def validate_map(defocus_map, shape, *, name="defocus_map") -> np.ndarray:
     if float(np.min(defocus_map)) < 0:
         raise ValueError(f"{name} must be >= 0 (blur σ in px), got min {float(np.min(defocus_map)):.6g}")
     return defocus_map.astype(np.float64, copy=False)
+
+
+# --- the propagations' inputs (method.propagation_system / method.propagation, method.matting_propagation) ---
+
+def validate_guide(reference, *, name="reference", min_side=1) -> np.ndarray:
+    """Check a propagation guide image and return it as float64 HxWxC (C = 1 or 3).
+
+    Parameters
+    ----------
+    reference : ndarray, HxW, HxWx1 or HxWx3, float
+        Guide image C (values in [0, 1] by convention; the range is not checked: the affinities
+        and the matting Laplacian are defined for any finite values).
+    name : str, keyword-only
+        What to call the array in error messages.
+    min_side : int, keyword-only
+        Smallest accepted side, px.
+
+    Returns
+    -------
+    ndarray, HxWxC, float64
+        An HxW guide gets a trailing channel axis (C = 1); no copy when already float64.
+
+    Raises
+    ------
+    ValueError
+        Not a numpy array; wrong shape; not a floating dtype; a side below ``min_side``; NaN or Inf.
+    """
+    if not isinstance(reference, np.ndarray):
+        raise ValueError(f"{name} must be a numpy array, got {type(reference).__name__}")
+    if reference.ndim == 2:
+        reference = reference[..., None]
+    if reference.ndim != 3 or reference.shape[2] not in (1, 3):
+        raise ValueError(f"{name} must have shape HxW or HxWx3, got {reference.shape}")
+    if not np.issubdtype(reference.dtype, np.floating):
+        raise ValueError(f"{name} must be a float array in [0, 1], got dtype {reference.dtype}")
+    if min(reference.shape[:2]) < min_side:
+        raise ValueError(f"{name} must be at least {min_side}x{min_side} px, got {reference.shape[:2]}")
+    if not np.all(np.isfinite(reference)):
+        raise ValueError(f"{name} contains NaN or Inf values; allowed: finite floats in [0, 1]")
+    return reference.astype(np.float64, copy=False)
+
+
+def validate_propagation_inputs(sparse_sigma, reference, *, min_side=1) -> tuple[np.ndarray, np.ndarray]:
+    """Check the inputs of a propagation (sparse σ + guide); the one rule set of every propagation.
+
+    Parameters
+    ----------
+    sparse_sigma : ndarray, HxW, float
+        Blur σ, px, at pixels with a measure (finite, ≥ 0); NaN at every other pixel.
+    reference : ndarray, HxW, HxWx1 or HxWx3, float
+        Guide image (:func:`validate_guide`).
+    min_side : int, keyword-only
+        Smallest accepted image side, px.
+
+    Returns
+    -------
+    sparse_sigma : ndarray, HxW, float64
+    reference : ndarray, HxWxC, float64 (C = 1 or 3)
+
+    Raises
+    ------
+    ValueError
+        The guide fails :func:`validate_guide`; ``sparse_sigma`` is not a float array of the guide's
+        HxW, holds Inf, or a negative σ.
+    """
+    ref = validate_guide(reference, min_side=min_side)
+    if not isinstance(sparse_sigma, np.ndarray):
+        raise ValueError(f"sparse_sigma must be a numpy array, got {type(sparse_sigma).__name__}")
+    if sparse_sigma.shape != ref.shape[:2]:
+        raise ValueError(f"sparse_sigma has shape {sparse_sigma.shape}, expected {ref.shape[:2]} (reference's HxW)")
+    if not np.issubdtype(sparse_sigma.dtype, np.floating):
+        raise ValueError(f"sparse_sigma must be float (NaN off edges), got dtype {sparse_sigma.dtype}")
+    if np.any(np.isinf(sparse_sigma)):
+        raise ValueError("sparse_sigma contains Inf; allowed: finite σ >= 0 px, NaN where there is no measure")
+    finite = sparse_sigma[np.isfinite(sparse_sigma)]
+    if finite.size and float(finite.min()) < 0:
+        raise ValueError(f"sparse_sigma must be >= 0 (blur σ, px), got min {float(finite.min()):.6g}")
+    return sparse_sigma.astype(np.float64, copy=False), ref
+
+
+def check_positive(name, value, *, allow_zero=False) -> float:
+    """``value`` as a finite float > 0 (≥ 0 with ``allow_zero``); ValueError naming ``name`` otherwise."""
+    allowed = f"a finite number {'>=' if allow_zero else '>'} 0"
+    if isinstance(value, bool):
+        raise ValueError(f"{name}={value!r} is invalid; allowed: {allowed}")
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}={value!r} is invalid; allowed: {allowed}") from None
+    if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        raise ValueError(f"{name}={value!r} is invalid; allowed: {allowed}")
+    return v
+
+
+def check_odd(name, value, minimum) -> int:
+    """``value`` as an odd int ≥ ``minimum``; ValueError naming ``name`` otherwise."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum or value % 2 == 0:
+        raise ValueError(f"{name}={value!r} is invalid; allowed: odd integer >= {minimum}")
+    return int(value)

@@ -228,6 +228,39 @@ def _score_map(m, gt, regions, bm, sparse, edges, rtf_clip_px):
     }
 
 
+def _alpha_tradeoff(image, stages, alphas, regions, params):
+    """What α changes: Eq. (4)'s two terms per α and the map change between the smallest and largest α.
+
+    Returns ``{"energy_terms": {"alpha=<a>": {"data_term", "smoothness_term"}}, "map_change_px": {...}}``:
+    data term = mean over edge pixels with a measure of (B − BM)², px²; smoothness term = mean over
+    all pixels of (B_p − Σ_q w_pq B_q)² (Eq. 4a with the Eq. 4c affinities of ``params``), px²;
+    ``map_change_px`` = mean / 95th percentile of |B(α_max) − B(α_min)| over the textured and all
+    pixels. ``energy_terms`` is omitted when ``params.propagation`` has no α (not Eq. 4).
+    """
+    from method import DefocusParams
+    from method.propagation import colorization_matrix
+
+    params = DefocusParams() if params is None else params
+    lo, hi = int(np.argmin(alphas)), int(np.argmax(alphas))
+    diff = np.abs(stages.maps[hi] - stages.maps[lo])
+    change = {}
+    for region in ("textured", "all"):
+        d = diff[regions[region]]
+        change[f"{region}_mean"] = float(np.mean(d)) if d.size else float("nan")
+        change[f"{region}_p95"] = float(np.percentile(d, 95)) if d.size else float("nan")
+    change["alphas"] = [float(alphas[lo]), float(alphas[hi])]
+    out = {"map_change_px": change}
+    if alpha_applies(params):
+        L = colorization_matrix(np.asarray(image, dtype=np.float64), window=params.propagation_window,
+                                neighborhood=params.propagation_neighborhood)
+        ok = stages.edges & np.isfinite(stages.refined_sigma)
+        out["energy_terms"] = {
+            f"alpha={float(a):g}": {"data_term": float(np.mean((m[ok] - stages.refined_sigma[ok]) ** 2)),
+                                    "smoothness_term": float(np.mean((L @ m.ravel()) ** 2))}
+            for a, m in zip(alphas, stages.maps)}
+    return out
+
+
 def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, also_from_sparse=False, params=None):
     """Sweep α on one input and score every map against the render's ground truth.
 
@@ -248,7 +281,8 @@ def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, als
     -------
     (StageOutputs, dict)
         The maps and ``{f"alpha={a:g}": metrics}`` (ablation: ``{"from_sparse": {...}}``) plus
-        ``"regions"`` (pixel counts), the errors of the sparse/refined measures at edges, ``"timings"``.
+        ``"regions"`` (pixel counts), the errors of the sparse/refined measures at edges, ``"timings"``,
+        ``"energy_terms"`` and ``"map_change_px"`` (see :func:`_alpha_tradeoff`).
     """
     from .metrics import dense_metrics, region_masks
 
@@ -264,6 +298,7 @@ def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, als
     args = (gt, regions, stages.refined_sigma, stages.sparse_sigma, stages.edges, rtf_clip_px)
     for a, m in zip(alphas, stages.maps):
         out[f"alpha={float(a):g}"] = _score_map(m, *args)
+    out.update(_alpha_tradeoff(image, stages, alphas, regions, params))
     if also_from_sparse:
         # ablation: the data term sees the raw sparse measures, so fidelity is measured against them
         args = (gt, regions, stages.sparse_sigma, stages.sparse_sigma, stages.edges, rtf_clip_px)

@@ -23,8 +23,6 @@ evaluate_case(estimator, scene, *, f_number, preset, encoding, ...) -> Evaluatio
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import inspect
 import json
 import time
 import warnings
@@ -84,20 +82,16 @@ def validate_estimators(names) -> tuple[str, ...]:
 
 
 def estimator_fingerprint(name: str) -> str:
-    """SHA-256 (12 hex digits) of a registered estimator function's module, qualified name and source.
+    """:func:`scenes.storage.source_fingerprint` of a registered estimator function (its module,
+    qualified name and source).
 
     Part of the cache key, so an estimator registered at run time from outside ``method/`` (not
     covered by :func:`experiments.registry.code_fingerprint`) still invalidates stale entries.
     """
     from method import BLUR_ESTIMATORS
+    from scenes.storage import source_fingerprint
 
-    fn = BLUR_ESTIMATORS[name]
-    h = hashlib.sha256(f"{getattr(fn, '__module__', '')}.{getattr(fn, '__qualname__', repr(fn))}".encode())
-    try:
-        h.update(inspect.getsource(fn).encode())
-    except (OSError, TypeError):
-        h.update(repr(fn).encode())
-    return h.hexdigest()[:12]
+    return source_fingerprint(BLUR_ESTIMATORS[name])
 
 
 def input_image(render, *, encoding: str = "srgb", quantize_bits: int | None = 8) -> np.ndarray:
@@ -374,11 +368,11 @@ def evaluate_case(estimator: str | None, scene: str, *, f_number: float = 8.0, p
         metrics, arrays = compute()
         return EvaluationCase(key=key_fields, metrics=metrics, arrays=arrays, cached=False)
 
-    from importlib.metadata import version
+    from scenes.storage import library_versions
 
     key = {**key_fields, "eval_version": EVAL_VERSION, "code": code_fingerprint(),
            "estimator_code": estimator_fingerprint(estimator), "params": to_jsonable(params),
-           "mitsuba": {"variant": chosen, "version": version("mitsuba")}}
+           "libraries": library_versions(), "mitsuba": {"variant": chosen}}
     cache = Cache(Path(cache_dir) if cache_dir is not None else cache_root() / EVAL_CACHE_SUBDIR)
     if force:
         cache.invalidate(key)

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import hashlib
 import importlib
 import json
 import time
@@ -176,40 +175,38 @@ _FINGERPRINT_EXCLUDED = ("experiments/plotting", "experiments/claims.py")
 
 @functools.lru_cache(maxsize=1)
 def code_fingerprint() -> str:
-    """SHA-256 (16 hex digits) of the source of ``method``, ``scenes`` and ``experiments``.
+    """:func:`scenes.storage.source_fingerprint` (16 hex digits) of ``method``, ``scenes`` and ``experiments``.
 
     Part of every figure's cache key, so an edit of the estimator, the scenes or an experiment
     invalidates cached figure data without anyone remembering to bump a version number
-    (renders keep their own, finer cache keyed by each scene's ``version``).
+    (renders keep their own, finer cache keyed by each scene's content).
     """
-    root = Path(__file__).resolve().parents[1]
-    h = hashlib.sha256()
-    for pkg in _FINGERPRINT_PACKAGES:
-        for path in sorted((root / pkg).rglob("*.py")):
-            rel = path.relative_to(root)
-            if any(rel.as_posix().startswith(ex) for ex in _FINGERPRINT_EXCLUDED):
-                continue
-            h.update(str(rel).encode())
-            h.update(path.read_bytes())
-    return h.hexdigest()[:16]
+    import experiments
+    import method
+    import scenes
+    from scenes.storage import source_fingerprint
+
+    return source_fingerprint(method, scenes, experiments, exclude=_FINGERPRINT_EXCLUDED)
 
 
 def cache_key(figure: Figure, config) -> dict:
-    """JSON-able key of a compute result: figure name, code version and source fingerprint, config type and fields
-    (and, for figures that render, the Mitsuba variant and version)."""
+    """JSON-able key of a compute result: figure name, code version and source fingerprint, config type and
+    fields, the versions of the numerical and rendering libraries (:data:`scenes.storage.KEY_LIBRARIES`)
+    and, for figures that render, the Mitsuba variant."""
+    from scenes.storage import library_versions
+
     key = {
         "figure": figure.name,
         "version": figure.version,
         "code": code_fingerprint(),
         "config_type": type(config).__qualname__,
         "config": to_jsonable(config),
+        "libraries": library_versions(),
     }
     if figure.renders:
-        from importlib.metadata import version
-
         from scenes.backend import select_variant
 
-        key["mitsuba"] = {"variant": select_variant(), "version": version("mitsuba")}
+        key["mitsuba"] = {"variant": select_variant()}
     return key
 
 
@@ -263,14 +260,9 @@ def compute_cached(figure: Figure, config, *, force=False, cache_dir=None) -> Fi
 
 
 def library_versions() -> dict:
-    """Versions of Python and the libraries a figure depends on (for the metrics files)."""
-    import platform
-    from importlib.metadata import PackageNotFoundError, version
+    """Versions of Python and the libraries a figure depends on (for the metrics files): those of the
+    cache keys (:data:`scenes.storage.KEY_LIBRARIES`) plus matplotlib."""
+    from scenes.storage import KEY_LIBRARIES
+    from scenes.storage import library_versions as versions
 
-    out = {"python": platform.python_version()}
-    for pkg in ("numpy", "scipy", "matplotlib", "mitsuba", "drjit", "scikit-image"):
-        try:
-            out[pkg] = version(pkg)
-        except PackageNotFoundError:
-            out[pkg] = None
-    return out
+    return dict(versions((*KEY_LIBRARIES, "matplotlib")))

@@ -27,8 +27,6 @@ This module also holds the pieces ``repro.magnify`` shares (argument parsing, ca
 from __future__ import annotations
 
 import argparse
-import contextlib
-import hashlib
 import json
 import math
 import os
@@ -263,30 +261,18 @@ def load_photo(args, *, prog):
     return read_photo(header.path, max_pixels=args.max_pixels, repair_nonfinite=args.repair_nonfinite)
 
 
-def _code_version() -> str:
-    """Hash of the sources that determine a map: every method/*.py and the photo decoder."""
+def _code_version(params) -> str:
+    """:func:`scenes.storage.source_fingerprint` of what determines a map: the ``method`` package,
+    the photo decoder and display encoding, and the chosen estimator (which may be registered at
+    run time from outside ``method``)."""
     import method
-    import scenes
+    import scenes.display
+    import scenes.photo_io
+    from method import BLUR_ESTIMATORS
+    from scenes.storage import source_fingerprint
 
-    h = hashlib.sha256()
-    files = sorted(Path(method.__file__).parent.glob("*.py"))
-    files += [Path(scenes.__file__).parent / n for n in ("photo_io.py", "display.py")]
-    for f in files:
-        h.update(f.name.encode())
-        h.update(f.read_bytes())
-    return h.hexdigest()[:16]
-
-
-def _versions() -> dict:
-    import numpy
-    import scipy
-
-    out = {"numpy": numpy.__version__, "scipy": scipy.__version__}
-    with contextlib.suppress(ImportError):
-        import pyamg
-
-        out["pyamg"] = pyamg.__version__
-    return out
+    extra = [BLUR_ESTIMATORS[params.estimator]] if params.estimator in BLUR_ESTIMATORS else []
+    return source_fingerprint(method, scenes.photo_io, scenes.display, *extra)
 
 
 def map_cache_key(photo, params, working_shape_) -> dict:
@@ -298,7 +284,7 @@ def map_cache_key(photo, params, working_shape_) -> dict:
     """
     import dataclasses
 
-    from scenes.storage import sha256_file
+    from scenes.storage import library_versions, sha256_file
 
     return {
         "kind": "defocus_map",
@@ -307,8 +293,8 @@ def map_cache_key(photo, params, working_shape_) -> dict:
         "decoded": {"shape": list(photo.image.shape), "repaired": any("repaired" in n for n in photo.notes)},
         "params": dataclasses.asdict(params),
         "working_shape": list(working_shape_),
-        "code": _code_version(),
-        "versions": _versions(),
+        "code": _code_version(params),
+        "versions": library_versions(),
     }
 
 

@@ -21,6 +21,8 @@ import sys
 import warnings
 from pathlib import Path
 
+from .storage import CACHE_ENV, default_cache_root
+
 __all__ = [
     "CACHE_ENV",
     "VARIANT_CANDIDATES",
@@ -32,14 +34,10 @@ __all__ = [
     "select_variant",
 ]
 
-#: Environment variable naming the cache folder (default: ``<project>/.cache``).
-CACHE_ENV = "DEFOCUS_CACHE_DIR"
 #: Environment variable forcing a Mitsuba variant.
 VARIANT_ENV = "DEFOCUS_MITSUBA_VARIANT"
 #: Variants in order of preference.
 VARIANT_CANDIDATES = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
-
-_PROJECT_ROOT = Path(__file__).resolve().parents[1]
 
 
 class BackendError(RuntimeError):
@@ -47,8 +45,9 @@ class BackendError(RuntimeError):
 
 
 def cache_root() -> Path:
-    """The project's cache folder (``$DEFOCUS_CACHE_DIR`` or ``<project>/.cache``), created if missing."""
-    root = Path(os.environ.get(CACHE_ENV) or (_PROJECT_ROOT / ".cache")).expanduser()
+    """The project's cache folder (:func:`scenes.storage.default_cache_root`: ``$DEFOCUS_CACHE_DIR``, else
+    ``<checkout>/.cache`` in a source checkout, else the platformdirs user cache), created if missing."""
+    root = default_cache_root()
     root.mkdir(parents=True, exist_ok=True)
     return root
 

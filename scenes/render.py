@@ -6,9 +6,12 @@ depth from lens-centre rays, CoC by Eq. (5), σ_gt, occlusion-boundary mask), wr
 float32 EXR (:mod:`scenes.exr`) plus a JSON sidecar, and returns a :class:`Render`.
 
 Renders are cached under ``scenes.backend.cache_root() / "renders"`` (:class:`scenes.storage.Cache`)
-keyed by everything that changes the output: scene name and version, camera (incl. resolution), spp,
-seed, Mitsuba variant and version, σ convention and filter σ, and :data:`RENDER_FORMAT`. Entries are
-checksummed; a truncated entry is rebuilt; concurrent processes build an entry once.
+keyed by everything that changes the output: the scene's *content* (:func:`scene_content_hash`, a hash
+of its Mitsuba shapes and integrator, textures and transforms included, so editing a scene re-renders
+it and only it), camera (incl. resolution), spp, seed, Mitsuba variant, the library versions of
+:data:`scenes.storage.KEY_LIBRARIES`, the source of the ground-truth code, σ convention and filter σ, and
+:data:`RENDER_FORMAT`. Entries are checksummed; a truncated entry is rebuilt; concurrent processes build
+an entry once.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from .exr import read_exr, write_exr
 from .ground_truth import camera_space_depth, ground_truth_from_depth
 from .library import SceneDefinition, get_scene
 from .library.base import SAMPLER
-from .storage import Cache, atomic_write_text
+from .storage import Cache, atomic_write_text, hash_key, library_versions, source_fingerprint
 from .thin_lens import BOX_FILTER_SIGMA_PX, SIGMA_CONVENTIONS
 
 __all__ = [
@@ -42,11 +45,13 @@ __all__ = [
     "render_cache",
     "render_key",
     "render_scene",
+    "scene_content_hash",
     "sidecar_path",
     "validate_render_options",
 ]
 
-#: Version of the render file layout and ground-truth algorithm; part of the cache key.
+#: Version of the render file layout (channels and sidecar fields); part of the cache key. The
+#: ground-truth algorithm enters the key by its source (:func:`_ground_truth_code`).
 RENDER_FORMAT = 2
 #: File names inside a cache entry.
 EXR_NAME = "render.exr"
@@ -232,19 +237,121 @@ def validate_render_options(scene, camera=None, *, preset="small", f_number=None
     return sdef, camera, int(spp), int(seed)
 
 
-def render_key(sdef: SceneDefinition, camera: ThinLensCamera, *, spp, seed, variant, mitsuba_version,
-               sigma_convention) -> dict:
-    """The cache key: everything that changes a render's pixels or ground truth."""
+def _hash_value(h, obj) -> None:
+    """Feed a Mitsuba scene-dictionary value into ``h`` by content (arrays by their bytes)."""
+    if isinstance(obj, dict):
+        h.update(b"{")
+        for k in sorted(obj, key=str):
+            h.update(repr(str(k)).encode())
+            _hash_value(h, obj[k])
+        h.update(b"}")
+    elif isinstance(obj, (list, tuple)):
+        h.update(b"[")
+        for v in obj:
+            _hash_value(h, v)
+        h.update(b"]")
+    elif isinstance(obj, (str, int, float, bool)) or obj is None:
+        h.update(f"{type(obj).__name__}:{obj!r};".encode())
+    elif isinstance(obj, np.ndarray):
+        a = np.ascontiguousarray(obj)
+        h.update(f"ndarray:{a.dtype.str}:{a.shape};".encode())
+        h.update(a.tobytes())
+    elif hasattr(obj, "matrix"):  # mitsuba (Scalar)Transform3f/4f, AffineTransform
+        h.update(f"{type(obj).__name__}:".encode())
+        _hash_value(h, np.asarray(obj.matrix, dtype=np.float64))
+    elif type(obj).__name__ == "Bitmap":
+        h.update(f"Bitmap:{obj.pixel_format()}:{obj.component_format()}:{obj.srgb_gamma()};".encode())
+        _hash_value(h, np.asarray(obj))
+    else:
+        h.update(f"{type(obj).__module__}.{type(obj).__qualname__}:{obj!r};".encode())
+
+
+#: In-process memo of :func:`scene_content_hash`: (scene, source fingerprint, variant) -> hash.
+_CONTENT_HASHES: dict[tuple, str] = {}
+
+
+def scene_content_hash(sdef: SceneDefinition, *, variant: str) -> str:
+    """Hash (16 hex digits) of what a scene *is*: its Mitsuba shapes and integrator, by content.
+
+    The render cache key uses this instead of a hand-bumped version: an edit of a scene's geometry,
+    textures, materials or lighting re-renders that scene, and an edit that leaves the scene
+    dictionary unchanged (a refactoring, a new scene beside it) re-renders nothing.
+
+    Parameters
+    ----------
+    sdef : SceneDefinition
+    variant : str, keyword-only
+        The selected Mitsuba variant (the builders create Mitsuba objects).
+
+    Returns
+    -------
+    str
+
+    Notes
+    -----
+    Building the dictionary of the larger scenes takes seconds (procedural textures), so the hash is
+    memoised in memory and on disk (``cache_root() / "scene_hashes"``) under the source fingerprint of
+    the ``scenes`` package and of the builder function, the variant and the library versions: while
+    none of those change, the dictionary is not rebuilt.
+    """
+    import hashlib
+
+    import scenes
+
+    memo = {"scene": sdef.name, "source": source_fingerprint(scenes, sdef.shapes), "variant": variant,
+            "libraries": library_versions()}
+    mkey = hash_key(memo)
+    # Only library scenes are memoised: their builders are determined by the scenes package's source.
+    # A definition made elsewhere may capture values (a closure) that no source fingerprint sees.
+    try:
+        registered = get_scene(sdef.name) is sdef
+    except ValueError:
+        registered = False
+    mem_key = (sdef.name, mkey)
+    if registered and mem_key in _CONTENT_HASHES:
+        return _CONTENT_HASHES[mem_key]
+    path = cache_root() / "scene_hashes" / f"{mkey}.json"
+    try:
+        if not registered:
+            raise OSError("not memoised")
+        value = json.loads(path.read_text())["content"]
+    except (OSError, ValueError, KeyError, TypeError):
+        import_mitsuba(variant)
+        h = hashlib.sha256()
+        _hash_value(h, {"integrator": dict(sdef.integrator), "shapes": sdef.shapes()})
+        value = h.hexdigest()[:16]
+        if registered:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(path, json.dumps({**memo, "content": value}, sort_keys=True))
+    if registered:
+        _CONTENT_HASHES[mem_key] = value
+    return value
+
+
+def _ground_truth_code() -> str:
+    from . import exr, ground_truth, mitsuba_camera, thin_lens
+
+    return source_fingerprint(ground_truth, thin_lens, mitsuba_camera, exr)
+
+
+def render_key(sdef: SceneDefinition, camera: ThinLensCamera, *, spp, seed, variant, sigma_convention,
+               scene_content: str | None = None, libraries: dict | None = None) -> dict:
+    """The cache key: everything that changes a render's pixels or ground truth.
+
+    ``scene_content`` (default :func:`scene_content_hash`) and ``libraries`` (default
+    :func:`scenes.storage.library_versions`) can be given to build keys without Mitsuba.
+    """
     return {
         "kind": "render",
         "format": RENDER_FORMAT,
         "scene": sdef.name,
-        "scene_version": int(sdef.version),
+        "scene_content": scene_content if scene_content is not None else scene_content_hash(sdef, variant=variant),
         "camera": camera.to_dict(),
         "spp": int(spp),
         "seed": int(seed),
         "variant": variant,
-        "mitsuba": mitsuba_version,
+        "libraries": dict(libraries) if libraries is not None else library_versions(),
+        "ground_truth_code": _ground_truth_code(),
         "sigma_convention": sigma_convention,
         "filter_sigma_px": FILTER_SIGMA_PX,
     }
@@ -417,8 +524,7 @@ def render_scene(
     kwargs = dict(spp=spp, seed=seed, mi=mi, variant=chosen, sigma_convention=sigma_convention, progress=progress)
     if not use_cache:
         return _compute(sdef, camera, **kwargs)
-    key = render_key(sdef, camera, spp=spp, seed=seed, variant=chosen, mitsuba_version=mi.__version__,
-                     sigma_convention=sigma_convention)
+    key = render_key(sdef, camera, spp=spp, seed=seed, variant=chosen, sigma_convention=sigma_convention)
     cache = render_cache()
 
     def build(folder: Path) -> None:

@@ -9,22 +9,52 @@ content (the caller passes that as a JSON-able key). Each entry carries a manife
 SHA-256 and size of every file; an entry whose files do not match (truncated by a killed process,
 edited by hand) is treated as missing and rebuilt. Builders run under a file lock so two processes
 asking for the same entry compute it once and both read one valid result.
+
+Cache keys are built from three helpers defined here and nowhere else: :func:`source_fingerprint`
+(the code that computes an entry), :func:`library_versions` (the numerical libraries it ran on) and
+:func:`hash_key`; :func:`default_cache_root` chooses where caches live.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import hashlib
+import inspect
 import json
 import os
 import shutil
 import tempfile
+import types
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 from filelock import FileLock
 
-__all__ = ["Cache", "atomic_write", "atomic_write_bytes", "atomic_write_text", "hash_key", "sha256_file"]
+__all__ = [
+    "CACHE_ENV",
+    "KEY_LIBRARIES",
+    "Cache",
+    "atomic_write",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "default_cache_root",
+    "hash_key",
+    "library_versions",
+    "sha256_file",
+    "source_fingerprint",
+]
+
+#: Environment variable naming the cache folder (overrides :func:`default_cache_root`).
+CACHE_ENV = "DEFOCUS_CACHE_DIR"
+
+#: Distributions whose versions enter every cache key of renders, figure data and photo maps: a
+#: different numpy/scipy/scikit-image/pyamg/numba/pymatting (numerics) or mitsuba/drjit (renders)
+#: can change the numbers, so an upgrade recomputes instead of serving stale entries.
+KEY_LIBRARIES = ("numpy", "scipy", "scikit-image", "pyamg", "numba", "pymatting", "mitsuba", "drjit")
+
+#: Folder holding the packages (``method``, ``scenes``, ``experiments``, ``repro``).
+_PROJECT_ROOT = Path(__file__).resolve().parents[1]
 
 
 @contextlib.contextmanager
@@ -83,6 +113,113 @@ def sha256_file(path, *, chunk=1 << 20) -> str:
         for block in iter(lambda: fh.read(chunk), b""):
             h.update(block)
     return h.hexdigest()
+
+
+@functools.lru_cache(maxsize=8)
+def library_versions(packages: tuple[str, ...] = KEY_LIBRARIES) -> dict:
+    """Installed version of each distribution (None when missing), plus the Python version.
+
+    Parameters
+    ----------
+    packages : tuple of str
+        Distribution names (default :data:`KEY_LIBRARIES`).
+
+    Returns
+    -------
+    dict
+        ``{"python": "3.11.2", "numpy": "2.1.0", ..., "pyamg": None}`` (JSON-able).
+    """
+    import platform
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {"python": platform.python_version()}
+    for pkg in packages:
+        try:
+            out[pkg] = version(pkg)
+        except PackageNotFoundError:
+            out[pkg] = None
+    return out
+
+
+def _source_files(item) -> list[Path]:
+    """The ``.py`` files of a package (recursively), a module, a path or a folder."""
+    if isinstance(item, types.ModuleType):
+        f = Path(getattr(item, "__file__", "") or "")
+        if f.name == "__init__.py":
+            return sorted(f.parent.rglob("*.py"))
+        return [f] if f.is_file() else []
+    p = Path(item)
+    return sorted(p.rglob("*.py")) if p.is_dir() else [p]
+
+
+def source_fingerprint(*items, exclude: tuple[str, ...] = ()) -> str:
+    """SHA-256 (16 hex digits) of the source code that computes a cache entry.
+
+    The one way the project fingerprints code for its caches: an edit of any listed source
+    invalidates the entries that depend on it, with no version number to remember to bump.
+
+    Parameters
+    ----------
+    *items : module, str, Path or callable
+        A package (every ``.py`` below it), a module or a file/folder path (its bytes), or a
+        function/class (its module, qualified name and source text; used for code registered at
+        run time, e.g. a blur estimator defined in a test).
+    exclude : tuple of str, keyword-only
+        Posix path prefixes, relative to the project root, left out (modules that only read
+        results, such as plots).
+
+    Returns
+    -------
+    str
+        16 hex digits; equal sources give equal fingerprints in any process.
+    """
+    h = hashlib.sha256()
+    for item in items:
+        if callable(item) and not isinstance(item, (str, Path)):
+            name = f"{getattr(item, '__module__', '')}.{getattr(item, '__qualname__', repr(item))}"
+            h.update(name.encode())
+            try:
+                h.update(inspect.getsource(item).encode())
+            except (OSError, TypeError):
+                h.update(repr(item).encode())
+            continue
+        for path in _source_files(item):
+            path = path.resolve()
+            try:
+                rel = path.relative_to(_PROJECT_ROOT).as_posix()
+            except ValueError:
+                rel = path.as_posix()
+            if any(rel.startswith(ex) for ex in exclude):
+                continue
+            h.update(rel.encode())
+            h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _is_source_checkout(root: Path) -> bool:
+    parts = set(root.parts)
+    return (root / "pyproject.toml").is_file() and not parts & {"site-packages", "dist-packages"}
+
+
+def default_cache_root(*, project_root=None) -> Path:
+    """Where caches live (not created): ``$DEFOCUS_CACHE_DIR``, else ``<checkout>/.cache`` in a source
+    checkout (also an editable install), else the user cache folder of platformdirs
+    (``~/.cache/defocus-repro`` on Linux) -- never inside site-packages.
+
+    Parameters
+    ----------
+    project_root : path, optional, keyword-only
+        The folder holding the packages (default: this installation's); tests pass others.
+    """
+    env = os.environ.get(CACHE_ENV)
+    if env:
+        return Path(env).expanduser()
+    root = Path(project_root) if project_root is not None else _PROJECT_ROOT
+    if _is_source_checkout(root):
+        return root / ".cache"
+    import platformdirs
+
+    return Path(platformdirs.user_cache_dir("defocus-repro", appauthor=False))
 
 
 def hash_key(key) -> str:

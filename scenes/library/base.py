@@ -68,7 +68,8 @@ class SceneDefinition:
     name : str
         Registry key.
     version : int
-        Bumped whenever geometry, textures or lighting change; part of every render's cache key.
+        Informational (shown by ``--list`` and in the sidecar). Not part of the render cache key, which
+        hashes the scene's content (:func:`scenes.render.scene_content_hash`): no need to bump it.
     description : str
         One line for ``--list``.
     focus_distance_m : float

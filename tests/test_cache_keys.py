@@ -1,0 +1,197 @@
+"""Cache keys: library versions, scene content and source fingerprints; where caches live."""
+
+import dataclasses
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+import scenes.storage as storage
+from scenes.storage import KEY_LIBRARIES, default_cache_root, hash_key, library_versions, source_fingerprint
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_key_libraries_cover_numerics_and_rendering():
+    for pkg in ("numpy", "scipy", "scikit-image", "pyamg", "numba", "mitsuba", "drjit", "pymatting"):
+        assert pkg in KEY_LIBRARIES
+    v = library_versions()
+    import numpy
+
+    assert v["numpy"] == numpy.__version__ and set(KEY_LIBRARIES) <= set(v)
+    assert library_versions(("no-such-distribution-xyz",))["no-such-distribution-xyz"] is None
+
+
+def test_source_fingerprint_follows_file_content(tmp_path):
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "a.py").write_text("X = 1\n")
+    (pkg / "plot.py").write_text("Y = 1\n")
+    first = source_fingerprint(pkg)
+    assert source_fingerprint(pkg) == first
+    (pkg / "a.py").write_text("X = 2\n")
+    second = source_fingerprint(pkg)
+    assert second != first
+    # an excluded path does not count
+    rel = (pkg / "plot.py").resolve().as_posix()
+    excl = source_fingerprint(pkg, exclude=(rel,))
+    (pkg / "plot.py").write_text("Y = 2\n")
+    assert source_fingerprint(pkg, exclude=(rel,)) == excl
+    assert source_fingerprint(pkg) != second
+
+
+def test_source_fingerprint_of_functions():
+    def f(x):
+        return x + 1
+
+    def g(x):
+        return x + 2
+
+    assert source_fingerprint(f) == source_fingerprint(f)
+    assert source_fingerprint(f) != source_fingerprint(g)
+
+
+def test_code_fingerprints_are_one_function():
+    """The figure, photo-map and estimator fingerprints all come from scenes.storage.source_fingerprint."""
+    import experiments
+    import method
+    import scenes
+    from experiments.evaluation import estimator_fingerprint
+    from experiments.registry import _FINGERPRINT_EXCLUDED, code_fingerprint
+    from method import BLUR_ESTIMATORS
+
+    assert code_fingerprint() == source_fingerprint(method, scenes, experiments, exclude=_FINGERPRINT_EXCLUDED)
+    assert estimator_fingerprint("model_fit") == source_fingerprint(BLUR_ESTIMATORS["model_fit"])
+    for path in ("repro/estimate.py", "experiments/registry.py", "experiments/evaluation.py"):
+        text = (ROOT / path).read_text()
+        assert "hashlib" not in text and "getsource" not in text, path
+
+
+def _version_changed(monkeypatch, pkg):
+    real = library_versions()
+    fake = {**real, pkg: "0.0.0-test"}
+    monkeypatch.setattr(storage, "library_versions", lambda *a, **k: fake)
+    return real, fake
+
+
+@pytest.mark.parametrize("pkg", ["numpy", "scikit-image", "pyamg", "numba", "drjit", "pymatting"])
+def test_figure_key_changes_with_library_version(monkeypatch, pkg):
+    from experiments.registry import FIGURES, cache_key
+
+    fig = FIGURES["fig10"]
+    cfg = fig.configs["quick"] if isinstance(fig.configs, dict) and "quick" in fig.configs else next(iter(fig.configs.values()))
+    before = hash_key(cache_key(fig, cfg))
+    assert hash_key(cache_key(fig, cfg)) == before  # same inputs, same key
+    _version_changed(monkeypatch, pkg)
+    assert hash_key(cache_key(fig, cfg)) != before
+
+
+def _camera():
+    from scenes.library import SCENES
+
+    return SCENES["tilted_plane"].camera("small")
+
+
+def test_render_key_changes_with_versions_and_content():
+    from scenes.library import SCENES
+    from scenes.render import render_key
+
+    sdef = SCENES["tilted_plane"]
+    libs = library_versions()
+    kw = dict(spp=16, seed=0, variant="scalar_rgb", sigma_convention="line_spread")
+    base = hash_key(render_key(sdef, _camera(), scene_content="abc", libraries=libs, **kw))
+    assert hash_key(render_key(sdef, _camera(), scene_content="abc", libraries=libs, **kw)) == base
+    for pkg in ("mitsuba", "drjit", "numpy", "scipy"):
+        other = {**libs, pkg: "0.0.0-test"}
+        assert hash_key(render_key(sdef, _camera(), scene_content="abc", libraries=other, **kw)) != base, pkg
+    assert hash_key(render_key(sdef, _camera(), scene_content="abd", libraries=libs, **kw)) != base
+    # a hand-bumped version number is not part of the key
+    bumped = dataclasses.replace(sdef, version=sdef.version + 1)
+    assert hash_key(render_key(bumped, _camera(), scene_content="abc", libraries=libs, **kw)) == base
+
+
+@pytest.mark.render
+def test_scene_content_hash_follows_scene_parameters():
+    from scenes.backend import import_mitsuba
+    from scenes.library import SCENES
+    from scenes.library.base import emissive, facing_rectangle, image_extent
+    from scenes.render import scene_content_hash
+
+    _mi, variant = import_mitsuba(None)
+    sdef = SCENES["tilted_plane"]
+    h = scene_content_hash(sdef, variant=variant)
+    assert len(h) == 16 and scene_content_hash(sdef, variant=variant) == h
+
+    import numpy as np
+
+    def make(z, value):
+        def shapes():
+            ext = image_extent(1.0)
+            return {"plane": emissive(facing_rectangle(z, -1, 1, -1, 1, extent=ext), np.full((4, 4, 3), value))}
+        return dataclasses.replace(sdef, name="test_plane", shapes=shapes)
+
+    a = scene_content_hash(make(1.0, 0.5), variant=variant)
+    assert scene_content_hash(make(1.0, 0.5), variant=variant) == a
+    assert scene_content_hash(make(1.5, 0.5), variant=variant) != a   # geometry
+    assert scene_content_hash(make(1.0, 0.25), variant=variant) != a  # texture
+    lit = dataclasses.replace(make(1.0, 0.5), integrator={"type": "path", "max_depth": 3})
+    assert scene_content_hash(lit, variant=variant) != a               # lighting / integrator
+
+
+def test_scene_content_hash_is_stable_across_processes(tmp_path):
+    """Same scene, fresh processes (one computes, one reads the memo, one recomputes): one hash."""
+    code = textwrap.dedent("""
+        from scenes.backend import import_mitsuba
+        from scenes.library import SCENES
+        from scenes.render import scene_content_hash
+        _mi, v = import_mitsuba("scalar_rgb")
+        print(scene_content_hash(SCENES["tilted_plane"], variant=v))
+    """)
+    env = {**os.environ, "DEFOCUS_CACHE_DIR": str(tmp_path / "c1"), "DEFOCUS_MITSUBA_VARIANT": "scalar_rgb"}
+    run = lambda e: subprocess.run([sys.executable, "-c", code], env=e, cwd=ROOT, capture_output=True,
+                                   text=True, check=True).stdout.strip()
+    first, memo = run(env), run(env)
+    fresh = run({**env, "DEFOCUS_CACHE_DIR": str(tmp_path / "c2")})
+    assert first == memo == fresh and len(first) == 16
+    assert list((tmp_path / "c1" / "scene_hashes").glob("*.json"))
+
+
+def test_cache_root_in_source_checkout_and_installed(tmp_path, monkeypatch):
+    monkeypatch.delenv(storage.CACHE_ENV, raising=False)
+    # this checkout
+    assert default_cache_root() == ROOT / ".cache"
+    checkout = tmp_path / "src"
+    checkout.mkdir()
+    (checkout / "pyproject.toml").write_text("[project]\nname='x'\n")
+    assert default_cache_root(project_root=checkout) == checkout / ".cache"
+    # a normal install: packages in site-packages (no pyproject there) -> the user cache folder
+    import platformdirs
+
+    site = tmp_path / "venv" / "lib" / "python3.11" / "site-packages"
+    site.mkdir(parents=True)
+    got = default_cache_root(project_root=site)
+    assert got == Path(platformdirs.user_cache_dir("defocus-repro", appauthor=False))
+    assert "site-packages" not in got.parts
+    (site / "pyproject.toml").write_text("")  # even a stray pyproject in site-packages is not a checkout
+    assert "site-packages" not in default_cache_root(project_root=site).parts
+    monkeypatch.setenv(storage.CACHE_ENV, str(tmp_path / "mine"))
+    assert default_cache_root(project_root=site) == tmp_path / "mine"
+
+
+def test_cache_root_of_an_installed_copy(tmp_path):
+    """The packages copied into a site-packages folder and imported from there: caches go to the user
+    cache dir, not next to the code."""
+    import shutil
+
+    site = tmp_path / "site-packages"
+    shutil.copytree(ROOT / "scenes", site / "scenes", ignore=shutil.ignore_patterns("__pycache__"))
+    env = {k: v for k, v in os.environ.items() if k != storage.CACHE_ENV}
+    env["PYTHONPATH"] = str(site)
+    env["XDG_CACHE_HOME"] = str(tmp_path / "xdg")
+    out = subprocess.run([sys.executable, "-c", "import scenes.storage as s; print(s.__file__); print(s.default_cache_root())"],
+                         env=env, cwd=tmp_path, capture_output=True, text=True, check=True).stdout.split("\n")
+    assert out[0].startswith(str(site))
+    assert Path(out[1]) == tmp_path / "xdg" / "defocus-repro"

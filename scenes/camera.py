@@ -21,6 +21,7 @@ from .thin_lens import circle_of_confusion, lens_sensor_distance
 
 __all__ = [
     "CAMERA_PRESETS",
+    "PAPER_CAMERAS",
     "SENSORS",
     "Sensor",
     "ThinLensCamera",
@@ -180,8 +181,8 @@ def _lookup_sensor(name: str) -> Sensor:
 #: Relative focal length of the presets: a 50 mm lens on full frame (horizontal FOV ≈ 39.6°).
 _DEFAULT_RELATIVE_FOCAL = 50.0 / 36.0
 
-#: Named cameras: each sensor with a lens giving the full-frame 50 mm field of view, f/8, D = 1.5 m.
-CAMERA_PRESETS: Mapping[str, ThinLensCamera] = MappingProxyType(
+#: Each sensor with a lens giving the full-frame 50 mm field of view, f/8, D = 1.5 m (Eq. 6 comparisons).
+_SAME_FOV_PRESETS: Mapping[str, ThinLensCamera] = MappingProxyType(
     {
         name: ThinLensCamera(
             sensor_width_mm=s.width_mm,
@@ -191,6 +192,32 @@ CAMERA_PRESETS: Mapping[str, ThinLensCamera] = MappingProxyType(
         for name, s in SENSORS.items()
     }
 )
+
+
+#: The paper's cameras with their lenses (Sec. 6): Figs. 5-7 a Canon 1D Mark II with an 85 mm lens (at
+#: f/8 and f/4), Figs. 1, 8 and two rows of Fig. 11 a Canon PowerShot A80 at 7.8 mm (f/2.8), Fig. 11 (a)
+#: a Nikon D50 with a 180 mm lens (f/4.8). Unlike :data:`CAMERA_PRESETS`' same-field-of-view presets,
+#: each keeps its real focal length, so their fields of view differ (18.4°, 49.3°, 7.3° horizontally
+#: at the focus distances below). f-number and focus distance are the paper's; scenes set their own focus.
+PAPER_CAMERAS: Mapping[str, ThinLensCamera] = MappingProxyType(
+    {
+        "canon_1d_mark_ii_85mm": ThinLensCamera(
+            sensor_width_mm=SENSORS["canon_1d_mark_ii"].width_mm,
+            sensor_height_mm=SENSORS["canon_1d_mark_ii"].height_mm,
+            focal_length_mm=85.0, f_number=8.0, focus_distance_m=2.0),
+        "powershot_a80_7_8mm": ThinLensCamera(
+            sensor_width_mm=SENSORS["canon_powershot_a80"].width_mm,
+            sensor_height_mm=SENSORS["canon_powershot_a80"].height_mm,
+            focal_length_mm=7.8, f_number=2.8, focus_distance_m=2.0),
+        "nikon_d50_180mm": ThinLensCamera(
+            sensor_width_mm=SENSORS["nikon_d50"].width_mm,
+            sensor_height_mm=SENSORS["nikon_d50"].height_mm,
+            focal_length_mm=180.0, f_number=4.8, focus_distance_m=6.0),
+    }
+)
+
+#: Every named camera: the same-field-of-view sensor presets and the paper's cameras with their lenses.
+CAMERA_PRESETS: Mapping[str, ThinLensCamera] = MappingProxyType({**_SAME_FOV_PRESETS, **PAPER_CAMERAS})
 
 
 def camera_preset(name: str, **changes) -> ThinLensCamera:

@@ -18,6 +18,8 @@ from collections.abc import Callable
 import numpy as np
 from scipy import ndimage
 
+from .validation import validate_image, validate_sparse_sigma
+
 __all__ = ["BILATERAL_METHODS", "biased_cross_bilateral", "sharpness_bias"]
 
 #: Bilateral-grid cell size as a fraction of the corresponding σ (spatial and range axes).
@@ -199,7 +201,8 @@ def biased_cross_bilateral(sparse_sigma, reference, *, sigma_spatial=0.10, sigma
     Raises
     ------
     ValueError
-        Shape mismatch, NaN/Inf in the reference, Inf or negative σ, bad options.
+        Shape mismatch, NaN/Inf or values outside [0, 1] in the reference (:func:`method.validation.validate_image`),
+        Inf or negative σ (:func:`method.validation.validate_sparse_sigma`), bad options.
 
     Notes
     -----
@@ -220,23 +223,11 @@ def biased_cross_bilateral(sparse_sigma, reference, *, sigma_spatial=0.10, sigma
     if not (isinstance(robust_scale, (int, float, np.floating, np.integer)) and np.isfinite(robust_scale)
             and robust_scale > 0):
         raise ValueError(f"robust_scale={robust_scale!r} is invalid; allowed: finite and > 0")
-    if not isinstance(reference, np.ndarray) or reference.ndim not in (2, 3) or (
-            reference.ndim == 3 and reference.shape[2] != 3):
-        raise ValueError(f"reference must be an HxW or HxWx3 array, got "
-                         f"{getattr(reference, 'shape', type(reference).__name__)}")
-    if not np.issubdtype(reference.dtype, np.floating) or not np.all(np.isfinite(reference)):
-        raise ValueError("reference must be a finite float array with values in [0, 1]")
-    if not isinstance(sparse_sigma, np.ndarray) or sparse_sigma.shape != reference.shape[:2]:
-        raise ValueError(f"sparse_sigma must be an array of shape {reference.shape[:2]} (reference's HxW), "
-                         f"got {getattr(sparse_sigma, 'shape', type(sparse_sigma).__name__)}")
-    if not np.issubdtype(sparse_sigma.dtype, np.floating):
-        raise ValueError(f"sparse_sigma must be float (NaN off edges), got dtype {sparse_sigma.dtype}")
-    if np.any(np.isinf(sparse_sigma)):
-        raise ValueError("sparse_sigma contains Inf; use NaN to mark non-edge pixels")
+    ref = validate_image(reference, name="reference", min_side=1)
+    sparse_sigma = validate_sparse_sigma(sparse_sigma, ref.shape)
     for name, v in (("sigma_spatial", sigma_spatial), ("sigma_range", sigma_range), ("bias_scale", bias_scale)):
         if not (isinstance(v, (int, float, np.floating, np.integer)) and np.isfinite(v) and v > 0):
             raise ValueError(f"{name}={v!r} is invalid; allowed: finite and > 0")
-    ref = reference.astype(np.float64, copy=False)
     if ref.ndim == 2:
         ref = ref[..., None]
     h, w = sparse_sigma.shape
@@ -244,9 +235,7 @@ def biased_cross_bilateral(sparse_sigma, reference, *, sigma_spatial=0.10, sigma
     edge = np.isfinite(sparse_sigma)
     if not edge.any():
         return out
-    values = sparse_sigma[edge].astype(np.float64)
-    if float(values.min()) < 0:
-        raise ValueError(f"sparse_sigma must be >= 0 (blur σ, px), got min {float(values.min()):.6g}")
+    values = sparse_sigma[edge]
     ys, xs = np.nonzero(edge)
     colors = ref[edge]
     bias = (np.exp(-(values - values.min()) / float(bias_scale)) if sharpness_bias

@@ -22,40 +22,84 @@ MIN_IMAGE_SIDE = 8
 RANGE_SLACK = 1e-6
 
 
-def validate_image(image, *, name="image") -> np.ndarray:
-    """Check an image and return it as float64 (HxW or HxWx3, values in [0, 1]).
+def validate_image(image, *, name="image", min_side=MIN_IMAGE_SIDE, channels=(3,)) -> np.ndarray:
+    """Check an image and return it as float64 (HxW or HxWxC, values in [0, 1]).
+
+    The one image check of :mod:`method`: the pipeline's input, the guide of Eq. (3) and of the
+    propagation, the magnified photo all go through it, so every entry point accepts and rejects
+    the same arrays with the same messages.
 
     Parameters
     ----------
-    image : ndarray, HxW or HxWx3, float
-        Values in [0, 1].
+    image : ndarray, HxW or HxWxC, float
+        Values in [0, 1] (up to :data:`RANGE_SLACK` round-off, clipped).
     name : str, keyword-only
         What to call the array in error messages.
+    min_side : int, keyword-only
+        Smallest accepted side, px (default :data:`MIN_IMAGE_SIDE`; a stage that works on any
+        size, e.g. the cross-bilateral filter, passes a smaller one).
+    channels : tuple of int, keyword-only
+        Accepted channel counts C of a 3-D array (default: 3, RGB).
+
+    Returns
+    -------
+    ndarray, float64, same shape
 
     Raises
     ------
     ValueError
         Not a numpy array; wrong number of dimensions or channels; not a floating dtype;
-        NaN or Inf; values outside [0, 1]; a side shorter than :data:`MIN_IMAGE_SIDE`.
+        NaN or Inf; values outside [0, 1]; a side shorter than ``min_side``.
     """
     if not isinstance(image, np.ndarray):
         raise ValueError(f"{name} must be a numpy array, got {type(image).__name__}")
-    if image.ndim not in (2, 3) or (image.ndim == 3 and image.shape[2] != 3):
-        raise ValueError(f"{name} must have shape HxW or HxWx3, got {image.shape}")
+    if image.ndim not in (2, 3) or (image.ndim == 3 and image.shape[2] not in channels):
+        shapes = " or ".join(["HxW", *(f"HxWx{c}" for c in channels)])
+        raise ValueError(f"{name} must have shape {shapes}, got {image.shape}")
     if not np.issubdtype(image.dtype, np.floating):
         raise ValueError(
             f"{name} must be a float array with values in [0, 1], got dtype {image.dtype} "
             "(divide integer images by their maximum code value, e.g. 255)"
         )
     h, w = image.shape[:2]
-    if min(h, w) < MIN_IMAGE_SIDE:
-        raise ValueError(f"{name} is {w}x{h} px; the smallest supported side is {MIN_IMAGE_SIDE} px")
+    if min(h, w) < min_side:
+        raise ValueError(f"{name} is {w}x{h} px; the smallest supported side is {min_side} px")
     if not np.all(np.isfinite(image)):
         raise ValueError(f"{name} contains NaN or Inf values")
     lo, hi = float(image.min()), float(image.max())
     if lo < -RANGE_SLACK or hi > 1 + RANGE_SLACK:
         raise ValueError(f"{name} values must lie in [0, 1], got [{lo:.6g}, {hi:.6g}]")
     return np.clip(image.astype(np.float64, copy=False), 0.0, 1.0)
+
+
+def validate_sparse_sigma(sparse_sigma, shape, *, name="sparse_sigma") -> np.ndarray:
+    """Check a sparse blur measure (HxW float, σ ≥ 0 px at edges, NaN elsewhere) and return it as float64.
+
+    Parameters
+    ----------
+    sparse_sigma : ndarray, HxW, float
+        Blur σ, px, at edge pixels; NaN marks the other pixels.
+    shape : tuple
+        Shape of the image it belongs to (its first two entries must match).
+    name : str, keyword-only
+
+    Raises
+    ------
+    ValueError
+        Not an array; shape mismatch; not floating; Inf; a negative σ.
+    """
+    if not isinstance(sparse_sigma, np.ndarray):
+        raise ValueError(f"{name} must be a numpy array, got {type(sparse_sigma).__name__}")
+    if sparse_sigma.shape != tuple(shape[:2]):
+        raise ValueError(f"{name} has shape {sparse_sigma.shape}, expected {tuple(shape[:2])} (the image's HxW)")
+    if not np.issubdtype(sparse_sigma.dtype, np.floating):
+        raise ValueError(f"{name} must be float (NaN off edges), got dtype {sparse_sigma.dtype}")
+    if np.any(np.isinf(sparse_sigma)):
+        raise ValueError(f"{name} contains Inf; use NaN to mark non-edge pixels")
+    finite = sparse_sigma[np.isfinite(sparse_sigma)]
+    if finite.size and float(finite.min()) < 0:
+        raise ValueError(f"{name} must be >= 0 (blur σ, px), got min {float(finite.min()):.6g}")
+    return sparse_sigma.astype(np.float64, copy=False)
 
 
 def validate_map(defocus_map, shape, *, name="defocus_map") -> np.ndarray:

@@ -81,6 +81,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .validation import check_positive, validate_propagation_inputs
+
 __all__ = [
     "MATTING_SOLVERS",
     "matting_system",
@@ -110,50 +112,6 @@ def _pymatting():
 # --------------------------------------------------------------------------------------------
 # validation
 # --------------------------------------------------------------------------------------------
-def _as_reference(reference) -> np.ndarray:
-    """HxWx3 float64 C-contiguous guide (grey / HxWx1 repeated to 3 channels)."""
-    if not isinstance(reference, np.ndarray):
-        raise ValueError(f"reference must be a numpy array, got {type(reference).__name__}")
-    if reference.ndim == 2:
-        reference = reference[..., None]
-    if reference.ndim != 3 or reference.shape[2] not in (1, 3):
-        raise ValueError(f"reference must have shape HxW or HxWx3, got {reference.shape}")
-    if not np.issubdtype(reference.dtype, np.floating):
-        raise ValueError(f"reference must be a float array in [0, 1], got dtype {reference.dtype}")
-    if not np.all(np.isfinite(reference)):
-        raise ValueError("reference contains NaN or Inf values; allowed: finite floats in [0, 1]")
-    if reference.shape[2] == 1:
-        reference = np.repeat(reference, 3, axis=2)
-    return np.ascontiguousarray(reference, dtype=np.float64)
-
-
-def _as_sparse_sigma(sparse_sigma, shape) -> np.ndarray:
-    if not isinstance(sparse_sigma, np.ndarray):
-        raise ValueError(f"sparse_sigma must be a numpy array, got {type(sparse_sigma).__name__}")
-    if sparse_sigma.shape != shape:
-        raise ValueError(f"sparse_sigma has shape {sparse_sigma.shape}, expected {shape} (reference's HxW)")
-    if not np.issubdtype(sparse_sigma.dtype, np.floating):
-        raise ValueError(f"sparse_sigma must be float (NaN off edges), got dtype {sparse_sigma.dtype}")
-    if np.any(np.isinf(sparse_sigma)):
-        raise ValueError("sparse_sigma contains Inf; allowed: finite σ >= 0 px, NaN where there is no estimate")
-    finite = sparse_sigma[np.isfinite(sparse_sigma)]
-    if finite.size and float(finite.min()) < 0:
-        raise ValueError(f"sparse_sigma must be >= 0 (blur σ, px), got min {float(finite.min()):.6g}")
-    return sparse_sigma.astype(np.float64, copy=False)
-
-
-def _check_positive(name, value) -> float:
-    if isinstance(value, bool):
-        raise ValueError(f"{name}={value!r} is invalid; allowed: a finite number > 0")
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}={value!r} is invalid; allowed: a finite number > 0") from None
-    if not (np.isfinite(v) and v > 0):
-        raise ValueError(f"{name}={value!r} is invalid; allowed: a finite number > 0")
-    return v
-
-
 def _check_int(name, value, minimum) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
         raise ValueError(f"{name}={value!r} is invalid; allowed: integer >= {minimum}")
@@ -161,10 +119,14 @@ def _check_int(name, value, minimum) -> int:
 
 
 def _validate(sparse_sigma, reference, lam, epsilon, radius):
-    ref = _as_reference(reference)
-    sparse_sigma = _as_sparse_sigma(sparse_sigma, ref.shape[:2])
-    lam = _check_positive("lam", lam)
-    epsilon = _check_positive("epsilon", epsilon)
+    """The same input rules as :mod:`method.propagation` (:func:`validate_propagation_inputs`); the
+    guide as an HxWx3 float64 C-contiguous array (a grey / HxWx1 guide repeated to 3 channels)."""
+    sparse_sigma, ref = validate_propagation_inputs(sparse_sigma, reference)
+    if ref.shape[2] == 1:
+        ref = np.repeat(ref, 3, axis=2)
+    ref = np.ascontiguousarray(ref)
+    lam = check_positive("lam", lam)
+    epsilon = check_positive("epsilon", epsilon)
     radius = _check_int("radius", radius, 1)
     side = 2 * radius + 1
     if min(ref.shape[:2]) < side:
@@ -360,7 +322,7 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
     sparse_sigma, ref, lam, epsilon, radius = _validate(sparse_sigma, reference, lam, epsilon, radius)
     if not isinstance(solver, str) or solver not in MATTING_SOLVERS:
         raise ValueError(f"solver={solver!r} is unknown; allowed: {sorted(MATTING_SOLVERS)}")
-    tol = _check_positive("tol", tol)
+    tol = check_positive("tol", tol)
     if not tol < 1:
         raise ValueError(f"tol={tol!r} is invalid; allowed: 0 < tol < 1")
     max_iterations = _check_int("max_iterations", max_iterations, 1)

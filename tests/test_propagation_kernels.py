@@ -1,10 +1,13 @@
-"""The matrix-free numba kernels of method.propagation agree with the assembled Eq. (4) system."""
+"""The matrix-free numba kernels (method.propagation_matrix_free) agree with the assembled Eq. (4) system."""
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
 from method import propagation as P
+from method import propagation_matrix_free as MF
+from method import propagation_solvers as S
+from method import propagation_system as E
 
 
 def _case(rng, h, w):
@@ -19,23 +22,23 @@ def test_matrix_free_operator_matches_assembled(neighborhood, shape):
     rng = np.random.default_rng(11)
     h, w = shape
     ref, bm = _case(rng, h, w)
-    A, _ = P.normal_equations(bm, ref, neighborhood=neighborhood)
-    a, _, lam, _ = P._data_term(bm, 0.5, 1e-6)
-    weights, offs = P._padded_weights(ref, 7, neighborhood, 1e-6, dtype=np.float64)
+    A, _ = E.normal_equations(bm, ref, neighborhood=neighborhood)
+    a, _, lam, _ = E._data_term(bm, 0.5, 1e-6)
+    weights, offs = E._padded_weights(ref, 7, neighborhood, 1e-6, dtype=np.float64)
     r = neighborhood // 2
     x = rng.standard_normal((h, w))
     xp = np.zeros((h + 2 * r, w + 2 * r))
     xp[r:r + h, r:r + w] = x
     q = np.zeros_like(xp)
     rowdot = np.zeros(h)
-    P._apply_normal(xp, weights, offs, (a + lam).reshape(h, w), q, rowdot)
+    MF._apply_normal(xp, weights, offs, (a + lam).reshape(h, w), q, rowdot)
     expected = (A @ x.ravel()).reshape(h, w)
     np.testing.assert_allclose(q[r:r + h, r:r + w], expected, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(rowdot, np.sum(x * expected, axis=1), rtol=1e-10, atol=1e-12)
     # the padding stays zero
     assert not q[:r].any() and not q[-r:].any() and not q[:, :r].any() and not q[:, -r:].any()
     diag = np.zeros_like(xp)
-    P._normal_diagonal(weights, offs, (a + lam).reshape(h, w), r, diag)
+    MF._normal_diagonal(weights, offs, (a + lam).reshape(h, w), r, diag)
     np.testing.assert_allclose(diag[r:r + h, r:r + w].ravel(), A.diagonal(), rtol=1e-12)
 
 
@@ -43,10 +46,10 @@ def test_matrix_free_cg_solves_the_system():
     rng = np.random.default_rng(5)
     h, w = 40, 45
     ref, bm = _case(rng, h, w)
-    A, rhs = P.normal_equations(bm, ref)
-    a, _, lam, _ = P._data_term(bm, 0.5, 1e-6)
-    weights, offs = P._padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
-    x, res = P._jacobi_pcg_matrix_free(weights, offs, (a + lam).reshape(h, w), rhs.reshape(h, w),
+    A, rhs = E.normal_equations(bm, ref)
+    a, _, lam, _ = E._data_term(bm, 0.5, 1e-6)
+    weights, offs = E._padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
+    x, res = MF.jacobi_pcg(weights, offs, (a + lam).reshape(h, w), rhs.reshape(h, w),
                                        np.zeros((h, w)), maxiter=5000, tol=1e-9)
     assert res <= 1e-9
     assert np.linalg.norm(A @ x.ravel() - rhs) <= 2e-9 * np.linalg.norm(rhs)
@@ -56,8 +59,8 @@ def test_float32_weights_close_to_float64():
     """The refinement stores the affinities in float32 (half the memory traffic); they round to 6e-8."""
     rng = np.random.default_rng(2)
     ref, _ = _case(rng, 50, 60)
-    w32, _ = P._padded_weights(ref, 7, 3, 1e-6)
-    w64, _ = P._padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
+    w32, _ = E._padded_weights(ref, 7, 3, 1e-6)
+    w64, _ = E._padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
     assert w32.dtype == np.float32
     np.testing.assert_allclose(w32, w64, rtol=1e-7, atol=1e-8)
 
@@ -72,7 +75,7 @@ def _csr(t, shape):
 def test_bilinear_is_the_start_map_interpolation_and_its_transpose(n, s):
     rng = np.random.default_rng(1)
     nc = -(-n // s)
-    fwd, tr = P._bilinear_1d(n, nc, s)
+    fwd, tr = MF.bilinear_1d(n, nc, s)
     P1, T1 = _csr(fwd, (n, nc)), _csr(tr, (nc, n))
     assert abs(T1 - P1.T).max() == 0
     np.testing.assert_allclose(np.asarray(P1.sum(axis=1)).ravel(), 1.0, rtol=1e-15)  # partition of unity
@@ -86,18 +89,18 @@ def test_fused_direction_and_apply_bit_identical(neighborhood, shape):
     rng = np.random.default_rng(4)
     h, w = shape
     ref, bm = _case(rng, h, w)
-    a, _, lam, _ = P._data_term(bm, 0.5, 1e-6)
+    a, _, lam, _ = E._data_term(bm, 0.5, 1e-6)
     a_diag = (a + lam).reshape(h, w)
-    weights, offs = P._padded_weights(ref, 7, neighborhood, 1e-6)
+    weights, offs = E._padded_weights(ref, 7, neighborhood, 1e-6)
     r = neighborhood // 2
     pad = lambda v: np.pad(v, r)
     z, p_old = pad(rng.standard_normal((h, w))), pad(rng.standard_normal((h, w)))
     beta = 0.37
     p_new, q, rowdot = np.zeros_like(z), np.zeros_like(z), np.zeros(h)
-    P._direction_and_apply(z, p_old, beta, weights, offs, a_diag, p_new, q, rowdot)
+    MF._direction_and_apply(z, p_old, beta, weights, offs, a_diag, p_new, q, rowdot)
     p_ref, q_ref, rowdot_ref = p_old.copy(), np.zeros_like(z), np.zeros(h)
-    P._new_direction(z, p_ref, beta, r)
-    P._apply_normal(p_ref, weights, offs, a_diag, q_ref, rowdot_ref)
+    MF._new_direction(z, p_ref, beta, r)
+    MF._apply_normal(p_ref, weights, offs, a_diag, q_ref, rowdot_ref)
     np.testing.assert_array_equal(p_new, p_ref)
     np.testing.assert_array_equal(q, q_ref)
     np.testing.assert_array_equal(rowdot, rowdot_ref)
@@ -111,15 +114,15 @@ def test_step_restrict_and_precondition_match_sparse_algebra(shape, s):
     h, w = shape
     r = 1
     hc, wc = -(-h // s), -(-w // s)
-    fy, ty = P._bilinear_1d(h, hc, s)
-    fx, tx = P._bilinear_1d(w, wc, s)
+    fy, ty = MF.bilinear_1d(h, hc, s)
+    fx, tx = MF.bilinear_1d(w, wc, s)
     Pfull = sp.kron(_csr(fy, (h, hc)), _csr(fx, (w, wc))).tocsr()
     pad = lambda v: np.pad(v, r)
     x, res, p, q = (pad(rng.standard_normal((h, w))) for _ in range(4))
     x0, res0 = x.copy(), res.copy()
     res_new, tmp, r_c, rowsq = np.zeros_like(res), np.zeros((hc, w)), np.zeros((hc, wc)), np.zeros(h)
     step = 0.3
-    P._step_and_restrict(x, res, res_new, p, q, step, r, s, *ty, *tx, tmp, r_c, rowsq)
+    MF._step_and_restrict(x, res, res_new, p, q, step, r, s, *ty, *tx, tmp, r_c, rowsq)
     inner = (slice(r, r + h), slice(r, r + w))
     np.testing.assert_array_equal(x[inner], x0[inner] + step * p[inner])
     np.testing.assert_array_equal(res, res0)  # the old buffer is left alone
@@ -130,9 +133,9 @@ def test_step_restrict_and_precondition_match_sparse_algebra(shape, s):
     dinv = pad(rng.random((h, w)) + 0.5)
     e_c = rng.standard_normal((hc, wc))
     e_x = np.zeros((hc, w))
-    P._interpolate_x(e_c, *fx, e_x)
+    MF._interpolate_x(e_c, *fx, e_x)
     z, rowdot = np.zeros_like(res), np.zeros(h)
-    P._precondition(res_new, dinv, e_x, r, *fy, z, rowdot)
+    MF._precondition(res_new, dinv, e_x, r, *fy, z, rowdot)
     expected = dinv[inner] * res_new[inner] + (Pfull @ e_c.ravel()).reshape(h, w)
     np.testing.assert_allclose(z[inner], expected, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(rowdot, np.sum(res_new[inner] * expected, axis=1), rtol=1e-10, atol=1e-12)
@@ -149,13 +152,13 @@ def test_two_level_cg_solves_the_system(setup):
     rng = np.random.default_rng(5)
     h, w, s = 60, 75, 4
     ref, bm = _case(rng, h, w)
-    A, rhs = P.normal_equations(bm, ref)
-    a, _, lam, _ = P._data_term(bm, 0.5, 1e-6)
-    weights, offs = P._padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
-    ref_c, bm_c, a_c = P._coarse_problem(bm, ref, s, 0.5)
-    A_c = P._assemble(P.colorization_matrix(ref_c), a_c.ravel(), 1e-6 * 0.5 * s * s)
-    coarse = P._COARSE_SETUPS[setup](A_c)
-    x, res = P._two_level_pcg_matrix_free(weights, offs, (a + lam).reshape(h, w), rhs.reshape(h, w),
+    A, rhs = E.normal_equations(bm, ref)
+    a, _, lam, _ = E._data_term(bm, 0.5, 1e-6)
+    weights, offs = E._padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
+    ref_c, bm_c, a_c = E._coarse_problem(bm, ref, s, 0.5)
+    A_c = E._assemble(E.colorization_matrix(ref_c), a_c.ravel(), 1e-6 * 0.5 * s * s)
+    coarse = S.COARSE_SETUPS[setup](A_c)
+    x, res = MF.two_level_pcg(weights, offs, (a + lam).reshape(h, w), rhs.reshape(h, w),
                                           np.zeros((h, w)), coarse=coarse, s=s,
                                           coarse_shape=bm_c.shape, maxiter=2000, tol=1e-10)
     assert res <= 1e-10

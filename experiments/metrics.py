@@ -124,7 +124,9 @@ def textured_mask(image, *, window=7, threshold=0.02) -> np.ndarray:
     from scipy.ndimage import uniform_filter
 
     img = np.asarray(image, dtype=np.float64)
-    gray = img if img.ndim == 2 else img @ np.array([0.2126, 0.7152, 0.0722])
+    from method.luma import LUMA_WEIGHTS
+
+    gray = img if img.ndim == 2 else img @ np.asarray(LUMA_WEIGHTS)
     mean = uniform_filter(gray, window, mode="reflect")
     var = np.maximum(uniform_filter(gray**2, window, mode="reflect") - mean**2, 0.0)
     return np.sqrt(var) > threshold

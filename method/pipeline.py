@@ -22,15 +22,13 @@ import numpy as np
 from .blur_estimators import estimate_blur
 from .cross_bilateral import biased_cross_bilateral
 from .elder_zucker_edges import EdgeMap, detect_edges
+from .luma import LUMA_WEIGHTS, luminance  # noqa: F401 (LUMA_WEIGHTS re-exported)
 from .params import DefocusParams
 from .propagation_methods import propagate_blur_measures
 from .validation import validate_image
 
 __all__ = ["DefocusResult", "NoEdgesWarning", "edge_confidence", "estimate_defocus_map", "luminance",
            "propagate_stage", "refine_stage"]
-
-#: Rec. 709 luma weights applied to the (encoded) RGB values to get the edge detector's input.
-LUMA_WEIGHTS = (0.2126, 0.7152, 0.0722)
 
 STAGES = ("edges", "blur_at_edges", "cross_bilateral", "propagation")
 
@@ -53,23 +51,6 @@ class DefocusResult:
     cpu_timings: dict = dataclasses.field(default_factory=dict)
     # CPU seconds of the whole process (all threads: numba, FFT workers) per stage and "total"
     # (time.process_time); with ``timings`` it shows the algorithmic cost on a shared machine.
-
-
-def luminance(image) -> np.ndarray:
-    """Grey image the edge detector sees: Rec. 709 weights on the given (encoded) RGB values.
-
-    Parameters
-    ----------
-    image : ndarray, HxW or HxWx3, float in [0, 1]
-
-    Returns
-    -------
-    ndarray, HxW, float64 in [0, 1]
-    """
-    image = np.asarray(image, dtype=np.float64)
-    if image.ndim == 2:
-        return image
-    return np.clip(image @ np.asarray(LUMA_WEIGHTS), 0.0, 1.0)
 
 
 def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] | None = None) -> DefocusResult:

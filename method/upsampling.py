@@ -23,6 +23,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy import ndimage
 
+from .luma import LUMA_WEIGHTS
 from .validation import MIN_IMAGE_SIDE, validate_image
 
 __all__ = [
@@ -56,8 +57,6 @@ GUIDED_RADIUS = 2
 #: luminance std above √eps ≈ 0.03 are followed, weaker texture is averaged over.
 GUIDED_EPS = 1e-3
 
-#: Rec. 709 luma weights (as :func:`method.pipeline.luminance`) for the guide image.
-_LUMA = np.array([0.2126, 0.7152, 0.0722])
 
 #: Rows of the full-resolution output computed at once (bounds temporary memory to a few strips).
 _STRIP_ROWS = 512
@@ -233,7 +232,7 @@ def _box(a: np.ndarray, r: int) -> np.ndarray:
 
 
 def _guide(image: np.ndarray) -> np.ndarray:
-    return image if image.ndim == 2 else image @ _LUMA
+    return image if image.ndim == 2 else image @ np.asarray(LUMA_WEIGHTS)
 
 
 def guided_upsample(low_map, low_image, full_image, *, radius=GUIDED_RADIUS, eps=GUIDED_EPS) -> np.ndarray:

@@ -1,0 +1,36 @@
+"""Each shared rule is defined once: luma weights, the image check, code fingerprints for caches."""
+
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("method", "scenes", "experiments", "repro")
+
+
+def _sources():
+    for pkg in PACKAGES:
+        yield from sorted((ROOT / pkg).rglob("*.py"))
+
+
+def test_luma_weights_written_once():
+    where = [p.relative_to(ROOT).as_posix() for p in _sources()
+             if any(w in p.read_text() for w in ("0.2126", "0.7152", "0.299", "0.587"))]
+    assert where == ["method/luma.py"]
+
+
+def test_luminance_is_the_weighted_sum():
+    from method import luminance
+    from method.luma import LUMA_WEIGHTS
+
+    img = np.random.default_rng(0).random((9, 8, 3))
+    np.testing.assert_allclose(luminance(img), img @ np.array(LUMA_WEIGHTS))
+    assert sum(LUMA_WEIGHTS) == 1.0
+    np.testing.assert_array_equal(luminance(np.array([[[1.0, 0.0, 0.0]]])), [[0.2126]])
+
+
+def test_cache_fingerprints_only_in_the_cache_layer():
+    """hashlib-based code fingerprints (getsource, hashing .py files) live in scenes/storage.py only."""
+    where = [p.relative_to(ROOT).as_posix() for p in _sources()
+             if "getsource" in p.read_text() or 'glob("*.py")' in p.read_text() or "rglob(\"*.py\")" in p.read_text()]
+    assert where == ["scenes/storage.py"]

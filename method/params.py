@@ -148,6 +148,17 @@ class DefocusParams:
                 bad(name, "non-empty tuple of positive scales (px)")
             object.__setattr__(self, name, tuple(sorted(scales)))
         if not self.noise_std > 0:
+        def check_name(name, registry):  # a variant chosen by name: allowed = the registry's keys
+            if not isinstance(getattr(self, name), str) or getattr(self, name) not in registry:
+                bad(name, sorted(registry))
+
+        # The registries define the allowed names (lazy: they import this module's users).
+        from .blur_estimators import BLUR_ESTIMATORS
+        from .cross_bilateral import BILATERAL_METHODS, RANGE_KERNELS
+        from .magnification import MAP_FLOOR_MODES
+        from .propagation import PROPAGATION_REFINEMENTS, PROPAGATION_SOLVERS
+        from .propagation_methods import PROPAGATION_METHODS
+
             bad("noise_std", "> 0")
         if not 0 < self.false_positive_rate < 1:
             bad("false_positive_rate", "0 < α_I < 1")
@@ -165,10 +176,9 @@ class DefocusParams:
             bad("bilateral_sigma_range", "> 0")
         if not self.bias_scale > 0:
             bad("bias_scale", "> 0")
-        if self.bilateral_method not in ("grid", "brute_force"):
-            bad("bilateral_method", "'grid' or 'brute_force'")
-        if self.bilateral_range_kernel not in ("sum", "product"):
-            bad("bilateral_range_kernel", "'sum' or 'product'")
+        check_name("estimator", BLUR_ESTIMATORS)
+        check_name("bilateral_method", BILATERAL_METHODS)
+        check_name("bilateral_range_kernel", RANGE_KERNELS)
         if self.bias_reference not in ("px", "image_fraction"):
             bad("bias_reference", "'px' or 'image_fraction'")
         if not (isinstance(self.refinement_robust_iterations, int) and not isinstance(self.refinement_robust_iterations, bool)
@@ -190,9 +200,7 @@ class DefocusParams:
             bad("matting_lambda", "> 0")
         if not self.matting_epsilon > 0:
             bad("matting_epsilon", "> 0")
-        from .propagation_methods import PROPAGATION_METHODS  # lazy: the registry imports this module's users
-        if self.propagation not in PROPAGATION_METHODS:
-            bad("propagation", sorted(PROPAGATION_METHODS))
+        check_name("propagation", PROPAGATION_METHODS)
         if self.propagation == "matting_laplacian" and self.alpha_confidence != "none":
             bad("alpha_confidence", "'none' with propagation='matting_laplacian' (its data term has no per-edge weight)")
         if not self.alpha > 0:
@@ -208,16 +216,13 @@ class DefocusParams:
         ds = self.propagation_downsample
         if not (ds == "auto" or (isinstance(ds, int) and ds >= 1 and (ds & (ds - 1)) == 0)):
             bad("propagation_downsample", "'auto' or a power of two >= 1")
-        if self.propagation_refinement not in ("two_level", "jacobi"):
-            bad("propagation_refinement", "'two_level' or 'jacobi'")
-        if self.propagation_solver not in ("amg_pcg", "direct"):
-            bad("propagation_solver", "'amg_pcg' or 'direct'")
+        check_name("propagation_refinement", PROPAGATION_REFINEMENTS)
+        check_name("propagation_solver", PROPAGATION_SOLVERS)
         if not 0 <= self.map_clip_percent < 50:
             bad("map_clip_percent", "0 <= p < 50")
         if not self.map_smoothing >= 0:
             bad("map_smoothing", ">= 0")
-        if self.map_floor not in ("clamp", "subtract", "shift"):
-            bad("map_floor", "'clamp', 'subtract' or 'shift' (method.magnification.MAP_FLOOR_MODES)")
+        check_name("map_floor", MAP_FLOOR_MODES)
 
     def replace(self, **changes) -> "DefocusParams":
         """A validated copy with some fields changed."""

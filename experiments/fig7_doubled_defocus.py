@@ -56,16 +56,21 @@ import numpy as np
 
 from .registry import Figure
 
-__all__ = ["FIGURE", "FULL", "QUICK", "Fig7Config", "compute"]
+__all__ = ["FIGURE", "FULL", "QUICK", "Fig7Config", "compute", "compute_set"]
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class Fig7Config:
     """Every parameter of Fig. 7."""
 
-    scenes: tuple[str, ...] = ("portrait", "planes")
+    scenes: tuple[str, ...] = ("portrait_garden", "heron_at_the_lake")
     # scenes rendered at both apertures; the first is plotted. Scenes with large depth differences
-    # (planes, portrait) make the doubling visible.
+    # make the doubling visible.
+    scene_set: str = "paper_cameras"
+    # name of the scenes.SCENE_SETS entry ``scenes`` is drawn from (the flat metrics describe it).
+    other_scene_sets: tuple = (("tabletop_stress", (("scenes", ("portrait", "planes")),)),)
+    # further scene sets computed the same way: (set name, ((config field, value), ...)) overrides;
+    # their metrics go to metrics["scene_sets"][name], arrays to "<name>__<key>" (experiments.scene_sets).
     preset: str = "full"
     # render preset: "small" (160x120 px) or "full" (640x480 px).
     f_number_small_aperture: float = 8.0
@@ -245,7 +250,21 @@ def scene_case(name, config) -> tuple[dict, dict, dict]:
 
 
 def compute(config: Fig7Config) -> dict:
-    """Doubled-defocus experiment on every scene of ``config``.
+    """:func:`compute_set` on the default scene set and on each of ``config.other_scene_sets``.
+
+    Returns
+    -------
+    dict
+        :func:`compute_set`'s arrays and metrics for ``config.scenes``, plus ``metrics["scene_set"]``,
+        ``metrics["scene_sets"][name]`` and arrays ``<name>__<key>`` (:mod:`experiments.scene_sets`).
+    """
+    from .scene_sets import compute_scene_sets
+
+    return compute_scene_sets(compute_set, config)
+
+
+def compute_set(config: Fig7Config) -> dict:
+    """Doubled-defocus experiment on every scene of ``config`` (one scene set).
 
     Parameters
     ----------
@@ -298,5 +317,5 @@ FIGURE = Figure(
     compute=compute,
     plot="experiments.plotting.fig7:plot",
     configs={"quick": QUICK, "full": FULL},
-    version=3,
+    version=4,
 )

@@ -256,7 +256,7 @@ def _heron_shapes() -> dict:
 HERON_AT_THE_LAKE = SceneDefinition(
     name="heron_at_the_lake",
     version=1,
-    description="sun-lit heron at 6 m among reeds at 4.2-4.8 m and 8-12 m, lake surface receding 7-40 m, "
+    description="sun-lit heron at 6 m among reeds at 4.2-4.8 m and 8-12 m, lake surface receding 7-30 m, "
     "far shore at 30 m (Nikon D50, 180 mm)",
     focus_distance_m=_HL_D,
     shapes=_heron_shapes,

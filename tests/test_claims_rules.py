@@ -343,3 +343,15 @@ def test_claim_matrix_covers_every_preset_and_scene_set():
     # metrics without any scene-set key: one unnamed set
     assert list(claim_matrix(fig10())) == [("paper", None)]
     assert list(claim_matrix({})) == [("paper", None)]
+
+
+def test_bias_outliers_reads_the_outlier_scenes_fig5_names():
+    m = fig5(outliers=((0.2, 0.1),))
+    summary = m["fig5"]["metrics"]["summary"]
+    summary["patio_table_f8"] = summary.pop("shadow_gloss_0")
+    summary["planes_f8"] = {"before.in_focus_outlier_fraction": 0.3, "after_bias.in_focus_outlier_fraction": 0.3,
+                            "before.mae": 1.0, "after_bias.mae": 0.95}
+    assert _verdict(m, "bias_removes_outliers") == "not evaluated"  # no shadow_gloss case, no names given
+    m["fig5"]["metrics"]["outlier_scenes"] = ["patio_table"]
+    v = _v(m, "bias_removes_outliers")
+    assert v.verdict == "reproduced" and v.numbers["judged"] == ["patio_table_f8"]  # the control is not judged

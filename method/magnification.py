@@ -32,7 +32,7 @@ import numpy as np
 from scipy import fft as sfft
 from scipy import ndimage
 
-__all__ = ["MAGNIFICATION_KERNELS", "MAP_FLOOR_MODES", "magnify_defocus", "preprocess_defocus_map"]
+__all__ = ["MAGNIFICATION_KERNELS", "MAP_FLOOR_MODES", "check_extra_blur", "magnify_defocus", "preprocess_defocus_map"]
 
 #: Ratio between the σ of consecutive blur-stack levels (levels 0, 0.5 px, 0.5·√2 px, ...).
 LEVEL_RATIO = 2.0**0.5
@@ -236,6 +236,45 @@ def _blur_stack_apply(image, sigma_extra, kernel, *, spectral_filter=None):
     return out
 
 
+def check_extra_blur(factor: float, defocus_map: np.ndarray, shape, *, name: str = "factor") -> float:
+    """Largest extra blur σ_e = √(factor² − 1)·max B, px; ValueError when it exceeds the image's longer side.
+
+    A Gaussian (or disk) wider than the image already averages the whole image, so a larger σ_e
+    changes nothing visible while the blur stack's memory grows with it (``--factor 1e9`` asked for
+    σ_e ≈ 10⁹ px and was killed for memory).
+
+    Parameters
+    ----------
+    factor : float
+        Magnification factor, ≥ 1.
+    defocus_map : ndarray, HxW
+        The (preprocessed) blur map B, px, ≥ 0.
+    shape : tuple
+        Shape of the whole image (H, W, ...).
+    name : str, keyword-only
+        What to call the factor in the message (a CLI passes its flag).
+
+    Returns
+    -------
+    float
+        max σ_e, px.
+
+    Raises
+    ------
+    ValueError
+        max σ_e > max(H, W); the message gives the largest factor this map allows.
+    """
+    top_b = float(np.max(defocus_map, initial=0.0))
+    extra = float(np.sqrt(factor * factor - 1.0)) * top_b
+    limit = float(max(shape[:2]))
+    if extra > limit:
+        k_max = float(np.sqrt(1.0 + (limit / top_b) ** 2))
+        raise ValueError(f"{name} {factor:g} is too large for this image: the extra blur would reach σ = {extra:.3g} px, "
+                         f"more than the image's {int(limit)} px side; allowed: factor <= {k_max:.4g} for this "
+                         f"defocus map (max σ {top_b:.3g} px)")
+    return extra
+
+
 def magnify_defocus(image, defocus_map, *, factor=2.0, kernel="gaussian", clip_percent=5.0,
                     smoothing=0.005, floor="clamp", preprocess=True) -> np.ndarray:
     """Magnify the defocus of a photo: blur each pixel so its total blur is factor·B(p) (Sec. 5).
@@ -270,7 +309,7 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel="gaussian", clip_p
     ------
     ValueError
         Bad image, map shape mismatch, NaN/Inf, negative map without preprocessing, factor < 1,
-        unknown kernel, unknown floor.
+        unknown kernel, unknown floor, an extra blur σ_e above the image size (:func:`check_extra_blur`).
 
     Notes
     -----
@@ -306,6 +345,7 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel="gaussian", clip_p
         m = preprocess_defocus_map(m, clip_percent=clip_percent, smoothing=smoothing, floor=floor)
     elif m.size and float(m.min()) < 0:
         raise ValueError(f"defocus_map must be >= 0 (blur σ, px) when preprocess=False, got min {float(m.min()):.6g}")
+    check_extra_blur(factor, m, image.shape)
     image64 = image.astype(np.float64, copy=False)
     sigma_extra = np.sqrt(factor * factor - 1.0) * m
     if factor == 1.0 or not np.any(sigma_extra > 0):

@@ -444,7 +444,7 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel="gaussian", 
        FFT round-off (and, rarely, a blur-stack level a tile does not build: ≲ 1e-3 of a level
        difference).
     """
-    from .magnification import magnify_defocus, preprocess_defocus_map
+    from .magnification import check_extra_blur, magnify_defocus, preprocess_defocus_map
 
     m = np.asarray(defocus_map, dtype=np.float64)
     if preprocess:
@@ -466,6 +466,7 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel="gaussian", 
         return call(image, m)  # let the magnifier word the error
     if not (np.isfinite(f) and f >= 1.0) or not np.all(np.isfinite(m)):
         return call(image, m)
+    check_extra_blur(f, m, image.shape)  # before sizing the halo (a huge factor would need huge tiles)
     halo = _halo(math.sqrt(f * f - 1.0) * float(m.max(initial=0.0)))
     core = max(256, int(math.isqrt(int(tile_pixels))) - 2 * halo)
     ys, xs = range(0, H, core), range(0, W, core)

@@ -14,6 +14,11 @@ Usage in a ``python -m repro.X`` module::
     if __name__ == "__main__":
         sys.exit(run_cli(main, prog="python -m repro.X"))
 
+Every :class:`ArgumentParser` has ``--version``; :func:`add_quiet_option` and :func:`add_force_option`
+give the flags shared by the tools one name each (``-q/--quiet``, ``--force``). :func:`console_main` is
+the ``defocus-repro`` console script (``defocus-repro figures|render|evaluate|...``): it imports the
+sub-command's module ``repro.<name>`` only when asked for it and runs its ``main``.
+
 ``run_cli`` catches :data:`USER_ERRORS` (``ValueError``, :class:`CLIError`, the argparse errors of
 :class:`ArgumentParser`, :class:`scenes.backend.BackendError`) and the failures of the machine a user
 can cause (``OSError``: unwritable folder, disk full; ``MemoryError``) and prints
@@ -32,16 +37,52 @@ from pathlib import Path
 from scenes.backend import VARIANT_ENV, BackendError
 
 __all__ = [
+    "COMMANDS",
     "USER_ERRORS",
     "ArgumentParser",
     "CLIError",
+    "add_force_option",
+    "add_quiet_option",
     "add_variant_option",
     "check_output_path",
+    "console_main",
     "float_type",
     "int_type",
     "parse_resolution",
     "run_cli",
+    "version_string",
 ]
+
+#: Console-script name (pyproject ``[project.scripts]``).
+SCRIPT = "defocus-repro"
+
+#: Sub-commands of ``defocus-repro``: name -> one-line description. Each is the module ``repro.<name>``
+#: with a ``main(argv) -> int``, imported only when it runs.
+COMMANDS: dict[str, str] = {
+    "figures": "compute the paper's figures and their metrics (report/figures)",
+    "render": "render a scene with its ground truth (Mitsuba 3, cached)",
+    "evaluate": "compare blur estimators against the rendered ground truth",
+    "estimate": "estimate the defocus map of a photo",
+    "magnify": "magnify the defocus of a photo",
+    "report": "write the report (claims and figures) from the figures' metrics",
+    "bench": "time each stage and the whole pipeline, with peak memory",
+    "sweep": "run a parameter sweep over scenes, cameras and presets",
+}
+
+
+def version_string() -> str:
+    """``defocus-repro 0.1.0`` (the installed distribution's version; pyproject's in a bare checkout)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        v = version(SCRIPT)
+    except PackageNotFoundError:  # pragma: no cover - running from a checkout that was never installed
+        import re
+
+        text = (Path(__file__).resolve().parents[1] / "pyproject.toml").read_text()
+        m = re.search(r'^version\s*=\s*"([^"]+)"', text, flags=re.M)
+        v = m.group(1) if m else "unknown"
+    return f"{SCRIPT} {v}"
 
 
 class CLIError(ValueError):
@@ -55,6 +96,11 @@ USER_ERRORS: tuple[type[BaseException], ...] = (ValueError, CLIError, BackendErr
 class ArgumentParser(argparse.ArgumentParser):
     """``argparse.ArgumentParser`` whose usage errors raise :class:`CLIError` (one line, exit 2)
     instead of printing the usage block."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.add_argument("--version", action="version", version=version_string(),
+                          help="print the version and exit")
 
     def error(self, message):  # noqa: D102 - argparse hook
         raise CLIError(message)
@@ -99,6 +145,64 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
         print(f"{prog}: interrupted", file=sys.stderr)
         return 130
     return 0 if status is None else int(status)
+
+
+def add_quiet_option(parser: argparse.ArgumentParser, *, what: str = "no progress display and no notes") -> None:
+    """Add ``-q/--quiet`` (dest ``quiet``), the one name of every tool for "print less"."""
+    parser.add_argument("-q", "--quiet", action="store_true", help=what)
+
+
+def add_force_option(parser: argparse.ArgumentParser, *,
+                     what: str = "recompute even when a cached result exists (the new result replaces it)") -> None:
+    """Add ``--force`` (dest ``force``), the one name of every tool for "do not reuse the cache".
+
+    ``--no-cache``, the earlier name of some tools, is accepted as a hidden synonym.
+    """
+    parser.add_argument("--force", action="store_true", help=what)
+    parser.add_argument("--no-cache", dest="force", action="store_true", help=argparse.SUPPRESS)
+
+
+def console_main(argv: Sequence[str] | None = None) -> int:
+    """The ``defocus-repro`` console script: ``defocus-repro COMMAND [ARGS...]`` runs ``repro.COMMAND``.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Default ``sys.argv[1:]``.
+
+    Returns
+    -------
+    int
+        The sub-command's exit status; 2 for an unknown or missing command (one line on stderr).
+    """
+    import importlib
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    listing = "\n".join(f"  {name:<9} {text}" for name, text in COMMANDS.items())
+    usage = (f"usage: {SCRIPT} COMMAND [ARGS...]   ({SCRIPT} COMMAND --help for its options)\n\n"
+             f"commands:\n{listing}\n\nEach command is also `python -m repro.COMMAND`.")
+    if not argv:
+        print(usage, file=sys.stderr)
+        return 2
+    if argv[0] in ("-h", "--help"):
+        print(usage)
+        return 0
+    if argv[0] == "--version":
+        print(version_string())
+        return 0
+    name, rest = argv[0], argv[1:]
+    if name not in COMMANDS:
+        print(f"{SCRIPT}: error: unknown command {name!r}; allowed: {', '.join(COMMANDS)}", file=sys.stderr)
+        return 2
+    try:
+        module = importlib.import_module(f"repro.{name}")
+    except ModuleNotFoundError as exc:
+        if exc.name != f"repro.{name}":
+            raise
+        print(f"{SCRIPT}: error: command {name!r} is not available in this installation (no module repro.{name})",
+              file=sys.stderr)
+        return 2
+    return run_cli(module.main, rest, prog=f"{SCRIPT} {name}")
 
 
 def add_variant_option(parser: argparse.ArgumentParser) -> None:

@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from repro._cli import ArgumentParser, run_cli
+from repro._cli import ArgumentParser, add_force_option, add_quiet_option, run_cli
 
 PROG = "python -m repro.estimate"
 
@@ -66,12 +66,6 @@ PRESET_BLURBS = {
 # ------------------------------------------------------------------------------------------------
 # CLI plumbing shared with repro.magnify
 # ------------------------------------------------------------------------------------------------
-
-
-
-
-class OneLineParser(ArgumentParser):
-    """The shared one-line-error argparse parser (kept under this name for repro.magnify)."""
 
 
 def _pixel_count(text: str) -> int:
@@ -139,9 +133,9 @@ def add_estimation_arguments(p: argparse.ArgumentParser) -> None:
                         f"(default {DEFAULT_MAX_PIXELS:,})")
     p.add_argument("--repair-nonfinite", action="store_true",
                    help="EXR input: set NaN/-Inf to 0 and +Inf to 1 instead of refusing the file")
-    p.add_argument("--no-cache", action="store_true", help="neither read nor write the map cache")
+    add_force_option(p, what="re-estimate the defocus map even when it is cached (the new map replaces it)")
     p.add_argument("--overwrite", action="store_true", help="allow an output path equal to the input photo")
-    p.add_argument("-q", "--quiet", action="store_true", help="no notes and no progress display")
+    add_quiet_option(p)
 
 
 def defocus_params(args):
@@ -325,7 +319,7 @@ def _load_entry(folder: Path, shape):
     return m, meta
 
 
-def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, progress=None,
+def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, force=False, progress=None,
                        log=lambda msg: None, preset=None):
     """Defocus map of a photo at full resolution, estimated at the working resolution, cached.
 
@@ -336,6 +330,8 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, pro
     max_working_pixels : int, keyword-only
     use_cache : bool, keyword-only
         Read/write ``cache_root()/"maps"`` (:class:`scenes.storage.Cache`, checksummed, locked).
+    force : bool, keyword-only
+        Re-estimate even when the map is cached (the new map replaces the entry).
     progress : callable, optional, keyword-only
         ``progress(stage_name)``.
     log : callable, keyword-only
@@ -377,6 +373,8 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, pro
     if use_cache:
         cache = Cache(cache_root() / "maps")
         key = map_cache_key(photo, params, (h, w))
+        if force:
+            cache.invalidate(key)
         folder = cache.get_or_build(key, build)
         try:
             m, meta = _load_entry(folder, (h, w))
@@ -460,7 +458,7 @@ def map_summary(sigma) -> str:
 
 
 def _parser() -> argparse.ArgumentParser:
-    p = OneLineParser(
+    p = ArgumentParser(
         prog=PROG,
         description="Estimate the defocus map (blur σ in px at every pixel) of a photo, "
                     "Bae & Durand 2007.",
@@ -499,7 +497,7 @@ def main(argv=None) -> int:
     progress = StageProgress(PROG, quiet=args.quiet)
     try:
         sigma, info = estimate_photo_map(photo, params, max_working_pixels=args.max_working_pixels,
-                                         use_cache=not args.no_cache, progress=progress,
+                                         force=args.force, progress=progress,
                                          log=lambda m: note(PROG, m, quiet=args.quiet), preset=args.preset)
         progress("write")
         write_map(out, sigma)

@@ -31,10 +31,9 @@ import math
 import sys
 from pathlib import Path
 
-from repro._cli import run_cli
+from repro._cli import ArgumentParser, run_cli
 from repro.estimate import (
     MAP_OUTPUT_SUFFIXES,
-    OneLineParser,
     StageProgress,
     _by_preset,
     _pixel_count,
@@ -52,10 +51,10 @@ from repro.estimate import (
 PROG = "python -m repro.magnify"
 
 
-def _parser() -> OneLineParser:
+def _parser() -> ArgumentParser:
     from method.upsampling import DEFAULT_TILE_PIXELS
 
-    p = OneLineParser(
+    p = ArgumentParser(
         prog=PROG,
         description="Magnify the defocus of a photo: out-of-focus regions get blurrier, the in-focus "
                     "subject stays sharp (Bae & Durand 2007).",
@@ -118,7 +117,7 @@ def default_output_path(photo: Path, factor: float) -> Path:
 
 def main(argv=None) -> int:
     """Entry point; returns the exit status (errors raise; see :func:`repro._cli.run_cli`)."""
-    from method.magnification import MAGNIFICATION_KERNELS, MAP_FLOOR_MODES, preprocess_defocus_map
+    from method.magnification import MAGNIFICATION_KERNELS, MAP_FLOOR_MODES, check_extra_blur, preprocess_defocus_map
     from method.upsampling import magnify_defocus_tiled
     from scenes.photo_io import OUTPUT_SUFFIXES, output_bit_depth, probe_photo, write_photo
 
@@ -147,7 +146,7 @@ def main(argv=None) -> int:
     progress = StageProgress(PROG, quiet=args.quiet)
     try:
         sigma, info = estimate_photo_map(photo, params, max_working_pixels=args.max_working_pixels,
-                                         use_cache=not args.no_cache, progress=progress,
+                                         force=args.force, progress=progress,
                                          log=lambda m: note(PROG, m, quiet=args.quiet), preset=args.preset)
         if args.save_map:
             progress("save map")
@@ -155,6 +154,7 @@ def main(argv=None) -> int:
         # Sec. 5 preprocessing on the whole map (a global operation), then tiled magnification
         processed = preprocess_defocus_map(sigma, clip_percent=params.map_clip_percent,
                                            smoothing=params.map_smoothing, floor=floor)
+        check_extra_blur(factor, processed, photo.image.shape, name="--factor")  # before any big allocation
         result = magnify_defocus_tiled(
             photo.image, processed, factor=factor, kernel=args.kernel, preprocess=False,
             tile_pixels=args.tile_pixels, progress=progress,

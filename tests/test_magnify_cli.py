@@ -282,3 +282,55 @@ def test_bad_floor_is_one_line_exit_2(tmp_path, photo, capsys):
     status, out, err = run([photo, "--floor", "zero", "-o", tmp_path / "o.png"], capsys)
     assert_one_line_error(status, err, "--floor", "clamp", "subtract")
     assert out == "" and not (tmp_path / "o.png").exists()
+
+
+@pytest.mark.parametrize("factor", ["1e9", "1e300"])
+def test_huge_factor_is_one_line_exit_2(factor, tmp_path, photo, capsys):
+    """--factor 1e9 used to be accepted and killed for memory: the extra blur σ is bounded by the image size."""
+    status, out, err = run([photo, "--factor", factor, "-q", "-o", tmp_path / "o.png"], capsys)
+    assert_one_line_error(status, err, "--factor", "too large", "allowed: factor <=")
+    assert out == "" and not (tmp_path / "o.png").exists()
+
+
+def test_largest_allowed_factor_works_and_just_above_is_refused(tmp_path, photo, capsys):
+    import re
+
+    status, _, err = run([photo, "--factor", "1e6", "-q", "-o", tmp_path / "o.png"], capsys)
+    k_max = float(re.search(r"factor <= ([0-9.e+]+)", err[-1]).group(1))
+    assert 1 < k_max < 1e6
+    status, _, _ = run([photo, "--factor", f"{k_max * 0.99:.6g}", "-o", tmp_path / "ok.png"], capsys)
+    assert status == 0 and (tmp_path / "ok.png").exists()
+    status, _, err = run([photo, "--factor", f"{k_max * 1.01:.6g}", "-q", "-o", tmp_path / "no.png"], capsys)
+    assert_one_line_error(status, err, "too large")
+    assert not (tmp_path / "no.png").exists()
+
+
+def test_huge_factor_subprocess_under_a_memory_limit(tmp_path, photo):
+    """In a process limited to 3 GiB of address space the refusal is quick and clean (no MemoryError, no kill)."""
+    import resource
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (3 << 30, 3 << 30))
+
+    env = dict(os.environ, DEFOCUS_CACHE_DIR=str(tmp_path / "cache"))
+    proc = subprocess.run([sys.executable, "-m", "repro.magnify", str(photo), "--factor", "1e9", "-q",
+                           "-o", str(tmp_path / "o.png")], cwd=ROOT, env=env, capture_output=True, text=True,
+                          timeout=300, preexec_fn=limit)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count("\n") == 1 and "too large" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_magnify_api_bounds_the_extra_blur():
+    from method.magnification import magnify_defocus
+    from method.upsampling import magnify_defocus_tiled
+
+    img = textured_photo(48, 64)
+    m = np.full((48, 64), 2.0)
+    with pytest.raises(ValueError, match="factor 1e\\+09 is too large"):
+        magnify_defocus(img, m, factor=1e9, preprocess=False)
+    with pytest.raises(ValueError, match="too large"):
+        magnify_defocus_tiled(np.tile(img, (6, 6, 1)), np.full((288, 384), 2.0), factor=1e9, preprocess=False,
+                              tile_pixels=256 * 256)
+    # σ_e = √(k² − 1)·2 px = 64 px (the longer side): allowed
+    k = float(np.sqrt(1 + 32.0**2))
+    assert magnify_defocus(img, m, factor=k * 0.999, preprocess=False).shape == img.shape

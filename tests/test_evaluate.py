@@ -48,11 +48,9 @@ def test_evaluate_one_scene_writes_csv_and_json(tmp_path, capsys, goldens):
                   "in_focus_outliers_sparse_fraction"):
             assert np.isfinite(r[c]), c
         assert 0 <= r["rtf_nmae"] <= 1
-    goldens.check("evaluate_quick",
-                  {r["estimator"]: {c: r[c] for c in ("sparse_mae", "sparse_median_ae", "sparse_outlier_fraction",
-                                                      "refined_mae", "dense_all_mae", "dense_textured_mae",
-                                                      "rtf_nmae")} for r in js["rows"]},
-                  rtol=tol.GOLDEN_RTOL, atol=tol.GOLDEN_ATOL)
+    from tests.golden import evaluate_values
+
+    goldens.check("evaluate_quick", evaluate_values(js["rows"]))
 
 
 def _dummy_constant_sigma(gray, edge_map, *, params):

@@ -62,20 +62,9 @@ def test_fig4_plot(fig4, tmp_path):
 
 
 def test_fig4_goldens(fig4, goldens):
-    _, res = fig4
-    m = res.metrics
-    keys = ("mae", "median_ae", "outlier_fraction", "bias")
-    values = {
-        "rendered": {enc: {conv: {e: {k: m["rendered"]["pooled"][enc][conv][e][k] for k in keys}
-                                  for e in ESTIMATORS} for conv in ("line_spread", "erf_fit")}
-                     for enc in ("srgb", "linear")},
-        "analytic": {fam: {e: {k: m["analytic"][fam]["noisy"][e][k] for k in ("mae", "median_ae")}
-                           for e in ESTIMATORS} for fam in ("straight", "curved")},
-        "bars_noisy_median_rel": {case: {e: m["analytic"]["neighbouring"]["bar"]["noisy"][case][e]["median_rel_error"]
-                                         for e in ESTIMATORS}
-                                  for case in m["analytic"]["neighbouring"]["bar"]["noisy"]},
-    }
-    goldens.check("fig4_quick", values, rtol=tol.GOLDEN_RTOL, atol=tol.GOLDEN_ATOL)
+    from tests.golden import golden_values
+
+    goldens.check("fig4_quick", golden_values("fig4_quick", fig4[1].metrics))
 
 
 def test_model_fit_beats_zero_crossing_near_neighbouring_edges(fig4):
@@ -126,7 +115,9 @@ def test_fig5_quick_structure_and_plot(fig5, tmp_path):
 
 
 def test_fig5_goldens(fig5, goldens):
-    goldens.check("fig5_quick", fig5[1].metrics["summary"], rtol=tol.GOLDEN_RTOL, atol=tol.GOLDEN_ATOL)
+    from tests.golden import golden_values
+
+    goldens.check("fig5_quick", golden_values("fig5_quick", fig5[1].metrics))
 
 
 def test_bias_filter_lowers_in_focus_outliers(fig5):

@@ -196,10 +196,9 @@ def test_fig8_oracle_virtual_map_refocus_beats_the_input(fig8):
 
 @pytest.mark.render
 def test_fig8_golden(fig8, goldens):
-    m = fig8["metrics"]
-    out = {"images": m["images_vs_d2"], "deconvolution": m["deconvolution_vs_pinhole"],
-           "virtual_map": m["virtual_map_vs_gt_d2"], "sigma_t_px": m["sigma_t_px"], "map_floor_px": m["map_floor_px"]}
-    goldens.check("fig8_quick", out, rtol=tol.GOLDEN_RTOL, atol=tol.GOLDEN_ATOL)
+    from tests.golden import golden_values
+
+    goldens.check("fig8_quick", golden_values("fig8_quick", fig8["metrics"]))
 
 
 @pytest.mark.render

@@ -129,11 +129,11 @@ EDGE_THETA_MEDIAN_RAD = 0.02
 FIG2_RATIO_RTOL = 0.03
 
 # --- golden regression numbers (tests/golden/*.json; `pytest --regen-goldens` rewrites) ----------
-#: Allowed drift of a golden metric: |got − golden| ≤ GOLDEN_ATOL + GOLDEN_RTOL·|golden|.
-#: Renders are bit-identical per variant and seed, the method is deterministic; the drift covers
-#: library updates (numpy/scipy FFT round-off, pyamg) and the llvm/scalar variants' sample streams.
-GOLDEN_RTOL = 0.10
-GOLDEN_ATOL = 0.02
+#: The render-based goldens (tests/golden/*_quick.json) have one tolerance per metric, derived from the
+#: measured spread over llvm_ad_rgb/scalar_rgb × seeds 0/1 and recorded with how it was measured in
+#: tests/golden/tolerances.json (tol = max(3 × spread, 1e-6 + 1e-5·|golden|); booleans and strings
+#: exact). Rerun: `.venv/bin/python -m tests.golden --regenerate` (see tests/golden.py). The blanket
+#: ±10 % + 0.02 drift they replace let e.g. a flipped "model_fit_better" or a 10 % MAE change pass.
 #: Guided upsampling of a piecewise-constant map across a step edge: 3 px or more from the edge the
 #: value stays within this fraction of the step of its side's level (measured ≤ 1 %; the guided
 #: filter's 5×5 working-px window leaks a little across the edge).

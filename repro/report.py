@@ -18,11 +18,58 @@ from pathlib import Path
 
 from repro._cli import ArgumentParser, run_cli
 
-_BADGE = {"reproduced": "✅", "partly reproduced": "🟡", "not reproduced": "❌", "not evaluated": "⚪"}
+#: Text mark of each verdict (Markdown, README, terminal): ASCII, so it reads in any font.
+MARKS = {"reproduced": "+", "partly reproduced": "~", "not reproduced": "-", "not evaluated": "?", "error": "!"}
+_COLOURS = {"reproduced": "#1a7f37", "partly reproduced": "#9a6700", "not reproduced": "#cf222e",
+            "not evaluated": "#6e7781", "error": "#000000"}
+#: Inline SVG path(s) drawn inside a 16x16 circle for each verdict (HTML; no font needed).
+_SVG_GLYPH = {
+    "reproduced": "<path d='M4.5 8.5l2.5 2.5 4.5-5' fill='none' stroke='#fff' stroke-width='2'/>",
+    "partly reproduced": "<path d='M8 2a6 6 0 0 1 0 12z' fill='#fff'/>",
+    "not reproduced": "<path d='M5 5l6 6M11 5l-6 6' stroke='#fff' stroke-width='2'/>",
+    "not evaluated": "<path d='M5 8h6' stroke='#fff' stroke-width='2'/>",
+    "error": "<path d='M8 4v5M8 11v1.5' stroke='#fff' stroke-width='2'/>",
+}
 _PROJECT_ROOT = Path(__file__).resolve().parents[1]
 
 #: Figures shown in the Markdown report, in this order (all of them appear in the HTML page).
 KEY_FIGURES = ("fig4", "fig5", "fig6", "fig7", "fig11", "fig2", "fig10")
+
+
+def mark_svg(verdict: str) -> str:
+    """An inline SVG mark (16 px circle in the verdict's colour with a white glyph) with a text title."""
+    colour = _COLOURS.get(verdict, "#000000")
+    glyph = _SVG_GLYPH.get(verdict, "")
+    return (f"<svg class='mark' width='16' height='16' viewBox='0 0 16 16' role='img' aria-label='{html.escape(verdict)}'>"
+            f"<title>{html.escape(verdict)}</title><circle cx='8' cy='8' r='7' fill='{colour}'/>{glyph}</svg>")
+
+
+def _mark(verdict: str) -> str:
+    return MARKS.get(verdict, "!")
+
+
+def _as_matrix(verdicts) -> dict:
+    """A :func:`experiments.claims.claim_matrix` dict; a plain verdict list becomes ``{("paper", None): list}``."""
+    if isinstance(verdicts, dict):
+        return verdicts
+    return {("paper", None): list(verdicts)}
+
+
+def column_label(preset: str, scene_set) -> str:
+    """Heading of one (preset, scene set) column."""
+    return f"{preset} preset" if scene_set is None else f"{preset} preset, {scene_set}"
+
+
+def scene_set_lines() -> list[tuple[str, str, list[str]]]:
+    """``(set name, what it is, ["scene: description"])`` for each scene set (from :mod:`scenes`)."""
+    from scenes import SCENE_SETS, SCENES
+
+    what = {"paper_cameras": "default: the paper's cameras (Canon 1D Mark II 85 mm, Nikon D50 180 mm) at real-world "
+                             "distances, σ_gt from the pixel-filter floor to about 4 px at f/8 and 8 px at f/4 (full preset)",
+            "tabletop_stress": "stress test: tabletop macro shots (50 mm full frame focused at 0.2-0.25 m), σ_gt up "
+                               "to 12-17 px at f/4 (full preset), far beyond the paper's photos"}
+    return [(name, what.get(name, ""), [f"{n}: {SCENES[n].description}" for n in names])
+            for name, names in SCENE_SETS.items()]
 
 
 def _md_cell(text: str) -> str:
@@ -86,10 +133,28 @@ def preset_tables(metrics: dict) -> list[dict]:
     return [{"title": t, "header": header, "rows": rows} for t, rows in sets.values() if rows]
 
 
-def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | None) -> str:
-    """The Markdown report (GitHub renders it next to the figures)."""
+def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | None,
+                   figures_dir: Path | None = None) -> str:
+    """The Markdown report (GitHub renders it next to the figures).
+
+    Parameters
+    ----------
+    metrics : dict
+        ``{figure: metrics file}`` (:func:`load_metrics`).
+    verdicts : dict or list
+        :func:`experiments.claims.claim_matrix` (``{(preset, scene set): [(Claim, Verdict)]}``), or
+        one list of (Claim, Verdict) (shown as the ``paper`` preset).
+    figures_rel : str
+        Path of the figures folder relative to the report.
+    bench : str or None
+        The speed summary (Markdown), if any.
+    figures_dir : Path, optional, keyword-only
+        The figures folder on disk, to find the per-scene-set figure files ``<fig>_<set>.png``.
+    """
     from experiments.claims import mismatch_findings
 
+    matrix = _as_matrix(verdicts)
+    columns = list(matrix)
     lines = [
         "# Defocus Magnification (Bae & Durand 2007): reproduction report",
         "",
@@ -98,14 +163,28 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
         "",
         "## The paper's claims, checked",
         "",
-        "| | claim | where | verdict | evidence |",
-        "|---|---|---|---|---|",
+        "Verdict marks: " + ", ".join(f"`{m}` {v}" for v, m in MARKS.items()) + ". One column per method "
+        "preset and scene set; the evidence and the rule of every cell follow.",
+        "",
     ]
-    for claim, v in verdicts:
-        lines.append(f"| {_BADGE[v.verdict]} | {_md_cell(claim.text)} | {claim.section} ({claim.figure}) | "
-                     f"**{v.verdict}** | {_md_cell(v.evidence)} <br>*Rule: {_md_cell(claim.rule)}.* |")
-    counts = {k: sum(1 for _, v in verdicts if v.verdict == k) for k in _BADGE}
-    lines += ["", "Totals: " + ", ".join(f"{k}: {n}" for k, n in counts.items() if n), ""]
+    if columns:
+        lines += ["| claim | where | " + " | ".join(column_label(*c) for c in columns) + " |",
+                  "|---|---|" + "---|" * len(columns)]
+        first = matrix[columns[0]]
+        for i, (claim, _) in enumerate(first):
+            cells = [f"`{_mark(matrix[c][i][1].verdict)}` {matrix[c][i][1].verdict}" for c in columns]
+            lines.append(f"| {_md_cell(claim.text)} | {claim.section} ({claim.figure}) | " + " | ".join(cells) + " |")
+        lines.append("")
+    lines += _md_scene_sets()
+    for col in columns:
+        rows = matrix[col]
+        lines += [f"### Evidence: {column_label(*col)}", "",
+                  "| | claim | verdict | evidence |", "|---|---|---|---|"]
+        for claim, v in rows:
+            lines.append(f"| `{_mark(v.verdict)}` | {_md_cell(claim.text)} | **{v.verdict}** | {_md_cell(v.evidence)} "
+                         f"<br>*Rule: {_md_cell(claim.rule)}.* |")
+        counts = {k: sum(1 for _, v in rows if v.verdict == k) for k in MARKS}
+        lines += ["", "Totals: " + ", ".join(f"{k}: {n}" for k, n in counts.items() if n), ""]
     findings = mismatch_findings(metrics)
     if findings:
         lines += ["## Beyond the paper: model mismatch", "",
@@ -129,9 +208,12 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
     lines += ["## Figures", ""]
     for name in [n for n in KEY_FIGURES if n in metrics] + [n for n in _fig_order(metrics) if n not in KEY_FIGURES]:
         m = metrics[name]
-        lines += [f"### {name}: {m.get('title', '')}", "",
-                  f"![{name}]({figures_rel}/{name}.png)", "",
-                  f"σ convention: {m.get('sigma_convention', 'n/a')}. "
+        lines += [f"### {name}: {m.get('title', '')}", ""]
+        for stem, caption in figure_files(name, m, figures_dir):
+            if caption:
+                lines += [f"*{caption}*", ""]
+            lines += [f"![{stem}]({figures_rel}/{stem}.png)", ""]
+        lines += [f"σ convention: {m.get('sigma_convention', 'n/a')}. "
                   f"Metrics: [`{name}.metrics.json`]({figures_rel}/{name}.metrics.json), "
                   f"vector: [`{name}.pdf`]({figures_rel}/{name}.pdf).", ""]
     if bench:
@@ -139,20 +221,76 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
     return "\n".join(lines) + "\n"
 
 
-def build_html(metrics: dict, verdicts, *, figures_rel: str, bench: str | None) -> str:
+def _md_scene_sets() -> list[str]:
+    lines = ["## Scene sets", "",
+             "Figures 5, 6, 7 and 11 are computed on two sets of rendered scenes; the flat metrics and the "
+             "first figure of each are the default set, the second figure (`<fig>_<set>.png`) the stress set.", ""]
+    for name, what, scenes in scene_set_lines():
+        lines += [f"- **{name}** ({what}):"] + [f"  - {_md_cell(x)}" for x in scenes]
+    return lines + [""]
+
+
+def figure_files(name: str, metrics_file: dict, figures_dir: Path | None) -> list[tuple[str, str]]:
+    """``(file stem, caption)`` of a figure's images: the default scene set's, then each further set's.
+
+    A figure without scene sets has one image and no caption. Further sets' images
+    (``<name>_<set>.png``) are listed when ``figures_dir`` is None or the file exists.
+    """
+    from experiments.plotting.style import SCENE_SET_CAPTIONS
+
+    inner = metrics_file.get("metrics") if isinstance(metrics_file, dict) else None
+    inner = inner if isinstance(inner, dict) else {}
+    default = inner.get("scene_set")
+    if default is None:
+        return [(name, "")]
+    out = [(name, SCENE_SET_CAPTIONS.get(default, f"scene set {default}"))]
+    for other in inner.get("scene_sets", {}) or {}:
+        stem = f"{name}_{other}"
+        if figures_dir is None or (Path(figures_dir) / f"{stem}.png").exists():
+            out.append((stem, SCENE_SET_CAPTIONS.get(other, f"scene set {other}")))
+    return out
+
+
+def build_html(metrics: dict, verdicts, *, figures_rel: str, bench: str | None,
+               figures_dir: Path | None = None) -> str:
     """A self-contained HTML page (images by relative path)."""
     from experiments.claims import mismatch_findings
 
     e = html.escape
-    rows = "\n".join(
-        f"<tr class='{e(v.verdict.replace(' ', '-'))}'><td>{_BADGE[v.verdict]}</td><td>{e(c.text)}</td>"
-        f"<td>{e(c.section)} ({e(c.figure)})</td><td><b>{e(v.verdict)}</b></td>"
-        f"<td>{e(v.evidence)}<br><i>Rule: {e(c.rule)}.</i></td></tr>"
-        for c, v in verdicts)
+    matrix = _as_matrix(verdicts)
+    columns = list(matrix)
+    rows = ""
+    if columns:
+        head = "".join(f"<th>{e(column_label(*c))}</th>" for c in columns)
+        body = []
+        for i, (claim, _) in enumerate(matrix[columns[0]]):
+            cells = "".join(
+                f"<td class='{e(matrix[c][i][1].verdict.replace(' ', '-'))}'>{mark_svg(matrix[c][i][1].verdict)} "
+                f"{e(matrix[c][i][1].verdict)}</td>" for c in columns)
+            body.append(f"<tr><td>{e(claim.text)}</td><td>{e(claim.section)} ({e(claim.figure)})</td>{cells}</tr>")
+        rows = (f"<table id='claims' class='claims'><tr><th>claim</th><th>where</th>{head}</tr>\n"
+                + "\n".join(body) + "\n</table>")
+    details = []
+    for j, col in enumerate(columns):
+        trs = "\n".join(
+            f"<tr class='{e(v.verdict.replace(' ', '-'))}'><td>{mark_svg(v.verdict)}</td><td>{e(c.text)}</td>"
+            f"<td><b>{e(v.verdict)}</b></td><td>{e(v.evidence)}<br><i>Rule: {e(c.rule)}.</i></td></tr>"
+            for c, v in matrix[col])
+        details.append(f"<details{' open' if j == 0 else ''}><summary>Evidence: {e(column_label(*col))}</summary>"
+                       f"<table class='evidence'><tr><th></th><th>claim</th><th>verdict</th><th>evidence</th></tr>"
+                       f"{trs}</table></details>")
+    details_html = "\n".join(details)
+    legend = " ".join(f"{mark_svg(v)} {e(v)}" for v in MARKS)
+    sets_html = "<h2>Scene sets</h2><p>Figures 5, 6, 7 and 11 are computed on two sets of rendered scenes; the " \
+                "first image of each is the default set, the second the stress set.</p><ul>" + "".join(
+                    f"<li><b>{e(n)}</b> ({e(w)})<ul>" + "".join(f"<li>{e(x)}</li>" for x in sc) + "</ul></li>"
+                    for n, w, sc in scene_set_lines()) + "</ul>"
     figs = "\n".join(
         f"<section id='{e(n)}'><h3>{e(n)}: {e(metrics[n].get('title', ''))}</h3>"
-        f"<a href='{figures_rel}/{e(n)}.pdf'><img src='{figures_rel}/{e(n)}.png' alt='{e(n)}'></a>"
-        f"<p>σ convention: {e(str(metrics[n].get('sigma_convention', 'n/a')))}. "
+        + "".join(f"<figure><a href='{figures_rel}/{e(stem)}.pdf'><img src='{figures_rel}/{e(stem)}.png' "
+                  f"alt='{e(stem)}'></a>" + (f"<figcaption>{e(cap)}</figcaption>" if cap else "") + "</figure>"
+                  for stem, cap in figure_files(n, metrics[n], figures_dir))
+        + f"<p>σ convention: {e(str(metrics[n].get('sigma_convention', 'n/a')))}. "
         f"<a href='{figures_rel}/{e(n)}.metrics.json'>metrics</a></p></section>"
         for n in _fig_order(metrics))
     bench_html = f"<h2>Speed</h2><pre>{e(bench)}</pre>" if bench else ""
@@ -179,17 +317,21 @@ def build_html(metrics: dict, verdicts, *, figures_rel: str, bench: str | None) 
 <style>
 body {{ font-family: system-ui, sans-serif; max-width: 1200px; margin: 2em auto; padding: 0 1em; }}
 table {{ border-collapse: collapse; }} td, th {{ border: 1px solid #ccc; padding: 4px 8px; vertical-align: top; }}
-tr.reproduced td:nth-child(4) {{ color: #1a7f37; }} tr.not-reproduced td:nth-child(4) {{ color: #cf222e; }}
-tr.partly-reproduced td:nth-child(4) {{ color: #9a6700; }}
+td.reproduced, tr.reproduced td:nth-child(3) {{ color: #1a7f37; }}
+td.not-reproduced, tr.not-reproduced td:nth-child(3) {{ color: #cf222e; }}
+td.partly-reproduced, tr.partly-reproduced td:nth-child(3) {{ color: #9a6700; }}
+svg.mark {{ vertical-align: -3px; }} figure {{ margin: 0 0 1em 0; }} figcaption {{ font-style: italic; }}
+details {{ margin: 0.5em 0; }} summary {{ cursor: pointer; font-weight: bold; }}
 img {{ max-width: 100%; border: 1px solid #eee; }}
 </style></head><body>
 <h1>Defocus Magnification (Bae &amp; Durand 2007): reproduction report</h1>
 <p>Generated {e(time.strftime('%Y-%m-%d %H:%M'))} by <code>python -m repro.report</code> from the metrics of
 <code>python -m repro.figures</code> (mode: {e(_modes(metrics))}).</p>
 <h2>The paper's claims, checked</h2>
-<table><tr><th></th><th>claim</th><th>where</th><th>verdict</th><th>evidence</th></tr>
+<p>One column per method preset and scene set. Marks: {legend}</p>
 {rows}
-</table>
+{details_html}
+{sets_html}
 {mismatch_html}
 {preset_html}
 <h2>Figures</h2>
@@ -205,11 +347,23 @@ README_END = "<!-- claims:end -->"
 
 
 def claims_block(verdicts, *, report_link: str) -> str:
-    """Short verdict table for the project README (between :data:`README_START` and :data:`README_END`)."""
-    rows = ["| | claim | where | verdict |", "|---|---|---|---|"]
-    rows += [f"| {_BADGE[v.verdict]} | {_md_cell(c.text)} | {c.section} | {v.verdict} |" for c, v in verdicts]
-    return "\n".join([README_START, "", *rows, "", f"Evidence and numbers for every row: [{report_link}]({report_link}).",
-                      "", README_END])
+    """Short verdict table for the project README (between :data:`README_START` and :data:`README_END`).
+
+    ``verdicts``: a :func:`experiments.claims.claim_matrix` dict (one column per preset and scene set)
+    or one list of (Claim, Verdict). Marks are ASCII text (:data:`MARKS`), readable in any font.
+    """
+    matrix = _as_matrix(verdicts)
+    columns = list(matrix)
+    rows = ["| claim | where | " + " | ".join(column_label(*c) for c in columns) + " |",
+            "|---|---|" + "---|" * len(columns)]
+    if columns:
+        for i, (c, _) in enumerate(matrix[columns[0]]):
+            rows.append(f"| {_md_cell(c.text)} | {c.section} | "
+                        + " | ".join(f"`{_mark(matrix[k][i][1].verdict)}` {matrix[k][i][1].verdict}" for k in columns)
+                        + " |")
+    legend = "Marks: " + ", ".join(f"`{m}` {v}" for v, m in MARKS.items()) + "."
+    return "\n".join([README_START, "", *rows, "", legend + f" Evidence and numbers for every cell: "
+                      f"[{report_link}]({report_link}).", "", README_END])
 
 
 def update_readme_block(readme: Path, block: str) -> bool:
@@ -235,7 +389,7 @@ def main(argv=None) -> int:
                         help="README whose marked claims block is refreshed (default: the project's "
                              "README.md, and only when --out is the project's report/ folder)")
     args = parser.parse_args(argv)
-    from experiments.claims import evaluate_claims
+    from experiments.claims import claim_matrix, evaluate_claims
     from scenes.storage import atomic_write_text
 
     if not args.figures.is_dir():
@@ -245,16 +399,22 @@ def main(argv=None) -> int:
         raise ValueError(f"no *.metrics.json in {args.figures}; run python -m repro.figures first")
     args.out.mkdir(parents=True, exist_ok=True)
     verdicts = evaluate_claims(metrics)
+    matrix = claim_matrix(metrics)
     try:
         rel = args.figures.resolve().relative_to(args.out.resolve()).as_posix()
     except ValueError:
         rel = args.figures.resolve().as_posix()
     bench = _bench_summary(args.out)
-    atomic_write_text(args.out / "README.md", build_markdown(metrics, verdicts, figures_rel=rel, bench=bench))
-    atomic_write_text(args.out / "index.html", build_html(metrics, verdicts, figures_rel=rel, bench=bench))
+    atomic_write_text(args.out / "README.md", build_markdown(metrics, matrix, figures_rel=rel, bench=bench,
+                                                             figures_dir=args.figures))
+    atomic_write_text(args.out / "index.html", build_html(metrics, matrix, figures_rel=rel, bench=bench,
+                                                          figures_dir=args.figures))
     summary = {"claims": [{"id": c.id, "section": c.section, "figure": c.figure, "claim": c.text,
                            "rule": c.rule, "verdict": v.verdict, "evidence": v.evidence}
-                          for c, v in verdicts]}
+                          for c, v in verdicts],
+               "matrix": [{"preset": p, "scene_set": sset,
+                           "verdicts": {c.id: {"verdict": v.verdict, "evidence": v.evidence} for c, v in rows}}
+                          for (p, sset), rows in matrix.items()]}
     atomic_write_text(args.out / "claims.json", json.dumps(summary, indent=1, ensure_ascii=False))
     readme = args.readme
     if readme is None and args.out.resolve() == (_PROJECT_ROOT / "report").resolve():
@@ -264,10 +424,12 @@ def main(argv=None) -> int:
             link = (args.out / "README.md").resolve().relative_to(readme.resolve().parent).as_posix()
         except ValueError:
             link = (args.out / "README.md").resolve().as_posix()
-        if update_readme_block(readme, claims_block(verdicts, report_link=link)):
+        if update_readme_block(readme, claims_block(matrix, report_link=link)):
             print(f"refreshed the claims table in {readme}")
-    for c, v in verdicts:
-        print(f"{_BADGE[v.verdict]} {v.verdict:17s} {c.id}")
+    for (p, sset), rows in matrix.items():
+        print(f"{column_label(p, sset)}:")
+        for c, v in rows:
+            print(f"  [{_mark(v.verdict)}] {v.verdict:17s} {c.id}")
     print(f"wrote {args.out / 'README.md'}, {args.out / 'index.html'}, {args.out / 'claims.json'}")
     return 0
 

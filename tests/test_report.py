@@ -71,7 +71,7 @@ def test_readme_claims_block_is_refreshed_between_markers(tmp_path):
     assert update_readme_block(readme, claims_block(verdicts, report_link="report/README.md"))
     text = readme.read_text()
     assert "stale" not in text and text.startswith("# Title\n\nbefore\n") and text.endswith("after\n")
-    assert text.count(README_START) == 1 and "| reproduced |" in text and "report/README.md" in text
+    assert text.count(README_START) == 1 and "| `+` reproduced |" in text and "report/README.md" in text
     plain = tmp_path / "plain.md"
     plain.write_text("no markers\n")
     assert not update_readme_block(plain, "x") and plain.read_text() == "no markers\n"
@@ -110,3 +110,41 @@ def test_preset_tables_one_table_per_scene_set():
     md = build_markdown(metrics, [], figures_rel="figures", bench=None)
     assert "## Presets side by side" in md and "| mosaic:dead_leaves | 1.00 |" in md
     assert preset_tables({}) == [] and "Presets side by side" not in build_markdown({}, [], figures_rel="f", bench=None)
+
+
+def test_claims_table_has_one_column_per_preset_and_scene_set():
+    from repro.report import MARKS, build_html, build_markdown, claims_block
+
+    from experiments.claims import Verdict
+
+    claims = CLAIMS[:2]
+    matrix = {("paper", "paper_cameras"): [(claims[0], Verdict("reproduced", "e1", {})),
+                                           (claims[1], Verdict("not reproduced", "e2", {}))],
+              ("paper", "tabletop_stress"): [(claims[0], Verdict("partly reproduced", "e3", {})),
+                                             (claims[1], Verdict("error", "boom", {}))]}
+    block = claims_block(matrix, report_link="r.md")
+    header = [line for line in block.splitlines() if line.startswith("| claim")][0]
+    assert header.count("|") == 5 and "paper preset, paper_cameras" in header and "tabletop_stress" in header
+    escaped = claims[0].text.replace("|", "\\|")
+    row0 = [line for line in block.splitlines() if line.startswith(f"| {escaped}")][0]
+    assert row0.endswith("| `+` reproduced | `~` partly reproduced |")
+    assert "`!` error" in block and set(MARKS) == {"reproduced", "partly reproduced", "not reproduced",
+                                                   "not evaluated", "error"}
+    md = build_markdown({}, matrix, figures_rel="figures", bench=None)
+    assert md.index("paper preset, tabletop_stress") < md.index("## Scene sets") < md.index("## Figures")
+    assert "### Evidence: paper preset, tabletop_stress" in md and "boom" in md
+    page = build_html({}, matrix, figures_rel="figures", bench=None)
+    assert page.index("id='claims'") < page.index("<h2>Figures</h2>")
+    assert page.count("<svg class='mark'") >= 4 + len(MARKS) and "tabletop_stress" in page
+
+
+def test_figure_files_list_the_stress_set_image_with_its_caption(tmp_path):
+    from repro.report import figure_files
+
+    m = {"metrics": {"scene_set": "paper_cameras", "scene_sets": {"tabletop_stress": {}}}}
+    assert [s for s, _ in figure_files("fig5", m, tmp_path)] == ["fig5"]  # no stress image on disk
+    (tmp_path / "fig5_tabletop_stress.png").write_bytes(b"x")
+    files = figure_files("fig5", m, tmp_path)
+    assert [s for s, _ in files] == ["fig5", "fig5_tabletop_stress"]
+    assert "paper_cameras (default)" in files[0][1] and "tabletop_stress (stress test)" in files[1][1]
+    assert figure_files("fig10", {"metrics": {"max_rel_err": 0.1}}, tmp_path) == [("fig10", "")]

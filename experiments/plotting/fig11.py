@@ -5,10 +5,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from .style import _RC, add_colorbar, plt, save_figure
+from .style import _RC, add_colorbar, plt, plot_scene_sets, save_figure
 
 
 def plot(data, config, out_stem):
+    """Draw the figure for the default scene set (``out_stem``) and each further set
+    (``<out_stem>_<set>``), captioned with the set (:func:`.style.plot_scene_sets`)."""
+    return plot_scene_sets(plot_one_set, data, config, out_stem)
+
+
+def plot_one_set(data, config, out_stem):
     """Draw Fig. 11 from :func:`experiments.fig11_gallery.compute`'s dict; returns the paths.
 
     Columns: input; then for every method preset of ``config.presets`` (first ``paper``, the

@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from .fig4 import _dots
-from .style import COLORS, add_colorbar, new_figure, plt, save_figure
+from .style import COLORS, add_colorbar, new_figure, plt, plot_scene_sets, save_figure
 
 _TITLES = {"before": "before (BM)", "after_bias": "after bCBF (bias)", "after_no_bias": "after CBF (no bias)"}
 #: Where s = inf is drawn on the log axis, as a multiple of the largest finite s.
@@ -63,6 +63,12 @@ def _sweep_panels(fig, axes_row, data, cases, config):
 
 
 def plot(data, config, out_stem):
+    """Draw the figure for the default scene set (``out_stem``) and each further set
+    (``<out_stem>_<set>``), captioned with the set (:func:`.style.plot_scene_sets`)."""
+    return plot_scene_sets(plot_one_set, data, config, out_stem)
+
+
+def plot_one_set(data, config, out_stem):
     """Draw Fig. 5 from :func:`experiments.fig5_cross_bilateral.compute`'s dict; returns the paths."""
     cases = [str(c) for c in data["cases"]]
     m = data["metrics"]

@@ -4,10 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from .style import _RC, COLORS, add_colorbar, plt, save_figure
+from .style import _RC, COLORS, add_colorbar, plt, plot_scene_sets, save_figure
 
 
 def plot(data, config, out_stem):
+    """Draw the figure for the default scene set (``out_stem``) and each further set
+    (``<out_stem>_<set>``), captioned with the set (:func:`.style.plot_scene_sets`)."""
+    return plot_scene_sets(plot_one_set, data, config, out_stem)
+
+
+def plot_one_set(data, config, out_stem):
     """Draw Fig. 6 from :func:`experiments.fig6_alpha_sweep.compute`'s dict; returns the paths.
 
     Top: one row per method preset of ``config.presets`` (first ``paper``, the reproduction):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .style import _RC, COLORS, add_colorbar, plt, save_figure
+from .style import _RC, COLORS, add_colorbar, plt, plot_scene_sets, save_figure
 
 _MAP_LABELS = {
     "map_small": "f/8 map",
@@ -49,6 +49,12 @@ def _categories(labels, preset_keys, presets):
 
 
 def plot(data, config, out_stem):
+    """Draw the figure for the default scene set (``out_stem``) and each further set
+    (``<out_stem>_<set>``), captioned with the set (:func:`.style.plot_scene_sets`)."""
+    return plot_scene_sets(plot_one_set, data, config, out_stem)
+
+
+def plot_one_set(data, config, out_stem):
     """Draw Fig. 7 from :func:`experiments.fig7_doubled_defocus.compute`'s dict; returns the paths.
 
     Per scene: an image row and a map row of the ``paper`` preset (the reproduction; maps on one

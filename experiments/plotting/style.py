@@ -10,7 +10,17 @@ matplotlib.use("Agg")  # headless; must precede pyplot
 
 import matplotlib.pyplot as plt  # noqa: E402
 
-__all__ = ["COLORS", "DPI", "add_colorbar", "new_figure", "plt", "save_figure"]
+__all__ = ["COLORS", "DPI", "SCENE_SET_CAPTIONS", "add_colorbar", "new_figure", "plot_scene_sets", "plt",
+           "save_figure"]
+
+#: One line per scene set, written under the figures drawn for it.
+SCENE_SET_CAPTIONS = {
+    "paper_cameras": "scene set paper_cameras (default): the paper's cameras at real-world distances "
+                     "(subject at 2-6 m, background to 10-30 m)",
+    "tabletop_stress": "scene set tabletop_stress (stress test): tabletop macro shots, 50 mm full frame "
+                       "focused at 0.2-0.25 m (blur far larger than the paper's)",
+}
+_caption: list[str] = []  # caption of the figure being drawn (set by plot_scene_sets)
 
 #: PNG resolution, dots per inch.
 DPI = 150
@@ -52,6 +62,8 @@ def save_figure(fig, out_stem) -> list[Path]:
 
     out_stem = Path(out_stem)
     out_stem.parent.mkdir(parents=True, exist_ok=True)
+    if _caption:
+        fig.text(0.5, 0.0, _caption[-1], ha="center", va="top", fontsize=8, style="italic")
     paths = []
     with plt.rc_context(_RC):
         for ext in (".png", ".pdf"):
@@ -60,6 +72,42 @@ def save_figure(fig, out_stem) -> list[Path]:
                 fig.savefig(tmp, dpi=DPI, format=ext[1:], metadata=_metadata(ext))
             paths.append(path)
     plt.close(fig)
+    return paths
+
+
+def plot_scene_sets(plot_one, data, config, out_stem) -> list[Path]:
+    """Draw a figure once per scene set: the default set to ``out_stem``, each further one to
+    ``<out_stem>_<set>`` (e.g. ``fig5_tabletop_stress.png``), each captioned with its set.
+
+    Parameters
+    ----------
+    plot_one : callable
+        ``plot_one(data, config, out_stem) -> list[Path]`` drawing one scene set.
+    data : dict
+        A figure's compute dict (:func:`experiments.scene_sets.compute_scene_sets`).
+    config : frozen dataclass
+        The figure's config (with ``scene_set`` and ``other_scene_sets``).
+    out_stem : Path
+    """
+    import dataclasses
+
+    from ..scene_sets import set_arrays
+
+    out_stem = Path(out_stem)
+    metrics = data.get("metrics", {})
+    sets = metrics.get("scene_sets", {})
+    jobs = [(set_arrays(data, None), config, out_stem, metrics.get("scene_set", getattr(config, "scene_set", None)))]
+    for name, overrides in getattr(config, "other_scene_sets", ()):
+        if name in sets:
+            cfg = dataclasses.replace(config, scene_set=name, other_scene_sets=(), **dict(overrides))
+            jobs.append((set_arrays(data, name), cfg, out_stem.with_name(f"{out_stem.name}_{name}"), name))
+    paths = []
+    for d, cfg, stem, name in jobs:
+        _caption.append(SCENE_SET_CAPTIONS.get(name, f"scene set {name}") if name else "")
+        try:
+            paths += plot_one(d, cfg, stem)
+        finally:
+            _caption.pop()
     return paths
 
 

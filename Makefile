@@ -13,7 +13,8 @@ setup: system-deps $(STAMP)
 
 # Mitsuba's fast CPU variant (llvm_ad_rgb) needs libLLVM >= 16; Debian 12 ships 14/15, which
 # abort the process. Install libllvm19 when we are root with apt; otherwise the code falls back
-# to scalar_rgb with a warning (see README, "Rendering backend").
+# to scalar_rgb with a warning (see README, "Rendering backend"). chromium (headless) renders
+# report/index.html in tests/test_report_browser.py; installed the same way, else that test is skipped.
 system-deps:
 	@if ls /usr/lib/*/libLLVM*.so.19* /usr/lib/*/libLLVM-19.so* >/dev/null 2>&1; then \
 	    true; \
@@ -23,6 +24,15 @@ system-deps:
 	      || echo "warning: could not install libllvm19; rendering will fall back to scalar_rgb"; \
 	else \
 	    echo "note: libLLVM 19 not found and cannot apt-get it; rendering falls back to scalar_rgb (see README)"; \
+	fi
+	@if command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1; then \
+	    true; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    echo "installing chromium for the report's browser test (tests/test_report_browser.py)"; \
+	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium >/dev/null) \
+	      || echo "warning: could not install chromium; the report's browser test will be skipped"; \
+	else \
+	    echo "note: chromium not found and cannot apt-get it; the report's browser test will be skipped (see README)"; \
 	fi
 
 $(STAMP): pyproject.toml

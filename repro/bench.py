@@ -684,10 +684,17 @@ def run_accuracy(config: dict | None = None, *, out: Path, progress: bool = True
     return report
 
 
+PROG = "python -m repro.bench"
+
+
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m repro.bench", description=__doc__.splitlines()[0])
-    parser.add_argument("--sizes", type=int, nargs="+", default=[256, 512, 1024], help="image sides, px")
-    parser.add_argument("--repeat", type=int, default=3, help="runs per size; the fastest counts")
+    from repro._cli import ArgumentParser, add_quiet_option, int_type
+
+    parser = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int_type("--sizes", minimum=16), nargs="+", default=[256, 512, 1024],
+                        help="image sides, px (>= 16)")
+    parser.add_argument("--repeat", type=int_type("--repeat"), default=3, help="runs per size; the fastest counts")
+    add_quiet_option(parser, what="no progress display")
     parser.add_argument("--out", type=Path, default=Path("report") / "bench", help="output folder")
     parser.add_argument("--accuracy", action="store_true",
                         help="record the dense-map accuracy targets (accuracy.md / accuracy.json) instead")
@@ -697,21 +704,14 @@ def main(argv=None) -> int:
         print(json.dumps(_worker(args.worker, args.repeat)))
         return 0
     if args.accuracy:
-        try:
-            run_accuracy(out=args.out)
-        except ValueError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 2
+        run_accuracy(out=args.out)  # a ValueError is one line + exit 2 (repro._cli.run_cli)
         print((args.out / "accuracy.md").read_text(encoding="utf-8"))
         return 0
-    if any(s < 16 for s in args.sizes) or args.repeat < 1:
-        print("error: --sizes must be >= 16 px and --repeat >= 1", file=sys.stderr)
-        return 2
     from tqdm import tqdm
 
     from scenes.storage import atomic_write_text
 
-    rows = [_run_size(s, args.repeat) for s in tqdm(args.sizes, desc="bench sizes", unit="size")]
+    rows = [_run_size(s, args.repeat) for s in tqdm(args.sizes, desc="bench sizes", unit="size", disable=args.quiet)]
     by_size = {r["size"]: r for r in rows}
     summary = {}
     if 1024 in by_size:
@@ -746,4 +746,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from repro._cli import run_cli
+
+    sys.exit(run_cli(main, prog=PROG))

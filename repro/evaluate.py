@@ -2,7 +2,7 @@
 
 ``python -m repro.evaluate [--preset paper robust zhuo_sim] [--estimator NAME ...] [--scenes NAME ...]
 [--fnumber N ...] [--scene-preset small|full] [--encoding srgb linear] [--stages] [--out DIR] [--force]
-[--variant V]``
+[--variant V] [-q]``
 
 For every combination, the scene is rendered (cached), the whole pipeline runs with the estimator
 (:func:`experiments.evaluation.evaluate_case`, cached per estimator, scene, f-number, preset and
@@ -57,7 +57,7 @@ _SHORT = {"sparse_n": "n_edge", "sparse_mae": "BM_MAE", "sparse_median_ae": "BM_
 
 def _parser():
     from method import BLUR_ESTIMATORS, PRESETS
-    from repro._cli import ArgumentParser, add_variant_option, float_type
+    from repro._cli import ArgumentParser, add_force_option, add_quiet_option, add_variant_option, float_type
     from scenes import SCENES
 
     p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
@@ -79,7 +79,8 @@ def _parser():
     p.add_argument("--encoding", nargs="+", default=["srgb"], choices=("srgb", "linear"),
                    help="input encoding(s) given to the method (default: srgb, as a camera stores it)")
     p.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="DIR", help=f"output folder (default: {DEFAULT_OUT})")
-    p.add_argument("--force", action="store_true", help="recompute even when cached")
+    add_force_option(p)
+    add_quiet_option(p, what="no progress display")
     return p
 
 
@@ -237,7 +238,7 @@ def main(argv=None) -> int:
               for e in estimators]
     cases = []
     t0 = time.perf_counter()
-    with tqdm(combos, desc="evaluate", unit="case", file=sys.stderr) as bar:
+    with tqdm(combos, desc="evaluate", unit="case", file=sys.stderr, disable=args.quiet) as bar:
         for pr, e, s, n, enc in bar:
             bar.set_postfix_str(f"{pr} {e or ''} {s} f/{n:g} {enc}")
             cases.append(evaluate_case(e, s, f_number=n, preset=args.scene_preset, encoding=enc,

@@ -1,6 +1,6 @@
 """Reproduce the paper's figures: compute (cached), plot, and write metrics.
 
-``python -m repro.figures [NAMES...] [--list] [--quick] [--jobs N] [--out DIR] [--force] [--preset NAME ...]``
+``python -m repro.figures [NAMES...] [--list] [--quick] [--jobs N] [--out DIR] [--force] [--preset NAME ...] [-q]``
 
 For each figure (default: all registered in :data:`experiments.registry.FIGURES`) this renders
 whatever is missing (render and compute results are cached under ``$DEFOCUS_CACHE_DIR``), runs the
@@ -28,19 +28,23 @@ DEFAULT_OUT = Path("report") / "figures"
 
 
 def _parser() -> argparse.ArgumentParser:
-    from repro._cli import ArgumentParser, add_variant_option, int_type
+    from experiments.registry import FIGURES
+    from method import PRESETS
+    from repro._cli import ArgumentParser, add_force_option, add_quiet_option, add_variant_option, int_type
 
     p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     add_variant_option(p)
-    p.add_argument("names", nargs="*", metavar="NAME", help="figures to make (default: all), e.g. fig10")
+    p.add_argument("names", nargs="*", metavar="NAME",
+                   help=f"figures to make (default: all registered: {', '.join(FIGURES)})")
     p.add_argument("--list", action="store_true", help="list the registered figures and exit")
     p.add_argument("--quick", action="store_true", help="quick mode: fewer points, fewer samples per pixel")
     p.add_argument("--jobs", type=int_type("--jobs"), default=1, metavar="N", help="figures computed in parallel (processes)")
     p.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="DIR",
                    help=f"output folder (default: {DEFAULT_OUT})")
-    p.add_argument("--force", action="store_true", help="recompute even when a cached result exists")
+    add_force_option(p)
+    add_quiet_option(p, what="no progress display")
     p.add_argument("--preset", nargs="+", default=None, metavar="NAME",
-                   help="method parameter presets (method.PRESETS, e.g. robust zhuo_sim) for the figures whose "
+                   help=f"method parameter presets (method.PRESETS: {', '.join(PRESETS)}) for the figures whose "
                         "config has a 'presets' field (fig6, fig7, fig11, stages); 'paper' is always kept first "
                         "(--preset paper: the paper alone); default: each config's own; figures without the "
                         "field ignore it")
@@ -153,7 +157,7 @@ def main(argv=None) -> int:
     from tqdm import tqdm
 
     summaries = []
-    bar = tqdm(total=len(names), desc=f"figures ({mode})", unit="fig", file=sys.stderr)
+    bar = tqdm(total=len(names), desc=f"figures ({mode})", unit="fig", file=sys.stderr, disable=args.quiet)
     if args.jobs == 1 or len(names) == 1:
         for name in names:
             bar.set_postfix_str(name)

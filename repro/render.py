@@ -17,6 +17,8 @@ import sys
 
 from repro._cli import (
     ArgumentParser,
+    add_force_option,
+    add_quiet_option,
     add_variant_option,
     check_output_path,
     float_type,
@@ -30,11 +32,11 @@ PROG = "python -m repro.render"
 
 def _parser() -> ArgumentParser:
     from scenes.camera import CAMERA_PRESETS
-    from scenes.library import PRESETS
+    from scenes.library import PRESETS, SCENES
     from scenes.thin_lens import SIGMA_CONVENTIONS
 
     p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
-    p.add_argument("scene", nargs="?", metavar="SCENE", help="scene name (see --list)")
+    p.add_argument("scene", nargs="?", metavar="SCENE", help=f"scene name: {', '.join(SCENES)} (details: --list)")
     p.add_argument("--list", action="store_true",
                    help="list the scenes (set, camera, description, sigma_gt range per preset and f-number "
                         "measured from the ground truth, cached) and exit")
@@ -62,8 +64,8 @@ def _parser() -> ArgumentParser:
     p.add_argument("--sigma-convention", default="line_spread", choices=sorted(SIGMA_CONVENTIONS),
                    help="CoC to sigma: line_spread (c/4, default) or erf_fit (0.273 c)")
     p.add_argument("--out", default=None, metavar="PATH", help="also write the EXR here (+ .json sidecar)")
-    p.add_argument("--no-cache", action="store_true", help="render without reading or writing the cache")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_force_option(p, what="re-render even when the render is cached (the new render replaces it)")
+    add_quiet_option(p, what="no progress bar")
     return p
 
 
@@ -128,7 +130,7 @@ def main(argv=None) -> int:
     validate_render_options(sdef, camera, preset=preset, spp=args.spp, seed=args.seed,
                             sigma_convention=args.sigma_convention)
     render = render_scene(sdef, camera, preset=preset, spp=args.spp, seed=args.seed, variant=args.variant,
-                          sigma_convention=args.sigma_convention, use_cache=not args.no_cache,
+                          sigma_convention=args.sigma_convention, force=args.force,
                           progress=not args.quiet)
     if out is not None:
         render.save(out)

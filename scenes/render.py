@@ -470,6 +470,7 @@ def render_scene(
     variant: str | None = None,
     sigma_convention: str = "line_spread",
     use_cache: bool = True,
+    force: bool = False,
     progress: bool = True,
 ) -> Render:
     """Render a scene and its ground truth (cached).
@@ -494,6 +495,8 @@ def render_scene(
         CoC → σ convention of ``sigma_px`` (c/4 or 0.273·c, in quadrature with the box filter's σ).
     use_cache : bool, keyword-only
         Read/write the render cache. ``False`` renders in memory (``Render.path`` is None).
+    force : bool, keyword-only
+        Re-render even when the render is cached (the new render replaces the entry).
     progress : bool, keyword-only
         Show a tqdm progress bar (spp chunks).
 
@@ -526,6 +529,8 @@ def render_scene(
         return _compute(sdef, camera, **kwargs)
     key = render_key(sdef, camera, spp=spp, seed=seed, variant=chosen, sigma_convention=sigma_convention)
     cache = render_cache()
+    if force:
+        cache.invalidate(key)
 
     def build(folder: Path) -> None:
         _compute(sdef, camera, **kwargs).save(folder / EXR_NAME)

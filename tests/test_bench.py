@@ -210,7 +210,9 @@ def test_plain_bench_unchanged_without_the_flag(tmp_path, monkeypatch):
 
 def test_accuracy_cli_rejects_an_unknown_preset(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(bench, "ACCURACY_CONFIG", dict(TINY, presets=("nope",)))
-    assert bench.main(["--accuracy", "--out", str(tmp_path)]) == 2
+    from repro._cli import run_cli
+
+    assert run_cli(bench.main, ["--accuracy", "--out", str(tmp_path)], prog=bench.PROG) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: ") and "nope" in err and len(err.strip().splitlines()) == 1
+    assert err.startswith(f"{bench.PROG}: error: ") and "nope" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "accuracy.json").exists()

@@ -36,3 +36,99 @@ def test_bugs_propagate():
 def test_status_passes_through():
     assert run_cli(lambda argv=None: None, []) == 0
     assert run_cli(lambda argv=None: 1, []) == 1
+
+
+# ------------------------------------------------------------------------------------------------
+# the defocus-repro console script and the flags shared by every tool
+# ------------------------------------------------------------------------------------------------
+import importlib.util  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tomllib  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from repro._cli import COMMANDS, console_main, version_string  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+AVAILABLE = [name for name in COMMANDS if importlib.util.find_spec(f"repro.{name}") is not None]
+#: Commands that reuse cached results, so they have --force.
+CACHED = ("figures", "render", "evaluate", "estimate", "magnify")
+
+
+def test_console_script_is_declared():
+    meta = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert meta["project"]["scripts"] == {"defocus-repro": "repro._cli:console_main"}
+    assert set(COMMANDS) == {"figures", "render", "evaluate", "estimate", "magnify", "report", "bench", "sweep"}
+    for name in ("figures", "render", "evaluate", "estimate", "magnify", "report", "bench"):
+        assert name in AVAILABLE
+
+
+def _help(name, capsys) -> str:
+    with pytest.raises(SystemExit) as e:
+        console_main([name, "--help"])
+    assert e.value.code == 0
+    return capsys.readouterr().out
+
+
+@pytest.mark.parametrize("name", AVAILABLE)
+def test_every_command_has_version_and_the_shared_flag_names(name, capsys):
+    with pytest.raises(SystemExit) as e:
+        console_main([name, "--version"])
+    assert e.value.code == 0 and capsys.readouterr().out.strip() == version_string()
+    text = _help(name, capsys)
+    assert "--version" in text
+    assert "--no-cache" not in text  # one documented name: --force
+    if "--quiet" in text:
+        assert "-q, --quiet" in text
+    if name in CACHED:
+        assert "--force" in text
+
+
+def test_help_texts_list_registry_names(capsys, monkeypatch):
+    from experiments.registry import FIGURES
+    from method import BLUR_ESTIMATORS, PRESETS
+    from scenes import SCENES
+
+    checks = {"figures": [*FIGURES, *PRESETS], "render": list(SCENES), "evaluate": [*BLUR_ESTIMATORS, *PRESETS],
+              "estimate": [*BLUR_ESTIMATORS, *PRESETS], "magnify": [*BLUR_ESTIMATORS, *PRESETS]}
+    for name, needles in checks.items():
+        text = " ".join(_help(name, capsys).split())
+        for needle in needles:
+            assert needle in text, (name, needle)
+
+
+def test_unknown_or_missing_command_is_one_line_exit_2(capsys, monkeypatch):
+    assert console_main(["nope"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown command 'nope'" in err[0] and "figures" in err[0]
+    assert console_main([]) == 2
+    assert "commands:" in capsys.readouterr().err
+    monkeypatch.setitem(COMMANDS, "nosuchtool", "a command whose module is not installed")
+    assert console_main(["nosuchtool"]) == 2
+    assert "not available" in capsys.readouterr().err
+    assert console_main(["--version"]) == 0 and capsys.readouterr().out.strip() == version_string()
+    assert console_main(["--help"]) == 0
+    out = capsys.readouterr().out
+    assert all(name in out for name in COMMANDS)
+
+
+def test_errors_through_the_console_script_name(capsys):
+    assert console_main(["figures", "nofig"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("defocus-repro figures: error:") and "nofig" in err[0]
+    assert console_main(["bench", "--sizes", "8"]) == 2  # bench goes through the same runner
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--sizes" in err[0]
+
+
+def test_installed_script_and_python_m_both_work():
+    script = Path(sys.executable).parent / "defocus-repro"
+    if not script.exists():
+        pytest.skip("package not installed into this interpreter's environment (make test installs it)")
+    got = subprocess.run([str(script), "--version"], capture_output=True, text=True, timeout=120)
+    assert got.returncode == 0 and got.stdout.strip() == version_string()
+    got = subprocess.run([str(script), "magnify", "nope.jpg", "-q"], capture_output=True, text=True, timeout=120)
+    assert got.returncode == 2 and got.stderr.startswith("defocus-repro magnify: error:")
+    for cmd in ([sys.executable, "-m", "repro.estimate", "--version"], [sys.executable, "-m", "repro", "--version"]):
+        got = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT)
+        assert got.returncode == 0 and got.stdout.strip() == version_string(), cmd

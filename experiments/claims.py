@@ -544,8 +544,8 @@ def _refocus(m):
                     "refocused_oracle_virtual": dict(oracle) if oracle else None})
 
 
-_CLOSER = (f"“closer” = PSNR up by ≥ {PSNR_MARGIN_DB:g} dB or SSIM up by ≥ {SSIM_MARGIN:g}; “no worse” = not down "
-           "by more than that margin")
+_CLOSER = (f"a measure is “closer” when PSNR rises by ≥ {PSNR_MARGIN_DB:g} dB (SSIM by ≥ {SSIM_MARGIN:g}) and "
+           "“worse” when it falls by more than that margin")
 
 #: The claims, in the paper's order.
 CLAIMS: tuple[Claim, ...] = (

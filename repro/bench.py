@@ -12,6 +12,10 @@ dense-map issue (:func:`run_accuracy`, configuration :data:`ACCURACY_CONFIG`): d
 edge errors per σ bin on analytic truth (dead-leaves / photo mosaics, step-edge mosaics; 8 bits +
 noise), on the rendered scenes, and the whole-pipeline speed of the presets, with pass/fail per
 target. Writes ``accuracy.json`` and ``accuracy.md`` (``--sizes`` / ``--repeat`` do not apply).
+
+``python -m repro.bench --sweep [--out report/bench]`` benchmarks the sweep engine
+(:func:`repro.sweep.run_sweep_bench`): cells per minute for 1 and 2 workers on the small preset and the
+engine's overhead per cell. Writes ``sweep.json`` and ``sweep.md``.
 """
 
 from __future__ import annotations
@@ -698,6 +702,9 @@ def main(argv=None) -> int:
     parser.add_argument("--out", type=Path, default=Path("report") / "bench", help="output folder")
     parser.add_argument("--accuracy", action="store_true",
                         help="record the dense-map accuracy targets (accuracy.md / accuracy.json) instead")
+    parser.add_argument("--sweep", action="store_true",
+                        help="benchmark the sweep engine instead (cells/minute for 1 and 2 workers, engine overhead "
+                             "per cell; sweep.md / sweep.json)")
     parser.add_argument("--worker", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.worker is not None:
@@ -706,6 +713,12 @@ def main(argv=None) -> int:
     if args.accuracy:
         run_accuracy(out=args.out)  # a ValueError is one line + exit 2 (repro._cli.run_cli)
         print((args.out / "accuracy.md").read_text(encoding="utf-8"))
+        return 0
+    if args.sweep:
+        from repro.sweep import run_sweep_bench
+
+        run_sweep_bench(args.out)
+        print((args.out / "sweep.md").read_text(encoding="utf-8"))
         return 0
     from tqdm import tqdm
 

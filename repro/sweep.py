@@ -22,7 +22,8 @@ its tasks rerun elsewhere by the scheduler.
 
 Outputs (atomic): ``DIR/results.parquet`` (one row per cell: every input, the method variant label,
 the Mitsuba variant, every metric; the same bytes of content serial or parallel), ``DIR/timings.parquet``
-(per cell: worker, seconds, resumed or not), ``DIR/<metric>.png`` (the chosen metric per method
+(per cell, in the same order: its id = the name of its file in ``cells/``, worker, seconds,
+resumed or not), ``DIR/<metric>.png`` (the chosen metric per method
 variant) and a summary printed on the terminal.
 
 Bad grid (unknown scene, camera, estimator, preset, parameter name or value, f-number, metric): one
@@ -45,7 +46,7 @@ PROG = "python -m repro.sweep"
 #: Input columns of ``results.parquet`` before the swept parameter columns.
 INPUT_COLUMNS = ("scene", "camera", "f_number", "scene_preset", "seed", "encoding", "method_preset", "estimator")
 #: Columns after the inputs and parameters: identity and backend.
-INFO_COLUMNS = ("method_variant", "mitsuba_variant", "cell_id")
+INFO_COLUMNS = ("method_variant", "mitsuba_variant")
 #: Default metric of the plot and the summary.
 DEFAULT_METRIC = "dense_textured_mae"
 #: Column value for the scene's own camera (``--camera`` not given).
@@ -496,7 +497,7 @@ def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | N
     for c, cid in zip(grid.cells, ids):
         res = records[cid]["result"]
         rows.append({**c.inputs(), "method_variant": c.variant_label, "mitsuba_variant": res["variant"],
-                     "cell_id": cid, **_metric_columns(res["metrics"])})
+                     **_metric_columns(res["metrics"])})
         timings.append({"cell_id": cid, "method_variant": c.variant_label, "scene": c.render.scene,
                         "f_number": c.render.f_number, "seed": c.render.seed, "host": res.get("host"),
                         "pid": res.get("pid"), "seconds": res.get("seconds"),
@@ -683,8 +684,11 @@ def run_sweep_bench(out, *, scenes=("planes", "portrait"), f_numbers=(8.0, 4.0),
     (workers × wall time − Σ task seconds) / cells: scheduling, transfer, result handling and idle
     workers at the end; the no-op round trip is the scheduler's own cost per task.
     """
+    import logging
     import platform
     import tempfile
+
+    from dask.distributed import Client, LocalCluster
 
     from experiments.sweep_cells import render_task
     from scenes.storage import atomic_write_text
@@ -701,9 +705,6 @@ def run_sweep_bench(out, *, scenes=("planes", "portrait"), f_numbers=(8.0, 4.0),
             run = run_sweep(grid, Path(tmp), workers=n, progress=progress)
             tables.append([{k: v for k, v in r.items()} for r in run.rows])
         busy = sum(t["seconds"] for t in run.timings)
-        from dask.distributed import Client, LocalCluster
-        import logging
-
         with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
                           silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
             client.gather(client.map(_noop, range(20), key=[f"warm-{i}" for i in range(20)]))

@@ -181,12 +181,10 @@ def code_fingerprint() -> str:
     invalidates cached figure data without anyone remembering to bump a version number
     (renders keep their own, finer cache keyed by each scene's content).
     """
-    import experiments
-    import method
-    import scenes
     from scenes.storage import source_fingerprint
 
-    return source_fingerprint(method, scenes, experiments, exclude=_FINGERPRINT_EXCLUDED)
+    return source_fingerprint(*(importlib.import_module(p) for p in _FINGERPRINT_PACKAGES),
+                              exclude=_FINGERPRINT_EXCLUDED)
 
 
 def cache_key(figure: Figure, config) -> dict:

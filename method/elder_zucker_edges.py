@@ -28,7 +28,6 @@ __all__ = [
     "MIN_IMAGE_SIZE",
     "check_edge_inputs",
     "detect_edges",
-    "dominant_axis_steps",
     "edge_pixels_by_scale",
 ]
 
@@ -70,30 +69,6 @@ class EdgeMap:
     sigma1: np.ndarray
     sigma2: np.ndarray
     hessians: dict | None = dataclasses.field(default=None, repr=False, compare=False)
-
-
-def dominant_axis_steps(theta):
-    """Integer pixel step along the image axis closest to the direction θ, and the projection.
-
-    Parameters
-    ----------
-    theta : ndarray
-        Directions, radians (x right, y down).
-
-    Returns
-    -------
-    d_row, d_col : ndarray of int64
-        One-pixel step (each in {−1, 0, 1}, exactly one non-zero) along the axis on which
-        (cos θ, sin θ) has the larger absolute component, signed so that the step has a positive
-        component along θ.
-    proj : ndarray of float64
-        max(|cos θ|, |sin θ|) ∈ [1/√2, 1]: the distance along θ covered by one step, px.
-    """
-    c, s = np.cos(theta), np.sin(theta)
-    horiz = np.abs(c) >= np.abs(s)
-    d_col = np.where(horiz, np.where(c >= 0, 1, -1), 0).astype(np.int64)
-    d_row = np.where(horiz, 0, np.where(s >= 0, 1, -1)).astype(np.int64)
-    return d_row, d_col, np.maximum(np.abs(c), np.abs(s))
 
 
 @numba.njit(cache=True, nogil=True)

@@ -42,7 +42,6 @@ import scipy.fft
 __all__ = [
     "GaussianDerivativeBank",
     "gaussian_derivative",
-    "gradient_direction",
     "sampled_kernel",
     "steer_first",
     "steer_second",
@@ -239,22 +238,6 @@ def gaussian_derivative(image, sigma, *, order_x, order_y):
     directly for many responses of the same image.
     """
     return GaussianDerivativeBank(image, sigma).response(sigma, order_x, order_y)
-
-
-def gradient_direction(ix, iy):
-    """Gradient direction θ = atan2(I_y, I_x), radians in (−π, π] (x right, y down).
-
-    Parameters
-    ----------
-    ix, iy : ndarray, same shape
-        Responses to Eq. (7a) and (7b).
-
-    Returns
-    -------
-    ndarray
-        θ maximising the steered 1st-derivative response cos θ·I_x + sin θ·I_y.
-    """
-    return np.arctan2(iy, ix)
 
 
 def steer_first(ix, iy, theta):

@@ -32,6 +32,8 @@ import numpy as np
 from scipy import fft as sfft
 from scipy import ndimage
 
+from .validation import validate_image, validate_map
+
 __all__ = ["MAGNIFICATION_KERNELS", "MAP_FLOOR_MODES", "check_extra_blur", "magnify_defocus", "preprocess_defocus_map"]
 
 #: Ratio between the σ of consecutive blur-stack levels (levels 0, 0.5 px, 0.5·√2 px, ...).
@@ -78,17 +80,8 @@ MAGNIFICATION_KERNELS = {
 
 
 def _check_map(defocus_map, shape=None, *, name="defocus_map"):
-    if not isinstance(defocus_map, np.ndarray):
-        raise ValueError(f"{name} must be a numpy array, got {type(defocus_map).__name__}")
-    if defocus_map.ndim != 2:
-        raise ValueError(f"{name} must be HxW, got shape {defocus_map.shape}")
-    if shape is not None and defocus_map.shape != tuple(shape[:2]):
-        raise ValueError(f"{name} has shape {defocus_map.shape}, expected {tuple(shape[:2])} (the image's HxW)")
-    if not np.issubdtype(defocus_map.dtype, np.number) or np.issubdtype(defocus_map.dtype, np.complexfloating):
-        raise ValueError(f"{name} must be real numeric, got dtype {defocus_map.dtype}")
-    if not np.all(np.isfinite(defocus_map)):
-        raise ValueError(f"{name} contains NaN or Inf values")
-    return defocus_map.astype(np.float64, copy=False)
+    # may be negative here: Sec. 5's preprocessing clamps it
+    return validate_map(defocus_map, shape, name=name, allow_negative=True)
 
 
 def _floor_clamp(m, floor):
@@ -236,12 +229,18 @@ def _blur_stack_apply(image, sigma_extra, kernel, *, spectral_filter=None):
     return out
 
 
+#: Smallest bound on the extra blur σ_e, px, whatever the image size (:func:`check_extra_blur`): tiny
+#: images may be blurred past their size (cheap), large ones up to their longer side.
+MIN_EXTRA_SIGMA_LIMIT = 64.0
+
+
 def check_extra_blur(factor: float, defocus_map: np.ndarray, shape, *, name: str = "factor") -> float:
-    """Largest extra blur σ_e = √(factor² − 1)·max B, px; ValueError when it exceeds the image's longer side.
+    """Largest extra blur σ_e = √(factor² − 1)·max B, px; ValueError when it exceeds the image's longer side
+    (or :data:`MIN_EXTRA_SIGMA_LIMIT`, whichever is larger).
 
     A Gaussian (or disk) wider than the image already averages the whole image, so a larger σ_e
-    changes nothing visible while the blur stack's memory grows with it (``--factor 1e9`` asked for
-    σ_e ≈ 10⁹ px and was killed for memory).
+    changes nothing visible while the blur stack's memory grows with it (its padding is ≈ 6 σ_e on
+    each side: ``--factor 1e9`` asked for σ_e ≈ 10⁹ px and was killed for memory).
 
     Parameters
     ----------
@@ -262,16 +261,16 @@ def check_extra_blur(factor: float, defocus_map: np.ndarray, shape, *, name: str
     Raises
     ------
     ValueError
-        max σ_e > max(H, W); the message gives the largest factor this map allows.
+        max σ_e > max(H, W, MIN_EXTRA_SIGMA_LIMIT); the message gives the largest factor this map allows.
     """
     top_b = float(np.max(defocus_map, initial=0.0))
     extra = float(np.sqrt(factor * factor - 1.0)) * top_b
-    limit = float(max(shape[:2]))
+    limit = max(float(max(shape[:2])), MIN_EXTRA_SIGMA_LIMIT)
     if extra > limit:
         k_max = float(np.sqrt(1.0 + (limit / top_b) ** 2))
         raise ValueError(f"{name} {factor:g} is too large for this image: the extra blur would reach σ = {extra:.3g} px, "
-                         f"more than the image's {int(limit)} px side; allowed: factor <= {k_max:.4g} for this "
-                         f"defocus map (max σ {top_b:.3g} px)")
+                         f"more than {limit:g} px (the image's longer side, at least {MIN_EXTRA_SIGMA_LIMIT:g}); "
+                         f"allowed: factor <= {k_max:.4g} for this defocus map (max σ {top_b:.3g} px)")
     return extra
 
 
@@ -324,12 +323,7 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel="gaussian", clip_p
        1 where σ_e = 0, so factor = 1 and a zero map return the input bit for bit.
     5. Clip to [0, 1] (kernels are non-negative, so only round-off is clipped).
     """
-    if not isinstance(image, np.ndarray) or image.ndim not in (2, 3) or (image.ndim == 3 and image.shape[2] != 3):
-        raise ValueError(f"image must be an HxW or HxWx3 array, got {getattr(image, 'shape', type(image).__name__)}")
-    if not np.issubdtype(image.dtype, np.floating) or not np.all(np.isfinite(image)):
-        raise ValueError("image must be a finite float array with values in [0, 1]")
-    if image.size and (float(image.min()) < 0 or float(image.max()) > 1):
-        raise ValueError(f"image values must lie in [0, 1], got [{float(image.min()):.6g}, {float(image.max()):.6g}]")
+    image = validate_image(image, min_side=1)
     m = _check_map(defocus_map, image.shape)
     try:
         factor = float(factor)

@@ -30,7 +30,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .magnification import MAGNIFICATION_KERNELS, _blur_stack_apply, _check_map
+from .magnification import MAGNIFICATION_KERNELS, _blur_stack_apply
+from .validation import validate_image, validate_map
 
 __all__ = ["DECONVOLUTION_METHODS", "DEFAULT_NSR", "deconvolve_defocus", "refocus"]
 
@@ -72,20 +73,11 @@ DECONVOLUTION_METHODS = {
 
 
 def _check_image(image):
-    if not isinstance(image, np.ndarray) or image.ndim not in (2, 3) or (image.ndim == 3 and image.shape[2] != 3):
-        raise ValueError(f"image must be an HxW or HxWx3 array, got {getattr(image, 'shape', type(image).__name__)}")
-    if not np.issubdtype(image.dtype, np.floating) or not np.all(np.isfinite(image)):
-        raise ValueError("image must be a finite float array with values in [0, 1]")
-    if image.size and (float(image.min()) < 0 or float(image.max()) > 1):
-        raise ValueError(f"image values must lie in [0, 1], got [{float(image.min()):.6g}, {float(image.max()):.6g}]")
-    return image.astype(np.float64, copy=False)
+    return validate_image(image, min_side=1)
 
 
 def _check_sigma_map(m, shape, name):
-    m = _check_map(m, shape, name=name)
-    if m.size and float(m.min()) < 0:
-        raise ValueError(f"{name} must be >= 0 (blur σ, px), got min {float(m.min()):.6g}")
-    return m
+    return validate_map(m, shape, name=name)
 
 
 def _check_options(method, nsr):

@@ -102,18 +102,38 @@ def validate_sparse_sigma(sparse_sigma, shape, *, name="sparse_sigma") -> np.nda
     return sparse_sigma.astype(np.float64, copy=False)
 
 
-def validate_map(defocus_map, shape, *, name="defocus_map") -> np.ndarray:
-    """Check a dense blur map (HxW, finite, ≥ 0, matching ``shape[:2]``) and return it as float64."""
+def validate_map(defocus_map, shape=None, *, name="defocus_map", allow_negative=False) -> np.ndarray:
+    """Check a dense blur map (HxW, real, finite, ≥ 0 unless ``allow_negative``) and return it as float64.
+
+    Parameters
+    ----------
+    defocus_map : ndarray, HxW, real
+        Blur σ, px.
+    shape : tuple, optional
+        Shape of the image it belongs to (its first two entries must match).
+    name : str, keyword-only
+        What to call the array in error messages.
+    allow_negative : bool, keyword-only
+        Accept negative values (a map that is clamped afterwards, e.g. Sec. 5's preprocessing).
+
+    Raises
+    ------
+    ValueError
+        Not an array; not HxW or not matching ``shape``; not real numeric; NaN or Inf; a negative
+        value (unless ``allow_negative``).
+    """
     if not isinstance(defocus_map, np.ndarray):
         raise ValueError(f"{name} must be a numpy array, got {type(defocus_map).__name__}")
-    if defocus_map.shape != tuple(shape[:2]):
-        raise ValueError(f"{name} has shape {defocus_map.shape}, expected {tuple(shape[:2])}")
-    if not np.issubdtype(defocus_map.dtype, np.number):
-        raise ValueError(f"{name} must be numeric, got dtype {defocus_map.dtype}")
+    if defocus_map.ndim != 2:
+        raise ValueError(f"{name} must be HxW, got shape {defocus_map.shape}")
+    if shape is not None and defocus_map.shape != tuple(shape[:2]):
+        raise ValueError(f"{name} has shape {defocus_map.shape}, expected {tuple(shape[:2])} (the image's HxW)")
+    if not np.issubdtype(defocus_map.dtype, np.number) or np.issubdtype(defocus_map.dtype, np.complexfloating):
+        raise ValueError(f"{name} must be real numeric, got dtype {defocus_map.dtype}")
     if not np.all(np.isfinite(defocus_map)):
         raise ValueError(f"{name} contains NaN or Inf values")
-    if float(np.min(defocus_map)) < 0:
-        raise ValueError(f"{name} must be >= 0 (blur σ in px), got min {float(np.min(defocus_map)):.6g}")
+    if not allow_negative and defocus_map.size and float(np.min(defocus_map)) < 0:
+        raise ValueError(f"{name} must be >= 0 (blur σ, px), got min {float(np.min(defocus_map)):.6g}")
     return defocus_map.astype(np.float64, copy=False)
 
 

@@ -35,8 +35,6 @@ from .storage import atomic_write
 
 __all__ = [
     "DEFAULT_MAX_PIXELS",
-    "INPUT_SUFFIXES",
-    "MAP_SUFFIXES",
     "OUTPUT_SUFFIXES",
     "Photo",
     "PhotoError",
@@ -56,10 +54,6 @@ DEFAULT_MAX_PIXELS = 64_000_000
 
 #: Extensions :func:`write_photo` writes (format chosen from the extension).
 OUTPUT_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".exr")
-#: Extensions commonly read (any format Pillow identifies by content is accepted too).
-INPUT_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".exr")
-#: Extensions :func:`write_defocus_map` writes without plotting (the PNG preview lives in repro).
-MAP_SUFFIXES = (".exr", ".npy")
 
 #: JPEG quality of written photos (Pillow scale 1–95) and chroma subsampling 4:4:4 (0): a
 #: magnified photo should not lose colour resolution it had.

@@ -331,6 +331,16 @@ def test_magnify_api_bounds_the_extra_blur():
     with pytest.raises(ValueError, match="too large"):
         magnify_defocus_tiled(np.tile(img, (6, 6, 1)), np.full((288, 384), 2.0), factor=1e9, preprocess=False,
                               tile_pixels=256 * 256)
-    # σ_e = √(k² − 1)·2 px = 64 px (the longer side): allowed
+    # σ_e = √(k² − 1)·2 px = 64 px (the longer side): allowed, just above refused
     k = float(np.sqrt(1 + 32.0**2))
     assert magnify_defocus(img, m, factor=k * 0.999, preprocess=False).shape == img.shape
+    with pytest.raises(ValueError, match="too large"):
+        magnify_defocus(img, m, factor=k * 1.01, preprocess=False)
+    # a tiny image may be blurred past its size, up to MIN_EXTRA_SIGMA_LIMIT
+    from method.magnification import MIN_EXTRA_SIGMA_LIMIT
+
+    tiny, mt = img[:8, :8], np.full((8, 8), 2.0)
+    k_tiny = float(np.sqrt(1 + (MIN_EXTRA_SIGMA_LIMIT / 2.0) ** 2))
+    assert magnify_defocus(tiny, mt, factor=k_tiny * 0.999, preprocess=False).shape == tiny.shape
+    with pytest.raises(ValueError, match="too large"):
+        magnify_defocus(tiny, mt, factor=k_tiny * 1.01, preprocess=False)

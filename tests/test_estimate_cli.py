@@ -401,3 +401,15 @@ def test_truncated_cache_entry_is_rebuilt(tmp_path):
     p = _cli([photo, "-o", tmp_path / "c.npy"], cache)
     _, err = p.communicate(timeout=300)
     assert p.returncode == 0 and "reused from the cache" in err
+
+
+def test_force_re_estimates_and_replaces_the_cached_map(tmp_path, photo, cache_dir, capsys):
+    status, _, err = run([photo, "-o", tmp_path / "a.npy"], capsys)
+    assert status == 0 and not any("reused from the cache" in line for line in err)
+    entries = sorted(p.name for p in (cache_dir / "maps").iterdir() if p.is_dir())
+    status, _, err = run([photo, "-o", tmp_path / "b.npy", "--force"], capsys)
+    assert status == 0 and not any("reused from the cache" in line for line in err)  # estimated again
+    assert sorted(p.name for p in (cache_dir / "maps").iterdir() if p.is_dir()) == entries  # same key, replaced
+    np.testing.assert_array_equal(np.load(tmp_path / "a.npy"), np.load(tmp_path / "b.npy"))
+    status, _, err = run([photo, "-o", tmp_path / "c.npy"], capsys)
+    assert status == 0 and any("reused from the cache" in line for line in err)

@@ -22,7 +22,7 @@ MIN_IMAGE_SIDE = 8
 RANGE_SLACK = 1e-6
 
 
-def validate_image(image, *, name="image", min_side=MIN_IMAGE_SIDE, channels=(3,)) -> np.ndarray:
+def validate_image(image, *, name="image", min_side=MIN_IMAGE_SIDE, channels=(3,), check_range=True) -> np.ndarray:
     """Check an image and return it as float64 (HxW or HxWxC, values in [0, 1]).
 
     The one image check of :mod:`method`: the pipeline's input, the guide of Eq. (3) and of the
@@ -40,6 +40,9 @@ def validate_image(image, *, name="image", min_side=MIN_IMAGE_SIDE, channels=(3,
         size, e.g. the cross-bilateral filter, passes a smaller one).
     channels : tuple of int, keyword-only
         Accepted channel counts C of a 3-D array (default: 3, RGB).
+    check_range : bool, keyword-only
+        Require (and clip to) [0, 1]; False for guides whose equations hold for any finite values
+        (:func:`validate_guide`).
 
     Returns
     -------
@@ -54,7 +57,7 @@ def validate_image(image, *, name="image", min_side=MIN_IMAGE_SIDE, channels=(3,
     if not isinstance(image, np.ndarray):
         raise ValueError(f"{name} must be a numpy array, got {type(image).__name__}")
     if image.ndim not in (2, 3) or (image.ndim == 3 and image.shape[2] not in channels):
-        shapes = " or ".join(["HxW", *(f"HxWx{c}" for c in channels)])
+        shapes = "HxW or HxWx3" + "".join(f" (or HxWx{c})" for c in channels if c != 3)
         raise ValueError(f"{name} must have shape {shapes}, got {image.shape}")
     if not np.issubdtype(image.dtype, np.floating):
         raise ValueError(
@@ -66,6 +69,8 @@ def validate_image(image, *, name="image", min_side=MIN_IMAGE_SIDE, channels=(3,
         raise ValueError(f"{name} is {w}x{h} px; the smallest supported side is {min_side} px")
     if not np.all(np.isfinite(image)):
         raise ValueError(f"{name} contains NaN or Inf values")
+    if not check_range:
+        return image.astype(np.float64, copy=False)
     lo, hi = float(image.min()), float(image.max())
     if lo < -RANGE_SLACK or hi > 1 + RANGE_SLACK:
         raise ValueError(f"{name} values must lie in [0, 1], got [{lo:.6g}, {hi:.6g}]")
@@ -162,19 +167,8 @@ def validate_guide(reference, *, name="reference", min_side=1) -> np.ndarray:
     ValueError
         Not a numpy array; wrong shape; not a floating dtype; a side below ``min_side``; NaN or Inf.
     """
-    if not isinstance(reference, np.ndarray):
-        raise ValueError(f"{name} must be a numpy array, got {type(reference).__name__}")
-    if reference.ndim == 2:
-        reference = reference[..., None]
-    if reference.ndim != 3 or reference.shape[2] not in (1, 3):
-        raise ValueError(f"{name} must have shape HxW or HxWx3, got {reference.shape}")
-    if not np.issubdtype(reference.dtype, np.floating):
-        raise ValueError(f"{name} must be a float array in [0, 1], got dtype {reference.dtype}")
-    if min(reference.shape[:2]) < min_side:
-        raise ValueError(f"{name} must be at least {min_side}x{min_side} px, got {reference.shape[:2]}")
-    if not np.all(np.isfinite(reference)):
-        raise ValueError(f"{name} contains NaN or Inf values; allowed: finite floats in [0, 1]")
-    return reference.astype(np.float64, copy=False)
+    ref = validate_image(reference, name=name, min_side=min_side, channels=(1, 3), check_range=False)
+    return ref[..., None] if ref.ndim == 2 else ref
 
 
 def validate_propagation_inputs(sparse_sigma, reference, *, min_side=1) -> tuple[np.ndarray, np.ndarray]:
@@ -201,18 +195,7 @@ def validate_propagation_inputs(sparse_sigma, reference, *, min_side=1) -> tuple
         HxW, holds Inf, or a negative σ.
     """
     ref = validate_guide(reference, min_side=min_side)
-    if not isinstance(sparse_sigma, np.ndarray):
-        raise ValueError(f"sparse_sigma must be a numpy array, got {type(sparse_sigma).__name__}")
-    if sparse_sigma.shape != ref.shape[:2]:
-        raise ValueError(f"sparse_sigma has shape {sparse_sigma.shape}, expected {ref.shape[:2]} (reference's HxW)")
-    if not np.issubdtype(sparse_sigma.dtype, np.floating):
-        raise ValueError(f"sparse_sigma must be float (NaN off edges), got dtype {sparse_sigma.dtype}")
-    if np.any(np.isinf(sparse_sigma)):
-        raise ValueError("sparse_sigma contains Inf; allowed: finite σ >= 0 px, NaN where there is no measure")
-    finite = sparse_sigma[np.isfinite(sparse_sigma)]
-    if finite.size and float(finite.min()) < 0:
-        raise ValueError(f"sparse_sigma must be >= 0 (blur σ, px), got min {float(finite.min()):.6g}")
-    return sparse_sigma.astype(np.float64, copy=False), ref
+    return validate_sparse_sigma(sparse_sigma, ref.shape), ref
 
 
 def check_positive(name, value, *, allow_zero=False) -> float:

@@ -170,7 +170,8 @@ def cell_task(render_info: dict, *, scene: str, f_number: float, scene_preset: s
     dict
         ``metrics`` (flat dict of :func:`experiments.evaluation.evaluate_result`'s numbers, px or
         fractions; NaN as None), ``variant`` (Mitsuba variant of the render), ``seconds`` (this task's
-        wall time, s), ``seconds_pipeline`` (the method alone, s), ``host``, ``pid``.
+        wall time, s), ``seconds_pipeline`` (the method alone, s), ``host``, ``pid``,
+        ``render_task_seconds`` (wall time of the render task this cell waited for, s).
 
     Notes
     -----
@@ -205,4 +206,5 @@ def cell_task(render_info: dict, *, scene: str, f_number: float, scene_preset: s
         v = v.item() if isinstance(v, np.generic) else v
         flat[k] = None if isinstance(v, float) and np.isnan(v) else v  # NaN -> None (missing); inf kept
     return {"metrics": flat, "variant": str(render.metadata.get("variant")), "seconds": time.perf_counter() - t0,
-            "seconds_pipeline": t_pipe, "host": os.uname().nodename, "pid": os.getpid()}
+            "seconds_pipeline": t_pipe, "host": os.uname().nodename, "pid": os.getpid(),
+            "render_task_seconds": render_info.get("seconds")}

@@ -498,10 +498,11 @@ def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | N
         res = records[cid]["result"]
         rows.append({**c.inputs(), "method_variant": c.variant_label, "mitsuba_variant": res["variant"],
                      **_metric_columns(res["metrics"])})
-        timings.append({"cell_id": cid, "method_variant": c.variant_label, "scene": c.render.scene,
-                        "f_number": c.render.f_number, "seed": c.render.seed, "host": res.get("host"),
-                        "pid": res.get("pid"), "seconds": res.get("seconds"),
-                        "seconds_pipeline": res.get("seconds_pipeline"), "resumed": cid in resumed})
+        timings.append({"cell_id": cid, "render_id": c.render.render_id, "method_variant": c.variant_label,
+                        "scene": c.render.scene, "f_number": c.render.f_number, "seed": c.render.seed,
+                        "host": res.get("host"), "pid": res.get("pid"), "seconds": res.get("seconds"),
+                        "seconds_pipeline": res.get("seconds_pipeline"),
+                        "render_task_seconds": res.get("render_task_seconds"), "resumed": cid in resumed})
     meta = {"grid": {"n_cells": n_total, "param_names": list(grid.param_names), "metric": grid.metric,
                      "variant_requested": grid.variant},
             "code": keys[0]["code"] if keys else None, "versions": keys[0]["versions"] if keys else None}
@@ -679,10 +680,10 @@ def run_sweep_bench(out, *, scenes=("planes", "portrait"), f_numbers=(8.0, 4.0),
 
     Notes
     -----
-    Renders are made first (cached; not timed), so cells/minute measures the cells. Each run uses a
-    fresh output folder, so no cell is resumed. Engine overhead per cell =
-    (workers × wall time − Σ task seconds) / cells: scheduling, transfer, result handling and idle
-    workers at the end; the no-op round trip is the scheduler's own cost per task.
+    Renders are made first (cached), so the render tasks only read them back (their time still counts in
+    the wall time). Each run uses a fresh output folder, so no cell is resumed. Engine overhead per cell =
+    (workers × wall time − Σ render and cell task seconds) / cells: scheduling, transfer, result
+    handling and idle workers at the end; the no-op tasks give the scheduler's own cost per task.
     """
     import logging
     import platform
@@ -704,7 +705,9 @@ def run_sweep_bench(out, *, scenes=("planes", "portrait"), f_numbers=(8.0, 4.0),
         with tempfile.TemporaryDirectory(prefix="sweep-bench-") as tmp:
             run = run_sweep(grid, Path(tmp), workers=n, progress=progress)
             tables.append([{k: v for k, v in r.items()} for r in run.rows])
-        busy = sum(t["seconds"] for t in run.timings)
+        busy_cells = sum(t["seconds"] for t in run.timings)
+        busy_renders = sum({t["render_id"]: t["render_task_seconds"] or 0.0 for t in run.timings}.values())
+        busy = busy_cells + busy_renders
         with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
                           silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
             client.gather(client.map(_noop, range(20), key=[f"warm-{i}" for i in range(20)]))
@@ -714,7 +717,7 @@ def run_sweep_bench(out, *, scenes=("planes", "portrait"), f_numbers=(8.0, 4.0),
         runs.append({"workers": n, "cells": run.n_cells, "render_tasks": run.n_render_tasks,
                      "wall_s": run.wall_s, "compute_wall_s": run.compute_wall_s,
                      "cells_per_minute": 60.0 * run.n_cells / run.compute_wall_s,
-                     "sum_task_s": busy, "mean_cell_task_s": busy / run.n_cells,
+                     "sum_task_s": busy, "sum_render_task_s": busy_renders, "mean_cell_task_s": busy_cells / run.n_cells,
                      "engine_overhead_per_cell_s": (n * run.compute_wall_s - busy) / run.n_cells,
                      "startup_s": run.wall_s - run.compute_wall_s,
                      "noop_task_roundtrip_s": noop_s})
@@ -731,13 +734,14 @@ def run_sweep_bench(out, *, scenes=("planes", "portrait"), f_numbers=(8.0, 4.0),
              f"{', '.join(estimators)}; paper preset, small scene preset 160×120), {len(grid.renders)} renders made "
              "beforehand (cached). Load average 1/5/15 min at start: "
              f"{' / '.join(f'{x:.2f}' for x in load0)}; at end: {' / '.join(f'{x:.2f}' for x in report['load_avg_end'])}.",
-             "", "| workers | cells/minute | mean cell task (s) | engine overhead per cell (s) | no-op task round trip (ms) "
+             "", "| workers | cells/minute | mean cell task (s) | engine overhead per cell (s) | no-op task, wall / tasks (ms) "
              "| engine start-up (s) |", "|---|---|---|---|---|---|"]
     for r in runs:
         lines.append(f"| {r['workers']} | {r['cells_per_minute']:.1f} | {r['mean_cell_task_s']:.2f} | "
                      f"{r['engine_overhead_per_cell_s']:.2f} | {1000 * r['noop_task_roundtrip_s']:.1f} | {r['startup_s']:.1f} |")
-    lines += ["", "Engine overhead per cell = (workers × wall time from first submission to last result − Σ task "
-              "seconds) / cells: scheduling, transfers, result handling and workers idle at the end of the grid. "
+    lines += ["", "Engine overhead per cell = (workers × wall time from first submission to last result − Σ render "
+              "and cell task seconds) / cells: scheduling, transfers, result handling and workers idle at the end of the grid; a "
+              "cell task's time includes each worker's first imports (numba kernels, SciPy). "
               f"Tables of all runs identical: {report['tables_identical']}."]
     if report["speedup"] is not None:
         lines.append(f"Speed-up {worker_counts[-1]} vs {worker_counts[0]} worker(s): {report['speedup']:.2f}×.")

@@ -143,12 +143,6 @@ class DefocusParams:
         def bad(name, allowed):
             raise ValueError(f"DefocusParams.{name}={getattr(self, name)!r} is invalid; allowed: {allowed}")
 
-        for name in ("sigma1_scales", "sigma2_scales"):
-            scales = tuple(float(s) for s in getattr(self, name))
-            if not scales or any(not (s > 0) for s in scales):
-                bad(name, "non-empty tuple of positive scales (px)")
-            object.__setattr__(self, name, tuple(sorted(scales)))
-        if not self.noise_std > 0:
         def check_name(name, registry):  # a variant chosen by name: allowed = the registry's keys
             if not isinstance(getattr(self, name), str) or getattr(self, name) not in registry:
                 bad(name, sorted(registry))
@@ -160,6 +154,12 @@ class DefocusParams:
         from .propagation import PROPAGATION_REFINEMENTS, PROPAGATION_SOLVERS
         from .propagation_methods import PROPAGATION_METHODS
 
+        for name in ("sigma1_scales", "sigma2_scales"):
+            scales = tuple(float(s) for s in getattr(self, name))
+            if not scales or any(not (s > 0) for s in scales):
+                bad(name, "non-empty tuple of positive scales (px)")
+            object.__setattr__(self, name, tuple(sorted(scales)))
+        if not self.noise_std > 0:
             bad("noise_std", "> 0")
         if not 0 < self.false_positive_rate < 1:
             bad("false_positive_rate", "0 < α_I < 1")

@@ -39,6 +39,8 @@ import math
 import numpy as np
 import scipy.fft
 
+from .validation import validate_image
+
 __all__ = [
     "GaussianDerivativeBank",
     "gaussian_derivative",
@@ -57,17 +59,8 @@ MAX_ORDER = 3
 
 
 def _validate_image(image, name="image", min_size=2):
-    img = np.asarray(image)
-    if img.ndim != 2:
-        raise ValueError(f"{name} must be a 2-D (H, W) array; got ndim={img.ndim}, shape={img.shape}")
-    if not np.issubdtype(img.dtype, np.floating):
-        raise ValueError(f"{name} must be a floating-point array (values in [0, 1]); got dtype={img.dtype}")
-    if min(img.shape) < min_size:
-        raise ValueError(f"{name} must be at least {min_size}x{min_size} px; got shape={img.shape}")
-    img = img.astype(np.float64, copy=False)
-    if not np.all(np.isfinite(img)):
-        raise ValueError(f"{name} contains NaN or infinite values")
-    return img
+    # a grey HxW float image, any finite values (derivatives are linear): method.validation's rules
+    return validate_image(np.asarray(image), name=name, min_side=min_size, channels=(), check_range=False)
 
 
 def _validate_sigma(sigma, name="sigma"):

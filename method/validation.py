@@ -39,7 +39,7 @@ def validate_image(image, *, name="image", min_side=MIN_IMAGE_SIDE, channels=(3,
         Smallest accepted side, px (default :data:`MIN_IMAGE_SIDE`; a stage that works on any
         size, e.g. the cross-bilateral filter, passes a smaller one).
     channels : tuple of int, keyword-only
-        Accepted channel counts C of a 3-D array (default: 3, RGB).
+        Accepted channel counts C of a 3-D array (default: 3, RGB; empty: HxW only).
     check_range : bool, keyword-only
         Require (and clip to) [0, 1]; False for guides whose equations hold for any finite values
         (:func:`validate_guide`).
@@ -57,7 +57,7 @@ def validate_image(image, *, name="image", min_side=MIN_IMAGE_SIDE, channels=(3,
     if not isinstance(image, np.ndarray):
         raise ValueError(f"{name} must be a numpy array, got {type(image).__name__}")
     if image.ndim not in (2, 3) or (image.ndim == 3 and image.shape[2] not in channels):
-        shapes = "HxW or HxWx3" + "".join(f" (or HxWx{c})" for c in channels if c != 3)
+        shapes = "HxW" + (" or HxWx3" if 3 in channels else "") + "".join(f" (or HxWx{c})" for c in channels if c != 3)
         raise ValueError(f"{name} must have shape {shapes}, got {image.shape}")
     if not np.issubdtype(image.dtype, np.floating):
         raise ValueError(

@@ -92,9 +92,9 @@ def test_noise_at_the_assumed_level_gives_almost_no_edges(rng):
 @pytest.mark.parametrize(
     "bad, match",
     [
-        (np.zeros((8, 8, 3)), "2-D"),
-        (np.zeros((2, 8)), "at least"),
-        (np.zeros((8, 8), dtype=np.uint8), "floating"),
+        (np.zeros((8, 8, 3)), "shape HxW,"),
+        (np.zeros((2, 8)), "smallest supported side is 3 px"),
+        (np.zeros((8, 8), dtype=np.uint8), "float array"),
         (np.array([[0.0, np.nan, 0.0]] * 3), "NaN"),
     ],
 )

@@ -24,7 +24,7 @@ import numpy as np
 from scipy import ndimage
 
 from .luma import LUMA_WEIGHTS
-from .validation import MIN_IMAGE_SIDE, validate_image
+from .validation import MIN_IMAGE_SIDE, validate_image, validate_map
 
 __all__ = [
     "DEFAULT_MAX_WORKING_PIXELS",
@@ -267,13 +267,9 @@ def guided_upsample(low_map, low_image, full_image, *, radius=GUIDED_RADIUS, eps
        b = mean(p) − a·mean(I); then box means of a and b.
     3. Full res, in strips of rows: bilinear upsampling of mean(a), mean(b); q = a·I_full + b.
     """
-    p = np.asarray(low_map, dtype=np.float64)
     low_image = np.asarray(low_image, dtype=np.float64)
     full_image = np.asarray(full_image, dtype=np.float64)
-    if p.ndim != 2 or low_image.shape[:2] != p.shape:
-        raise ValueError(f"low_map {p.shape} and low_image {low_image.shape} must share HxW")
-    if not np.all(np.isfinite(p)):
-        raise ValueError("low_map contains NaN or Inf values")
+    p = validate_map(np.asarray(low_map, dtype=np.float64), low_image.shape, name="low_map", allow_negative=True)
     H, W = full_image.shape[:2]
     h, w = p.shape
     if H < h or W < w:

@@ -34,3 +34,11 @@ def test_cache_fingerprints_only_in_the_cache_layer():
     where = [p.relative_to(ROOT).as_posix() for p in _sources()
              if "getsource" in p.read_text() or 'glob("*.py")' in p.read_text() or "rglob(\"*.py\")" in p.read_text()]
     assert where == ["scenes/storage.py"]
+
+
+def test_image_checks_only_in_method_validation():
+    """No module of method/ words its own image/array check: they all call method.validation."""
+    phrases = ("must be a numpy array", "contains NaN or Inf", "must be a float array", "floating-point array")
+    where = sorted({p.relative_to(ROOT).as_posix() for p in (ROOT / "method").glob("*.py")
+                    if any(ph in p.read_text() for ph in phrases)})
+    assert where == ["method/validation.py"]

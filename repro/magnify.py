@@ -52,6 +52,7 @@ PROG = "python -m repro.magnify"
 
 
 def _parser() -> ArgumentParser:
+    from method.magnification import MAGNIFICATION_KERNELS, MAP_FLOOR_MODES
     from method.upsampling import DEFAULT_TILE_PIXELS
 
     p = ArgumentParser(
@@ -70,7 +71,8 @@ def _parser() -> ArgumentParser:
                    help="output photo: .jpg/.jpeg (8-bit), .png/.tif/.tiff (8 or 16-bit, as the "
                         "input), .exr (float, linear)")
     p.add_argument("--kernel", default="gaussian", metavar="NAME",
-                   help="shape of the added blur: gaussian (default) or disk (lens-like bokeh)")
+                   help=f"shape of the added blur (method.MAGNIFICATION_KERNELS): {', '.join(MAGNIFICATION_KERNELS)}; "
+                        "gaussian (default) or disk (lens-like bokeh)")
     p.add_argument("--floor", default=None, metavar="MODE",
                    help="how the paper's 'clamp the map's minimum to 0' is read: clamp (the "
                         "literal reading: only negative values are raised to 0, so the estimated map's "
@@ -78,7 +80,8 @@ def _parser() -> ArgumentParser:
                         "sharp regions soften) or subtract (the map's lower-5%% value is removed in "
                         "quadrature, sqrt(max(σ² − floor², 0)): pixels at that floor get no extra "
                         "blur, in-focus pixels estimated above it still get some); shift subtracts "
-                        f"it linearly. Default: the preset's map_floor, {_by_preset('map_floor')}")
+                        f"it linearly (method.magnification.MAP_FLOOR_MODES: {', '.join(MAP_FLOOR_MODES)}). "
+                        f"Default: the preset's map_floor, {_by_preset('map_floor')}")
     p.add_argument("--save-map", default=None, metavar="MAP",
                    help="also write the defocus map: .exr (float σ px), .png (preview) or .npy")
     p.add_argument("--bit-depth", type=int, choices=(8, 16), default=None,

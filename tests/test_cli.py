@@ -86,11 +86,13 @@ def test_every_command_has_version_and_the_shared_flag_names(name, capsys):
 
 def test_help_texts_list_registry_names(capsys, monkeypatch):
     from experiments.registry import FIGURES
-    from method import BLUR_ESTIMATORS, PRESETS
+    from method import BLUR_ESTIMATORS, MAGNIFICATION_KERNELS, PRESETS
+    from method.magnification import MAP_FLOOR_MODES
     from scenes import SCENES
 
     checks = {"figures": [*FIGURES, *PRESETS], "render": list(SCENES), "evaluate": [*BLUR_ESTIMATORS, *PRESETS],
-              "estimate": [*BLUR_ESTIMATORS, *PRESETS], "magnify": [*BLUR_ESTIMATORS, *PRESETS]}
+              "estimate": [*BLUR_ESTIMATORS, *PRESETS],
+              "magnify": [*BLUR_ESTIMATORS, *PRESETS, *MAGNIFICATION_KERNELS, *MAP_FLOOR_MODES]}
     for name, needles in checks.items():
         text = " ".join(_help(name, capsys).split())
         for needle in needles:

@@ -34,13 +34,35 @@ def _renders(env):
     return sorted(p.name for p in d.iterdir()) if d.exists() else []
 
 
+@pytest.mark.render
 def test_list(env):
-    p = run(["--list"], env)
+    """--list: each scene's set, camera and σ_gt range per preset and f-number, as measured on its
+    ground truth (the numbers equal scenes.library.ranges on the same cache)."""
+    import re
+
+    from scenes.camera import CAMERA_PRESETS
+    from scenes.library import SCENE_SETS
+    from scenes.library.ranges import sigma_gt_ranges
+
+    project = dict(os.environ)  # the project's cache: the ranges are computed once, then read back
+    project.pop("DEFOCUS_MITSUBA_VARIANT", None)
+    p = run(["--list", "--quiet"], project)
     assert p.returncode == 0, p.stderr
     lines = p.stdout.strip().splitlines()
-    assert len(lines) == len(SCENES)
-    for name, line in zip(SCENES, lines):
-        assert line.startswith(name) and SCENES[name].description in line
+    assert len(lines) == 4 * len(SCENES) + 1 and "measured from each scene's ground truth" in lines[-1]
+    for i, name in enumerate(SCENES):
+        head, cam, small, full = lines[4 * i: 4 * i + 4]
+        sset = next(k for k, v in SCENE_SETS.items() if name in v)
+        assert head.startswith(f"{name}  [{sset}]") and SCENES[name].description in head
+        lens = CAMERA_PRESETS[SCENES[name].camera_name]
+        assert SCENES[name].camera_name in cam and f"f = {lens.focal_length_mm:g} mm" in cam
+        ranges = sigma_gt_ranges(name)
+        for preset, line in (("small", small), ("full", full)):
+            got = {float(n): (float(a), float(b)) for n, a, b in re.findall(r"f/(\d+) ([\d.]+)-([\d.]+) px", line)}
+            assert set(got) == {8.0, 4.0}, line
+            for n, (lo, hi) in got.items():
+                want = ranges[preset]["f_numbers"][f"{n:g}"]
+                assert (lo, hi) == (round(want["min_px"], 2), round(want["max_px"], 2))
 
 
 @pytest.mark.render

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from scenes.ground_truth import depth_discontinuities, occlusion_boundary_mask
-from scenes.library import PRESETS, SCENES, SceneDefinition
+from scenes.camera import PAPER_CAMERAS
+from scenes.library import PRESETS, SCENE_SETS, SCENES, SceneDefinition
 from scenes.library.base import emissive, facing_rectangle, image_extent
 from scenes.render import load_render, render_scene
 from scenes.thin_lens import BOX_FILTER_SIGMA_PX
@@ -28,6 +29,24 @@ from tolerances import (
 
 ROOT = Path(__file__).resolve().parents[1]
 
+#: Largest σ_gt at f/8 of a ``paper_cameras`` scene, px, at the small preset (160 px wide: a quarter of the
+#: full preset's blur; the issue's regime is ~4 px at f/8 at 640 px): at least this.
+PAPER_SMALL_F8_MIN_MAX_SIGMA_PX = 0.9
+#: The issue's target for the paper_cameras set at the full preset: largest σ_gt about 4 px at f/8 and
+#: about 8 px at f/4 (px; a band, since "about" is not a number).
+PAPER_FULL_MAX_SIGMA_BAND_PX = {8.0: (3.5, 4.5), 4.0: (7.0, 9.0)}
+
+
+#: patio_table (the path-traced soft-shadow/gloss scene) ends at a wall at 3.2 m and a garden at 9 m:
+#: σ_gt ≤ 2.1 px at f/8 at the full preset (0.59 px small); its point is the outliers at the focus.
+PATIO_SMALL_F8_MIN_MAX_SIGMA_PX = 0.5
+
+
+def _small_f8_min_max_sigma(name):
+    if name == "patio_table":
+        return PATIO_SMALL_F8_MIN_MAX_SIGMA_PX
+    return PAPER_SMALL_F8_MIN_MAX_SIGMA_PX if name in SCENE_SETS["paper_cameras"] else SCENE_SMALL_F8_MIN_MAX_SIGMA_PX
+
 
 # --- registry (no rendering) ---------------------------------------------------------------------
 def test_registry_contents():
@@ -38,7 +57,12 @@ def test_registry_contents():
         assert small.resolution[0] <= 160 and small.resolution[1] <= 120
         assert full.resolution[0] >= 640 and full.resolution[1] >= 480
         assert small.f_number == 8.0 and s.camera("small", f_number=4.0).f_number == 4.0
-        assert small.focal_length_mm == 50.0 and small.sensor_width_mm == 36.0
+        if name in SCENE_SETS["tabletop_stress"]:
+            assert small.focal_length_mm == 50.0 and small.sensor_width_mm == 36.0
+        else:  # the paper's cameras with their own lenses, focused on the scene's subject
+            lens = PAPER_CAMERAS[s.camera_name]
+            assert (small.focal_length_mm, small.sensor_width_mm) == (lens.focal_length_mm, lens.sensor_width_mm)
+            assert small.focus_distance_m == s.focus_distance_m >= 2.0
         assert s.spp("small") > 0 and s.spp("full") > 0
     assert PRESETS["small"] == (160, 120) and PRESETS["full"] == (640, 480)
 
@@ -102,7 +126,7 @@ def test_small_render_valid(small_renders, name):
     # σ_gt spans from (near) the box-filter floor to a useful blur.
     assert r.sigma_px.min() >= SCENE_SIGMA_FLOOR_PX - 1e-4
     assert r.sigma_px.min() <= SCENE_SIGMA_FLOOR_PX + 0.2
-    assert r.sigma_px.max() >= SCENE_SMALL_F8_MIN_MAX_SIGMA_PX
+    assert r.sigma_px.max() >= _small_f8_min_max_sigma(name)
     # Ground truth consistent with Eq. (5) of the recorded camera.
     cam = r.camera
     np.testing.assert_allclose(r.coc_px, cam.coc_px(r.depth.astype(np.float64)), rtol=1e-5, atol=1e-6)
@@ -334,7 +358,7 @@ def test_full_preset_render(name, cache_dir):
     r = render_scene(name, preset="full", spp=min(64, SCENES[name].spp("full")), progress=False, use_cache=False)
     assert r.rgb.shape == (480, 640, 3) and np.isfinite(r.rgb).all()
     assert r.sigma_px.min() <= SCENE_SIGMA_FLOOR_PX + 0.5
-    assert r.sigma_px.max() >= 4 * SCENE_SMALL_F8_MIN_MAX_SIGMA_PX
+    assert r.sigma_px.max() >= 4 * _small_f8_min_max_sigma(name)
 
 
 def test_spp_chunks_sum_and_are_sampler_friendly():
@@ -356,3 +380,85 @@ def test_sampler_rounding_rule_matches_mitsuba():
     for n in range(1, 300):
         if _sampler_accepts(n):
             assert mi.load_dict({"type": SAMPLER, "sample_count": n}).sample_count() == n, n
+
+
+# --- scene sets and the paper's regime --------------------------------------------------------------
+def test_scene_sets_partition_the_scenes():
+    import scenes
+
+    assert set(SCENE_SETS) == {"paper_cameras", "tabletop_stress"} and scenes.SCENE_SETS is SCENE_SETS
+    paper, stress = set(SCENE_SETS["paper_cameras"]), set(SCENE_SETS["tabletop_stress"])
+    assert not paper & stress and paper | stress == set(SCENES)
+    assert stress == {"planes", "tilted_plane", "portrait", "clutter", "shadow_gloss"}
+    assert scenes.get_scene_set("paper_cameras") == SCENE_SETS["paper_cameras"]
+    with pytest.raises(ValueError, match="scene set"):
+        scenes.get_scene_set("nope")
+
+
+def test_paper_cameras_are_the_papers():
+    """Sec. 6: Canon 1D Mark II 28.7x19.1 mm + 85 mm; PowerShot A80 7.18x5.32 mm, 7.8 mm, f/2.8; Nikon D50
+    23.7x15.6 mm + 180 mm, f/4.8."""
+    c = PAPER_CAMERAS
+    assert (c["canon_1d_mark_ii_85mm"].sensor_width_mm, c["canon_1d_mark_ii_85mm"].sensor_height_mm,
+            c["canon_1d_mark_ii_85mm"].focal_length_mm) == (28.7, 19.1, 85.0)
+    assert (c["powershot_a80_7_8mm"].sensor_width_mm, c["powershot_a80_7_8mm"].focal_length_mm,
+            c["powershot_a80_7_8mm"].f_number) == (7.18, 7.8, 2.8)
+    assert (c["nikon_d50_180mm"].sensor_width_mm, c["nikon_d50_180mm"].sensor_height_mm,
+            c["nikon_d50_180mm"].focal_length_mm, c["nikon_d50_180mm"].f_number) == (23.7, 15.6, 180.0, 4.8)
+    # the 85 mm portrait lens on the 1D Mark II: about 18° horizontally, not the 50 mm presets' 38°
+    assert 17.5 < SCENES["portrait_garden"].camera("full").fov_x_deg < 19.0
+
+
+@pytest.mark.render
+@pytest.mark.slow
+def test_paper_cameras_sigma_span_the_papers_regime_at_the_full_preset(cache_dir):
+    """Measured on the ground truth (lens-centre-ray depth, Eq. 5): every paper_cameras scene has in-focus
+    pixels at the box-filter floor, and its largest σ_gt is about 4 px at f/8 and 8 px at f/4; the tabletop
+    stress scenes go far beyond (≥ 11 px at f/4)."""
+    from scenes.library.ranges import sigma_gt_ranges
+
+    for name in SCENE_SETS["paper_cameras"]:
+        r = sigma_gt_ranges(name, presets=("full",))["full"]["f_numbers"]
+        for n, (lo, hi) in PAPER_FULL_MAX_SIGMA_BAND_PX.items():
+            assert abs(r[f"{n:g}"]["min_px"] - SCENE_SIGMA_FLOOR_PX) < SCENE_SIGMA_FLOOR_ATOL_PX, (name, n)
+            if name != "patio_table":  # the path-traced outlier scene: wall at 3.2 m, garden at 9 m
+                assert lo <= r[f"{n:g}"]["max_px"] <= hi, (name, n, r[f"{n:g}"])
+        assert r["4"]["max_px"] > 1.8 * r["8"]["max_px"]
+    stress = [sigma_gt_ranges(n, presets=("full",))["full"]["f_numbers"]["4"]["max_px"]
+              for n in SCENE_SETS["tabletop_stress"]]
+    assert min(stress) >= 11.0
+
+
+@pytest.mark.render
+def test_sigma_ranges_are_the_renders_ground_truth(small_renders):
+    """scenes.library.ranges measures the same σ_gt a render carries (small preset, both apertures)."""
+    from scenes.library.ranges import sigma_gt_ranges
+
+    r = sigma_gt_ranges("portrait_garden", presets=("small",))["small"]
+    for n in (8.0, 4.0):
+        render = render_scene("portrait_garden", preset="small", f_number=n, progress=False)
+        got = r["f_numbers"][f"{n:g}"]
+        assert got["min_px"] == pytest.approx(float(render.sigma_px.min()), abs=1e-6)
+        assert got["max_px"] == pytest.approx(float(render.sigma_px.max()), abs=1e-6)
+    assert r["depth_m"][0] == pytest.approx(SCENES["portrait_garden"].facts["foreground_depth_m"], rel=0.01)
+    with pytest.raises(ValueError, match="f_numbers"):
+        sigma_gt_ranges("portrait_garden", f_numbers=(0.0,))
+    with pytest.raises(ValueError, match="preset"):
+        sigma_gt_ranges("portrait_garden", presets=("huge",))
+
+
+@pytest.mark.render
+def test_paper_scenes_are_lit_not_only_emissive(small_renders):
+    """The paper_cameras scenes have lit diffuse surfaces: the sun-lit ones a single directional emitter
+    under the direct integrator (no lighting noise), patio_table an area light under the path tracer."""
+    from scenes.backend import import_mitsuba
+
+    import_mitsuba(None)
+    for name in SCENE_SETS["paper_cameras"]:
+        shapes = SCENES[name].shapes()
+        emitters = [k for k, v in shapes.items() if isinstance(v, dict) and ("emitter" in v or v.get("type") in
+                                                                               ("directional", "constant"))]
+        assert emitters, name
+        assert SCENES[name].integrator["type"] in ("direct", "path")
+        r = render_scene(name, preset="small", progress=False)
+        assert np.isfinite(r.rgb).all() and r.rgb.mean() > 0.05, name

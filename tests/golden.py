@@ -356,6 +356,21 @@ def _one_run(seed: int, out: Path) -> None:
     _atomic_json(out, values)
 
 
+def _git_commit() -> str | None:
+    """HEAD of the measured tree, with "+dirty" when its method/scenes/experiments differ from HEAD
+    ($GOLDEN_MEASURED_COMMIT when the tree is an exported copy, e.g. ``git archive <commit>``)."""
+    if os.environ.get("GOLDEN_MEASURED_COMMIT"):
+        return os.environ["GOLDEN_MEASURED_COMMIT"]
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                              text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "method", "scenes", "experiments"], cwd=ROOT,
+                               capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    return head + ("+dirty" if dirty else "")
+
+
 def _runs_dir() -> Path:
     from scenes.backend import cache_root
 
@@ -378,13 +393,15 @@ def measure_spread(runs=SPREAD_RUNS, *, resume: bool = False) -> tuple[dict, dic
     runs_dir = _runs_dir()
     for variant, seed in tqdm(runs, desc="spread runs", unit="run"):
         out = runs_dir / f"{code_fingerprint()[:16]}_{variant}_{seed}.json"
-        t0 = time.perf_counter()
+        meta = out.with_suffix(".seconds")
         if not (resume and out.exists()):
             env = {**os.environ, "DEFOCUS_MITSUBA_VARIANT": variant}
+            t0 = time.perf_counter()
             subprocess.run([sys.executable, "-m", "tests.golden", "--one-run", str(seed), str(out)],
                            cwd=ROOT, env=env, check=True)
-        per_run.append({"variant": variant, "seed": seed, "seconds": round(time.perf_counter() - t0, 1),
-                        "values": json.loads(out.read_text())})
+            meta.write_text(f"{time.perf_counter() - t0:.1f}\n")
+        seconds = float(meta.read_text()) if meta.exists() else None
+        per_run.append({"variant": variant, "seed": seed, "seconds": seconds, "values": json.loads(out.read_text())})
     baseline = per_run[0]["values"]
     metrics, unstable = {}, {}
     for name in RENDER_GOLDENS:
@@ -412,6 +429,8 @@ def measure_spread(runs=SPREAD_RUNS, *, resume: bool = False) -> tuple[dict, dic
         "command": REGENERATE_COMMAND,
         "runs": [{k: r[k] for k in ("variant", "seed", "seconds")} for r in per_run],
         "baseline": {"variant": runs[0][0], "seed": runs[0][1]},
+        "code_fingerprint": code_fingerprint(),
+        "git_commit": _git_commit(),
         "measured_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "library_versions": library_versions(),
         "unstable": unstable,

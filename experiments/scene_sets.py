@@ -16,7 +16,15 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 
-__all__ = ["SET_SEPARATOR", "check_scene_sets", "compute_scene_sets", "set_arrays"]
+__all__ = ["SCENE_SET_CAPTIONS", "SET_SEPARATOR", "check_scene_sets", "compute_scene_sets", "set_arrays"]
+
+#: One line per scene set: what it is (under its figures and in the report).
+SCENE_SET_CAPTIONS = {
+    "paper_cameras": "scene set paper_cameras (default): the paper's cameras at real-world distances "
+                     "(subject at 2-6 m, background to 10-30 m)",
+    "tabletop_stress": "scene set tabletop_stress (stress test): tabletop macro shots, 50 mm full frame "
+                       "focused at 0.2-0.25 m (blur far larger than the paper's)",
+}
 
 #: Separator between a scene set's name and an array key of that set.
 SET_SEPARATOR = "__"

@@ -236,7 +236,7 @@ def figure_files(name: str, metrics_file: dict, figures_dir: Path | None) -> lis
     A figure without scene sets has one image and no caption. Further sets' images
     (``<name>_<set>.png``) are listed when ``figures_dir`` is None or the file exists.
     """
-    from experiments.plotting.style import SCENE_SET_CAPTIONS
+    from experiments.scene_sets import SCENE_SET_CAPTIONS
 
     inner = metrics_file.get("metrics") if isinstance(metrics_file, dict) else None
     inner = inner if isinstance(inner, dict) else {}

@@ -13,13 +13,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 __all__ = ["COLORS", "DPI", "SCENE_SET_CAPTIONS", "add_colorbar", "new_figure", "plot_scene_sets", "plt",
            "save_figure"]
 
-#: One line per scene set, written under the figures drawn for it.
-SCENE_SET_CAPTIONS = {
-    "paper_cameras": "scene set paper_cameras (default): the paper's cameras at real-world distances "
-                     "(subject at 2-6 m, background to 10-30 m)",
-    "tabletop_stress": "scene set tabletop_stress (stress test): tabletop macro shots, 50 mm full frame "
-                       "focused at 0.2-0.25 m (blur far larger than the paper's)",
-}
+from ..scene_sets import SCENE_SET_CAPTIONS  # noqa: E402  (one line per set, written under its figures)
+
 _caption: list[str] = []  # caption of the figure being drawn (set by plot_scene_sets)
 
 #: PNG resolution, dots per inch.

@@ -364,3 +364,58 @@ def test_cli_plots_fig6_fig7_fig11(tmp_path, fig6, fig7, fig11):
         assert "robust" in info["metrics"]["presets"], name
     assert proc.stdout.count("cached") == 3
 
+
+
+def test_compute_scene_sets_nests_the_other_sets_per_the_contract():
+    """experiments.scene_sets: flat keys = the default set, ``scene_set`` names it, ``scene_sets.<name>``
+    has the other set's metrics in the same shape (own ``presets``), arrays under ``<name>__``; each set's
+    scenes must belong to that set."""
+    import dataclasses
+
+    from experiments.scene_sets import check_scene_sets, compute_scene_sets, set_arrays
+
+    @dataclasses.dataclass(frozen=True, kw_only=True)
+    class Cfg:
+        scenes: tuple = ("portrait_garden",)
+        scene_set: str = "paper_cameras"
+        other_scene_sets: tuple = (("tabletop_stress", (("scenes", ("planes", "portrait")),)),)
+
+    calls = []
+
+    def one(cfg):
+        calls.append(cfg)
+        return {"maps": np.full(2, len(cfg.scenes)), "metrics": {"scenes": list(cfg.scenes),
+                                                                 "presets": {"robust": {"n": len(cfg.scenes)}}}}
+
+    data = compute_scene_sets(one, Cfg())
+    m = data["metrics"]
+    assert [c.scenes for c in calls] == [("portrait_garden",), ("planes", "portrait")]
+    assert m["scene_set"] == "paper_cameras" and m["scenes"] == ["portrait_garden"]
+    assert m["scene_sets"] == {"tabletop_stress": {"scenes": ["planes", "portrait"], "presets": {"robust": {"n": 2}},
+                                                   "scene_set": "tabletop_stress"}}
+    assert data["maps"].tolist() == [1, 1] and data["tabletop_stress__maps"].tolist() == [2, 2]
+    stress = set_arrays(data, "tabletop_stress")
+    assert stress["maps"].tolist() == [2, 2] and stress["metrics"]["scene_set"] == "tabletop_stress"
+    assert "tabletop_stress__maps" not in set_arrays(data, None)
+    with pytest.raises(ValueError, match="no scene set"):
+        set_arrays(data, "nope")
+    with pytest.raises(ValueError, match="not in scene set"):
+        check_scene_sets(Cfg(scenes=("planes",)))
+    with pytest.raises(ValueError, match="not in scene set 'tabletop_stress'"):
+        check_scene_sets(Cfg(other_scene_sets=(("tabletop_stress", (("scenes", ("portrait_garden",)),)),)))
+    with pytest.raises(ValueError, match="scene_set"):
+        check_scene_sets(Cfg(scene_set="nope"))
+
+
+@pytest.mark.parametrize("module", ["fig5_cross_bilateral", "fig6_alpha_sweep", "fig7_doubled_defocus", "fig11_gallery"])
+def test_figures_default_to_paper_cameras_with_the_tabletop_stress_set(module):
+    import importlib
+
+    from experiments.scene_sets import check_scene_sets
+    from scenes import SCENE_SETS
+
+    mod = importlib.import_module(f"experiments.{module}")
+    for cfg in (mod.FULL, mod.QUICK):
+        check_scene_sets(cfg)
+        assert cfg.scene_set == "paper_cameras" and set(cfg.scenes) <= set(SCENE_SETS["paper_cameras"])
+        assert [name for name, _ in cfg.other_scene_sets] == ["tabletop_stress"]

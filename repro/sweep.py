@@ -21,7 +21,7 @@ killed worker) reads finished cells back instead of recomputing them. A worker t
 its tasks rerun elsewhere by the scheduler.
 
 Outputs (atomic): ``DIR/results.parquet`` (one row per cell: every input, the method variant label,
-the Mitsuba variant, every metric; the same bytes of content serial or parallel), ``DIR/timings.parquet``
+the Mitsuba variant, every metric; the same rows serial or parallel), ``DIR/timings.parquet``
 (per cell, in the same order: its id = the name of its file in ``cells/``, worker, seconds,
 resumed or not), ``DIR/<metric>.png`` (the chosen metric per method
 variant) and a summary printed on the terminal.
@@ -396,8 +396,8 @@ def _start_client(*, workers: int | None, scheduler: str | None):
                              "allowed: a scheduler with workers (dask worker ADDRESS)") from None
         return client, None
     n = workers or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=logging.ERROR)
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                           dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
 
@@ -708,8 +708,8 @@ def run_sweep_bench(out, *, scenes=("planes", "portrait"), f_numbers=(8.0, 4.0),
         busy_cells = sum(t["seconds"] for t in run.timings)
         busy_renders = sum({t["render_id"]: t["render_task_seconds"] or 0.0 for t in run.timings}.values())
         busy = busy_cells + busy_renders
-        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                          silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
+        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                          dashboard_address=None, silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
             client.gather(client.map(_noop, range(20), key=[f"warm-{i}" for i in range(20)]))
             t0 = time.perf_counter()
             client.gather(client.map(_noop, range(n_noop), key=[f"noop-{i}" for i in range(n_noop)]))

@@ -20,7 +20,6 @@ import dataclasses
 import datetime
 import json
 import math
-import platform
 import time
 from pathlib import Path
 
@@ -382,17 +381,6 @@ def _chunks(spp: int, pixels: int) -> list[int]:
     return out
 
 
-def _versions(mi) -> dict:
-    import drjit
-
-    return {
-        "mitsuba": mi.__version__,
-        "drjit": drjit.__version__,
-        "numpy": np.__version__,
-        "python": platform.python_version(),
-    }
-
-
 def _compute(sdef, camera, *, spp, seed, mi, variant, sigma_convention, progress):
     from tqdm.auto import tqdm
 
@@ -435,7 +423,7 @@ def _compute(sdef, camera, *, spp, seed, mi, variant, sigma_convention, progress
         "integrator": dict(sdef.integrator),
         "sampler": SAMPLER,
         "pixel_filter": "box",
-        "versions": _versions(mi),
+        "versions": library_versions(),
         "sigma_convention": sigma_convention,
         "filter_sigma_px": FILTER_SIGMA_PX,
         "depth_method": "lens-centre ray through each pixel centre; z = (p - camera position) . forward; inf on miss",

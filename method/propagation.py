@@ -38,11 +38,12 @@ Where each part lives (as pymatting splits laplacian / solver / preconditioner)
 Solving (see :func:`propagate_defocus`, Notes)
 ----------------------------------------------
 Images up to 256² px are solved exactly (pyamg smoothed-aggregation multigrid + CG). Larger ones are
-solved on a grid coarsened 2× or 4×; its bilinearly interpolated solution starts a CG on the exact
-full-resolution system, preconditioned by Jacobi plus a coarse-grid correction through the same
-coarse hierarchy (two-level, matrix-free fine level), 20·s iterations. On the astronaut photo the
-default is 0.012 px RMS / 0.07 px p99 (512²) and 0.014 px RMS / 0.07 px p99 (1024²) from the exact
-solve (docs/performance.md, "after two-level PCG").
+solved on a grid coarsened by a power of two, at least 4× (4× at 512² and 1 MP, 8× at the photo
+tools' 1.5 MP), to a relative residual of 1e-3; its bilinearly interpolated solution starts a CG on
+the exact full-resolution system, preconditioned by Jacobi plus a coarse-grid correction through the
+same coarse hierarchy (two-level, matrix-free fine level), 20·s iterations. On the astronaut photo
+the default is 0.0024 px RMS / 0.012 px p99 (512²) and 0.015 px RMS / 0.07 px p99 (1024²) from the
+exact solve (:func:`propagate_defocus`, Notes).
 """
 
 from __future__ import annotations
@@ -77,15 +78,28 @@ __all__ = [
 
 
 #: Largest number of pixels solved at full resolution by ``downsample="auto"``; bigger images are
-#: solved on a grid coarsened by a power of two to at most this many pixels, then refined.
+#: solved on a grid coarsened by a power of two (at least :data:`AUTO_MIN_COARSENING`) to at most
+#: this many pixels, then refined.
 AUTO_MAX_COARSE_PIXELS = 256 * 256
+
+#: Smallest coarsening factor of ``downsample="auto"``'s coarse mode. With the unrolled 3×3 kernels
+#: a full-resolution CG iteration costs less than a V-cycle on a 256² coarse grid, so at 512² the
+#: 4× grid with 80 iterations is both faster and closer to the exact solve than the 2× grid with 40
+#: (astronaut, paper preset: 0.0024 vs 0.0117 px RMS, about half the CPU time; 1 MP keeps 4×).
+AUTO_MIN_COARSENING = 4
+
+#: Relative residual of the coarse solve of the coarse mode when ``coarse_tol`` is None (or ``tol``
+#: if that is looser). The refinement removes what it leaves: on the astronaut photo (paper preset)
+#: 1e-3 instead of 1e-6 moves the default by 0.0149 vs 0.0140 px RMS from the exact solve at 1024²
+#: and saves ~37 of the ~40 AMG-CG iterations on the 256² coarse grid.
+DEFAULT_COARSE_TOL = 1e-3
 
 #: Default number of full-resolution CG iterations after a coarse solve, per refinement (keys of
 #: :data:`PROPAGATION_REFINEMENTS`), per unit of the coarsening factor s: the two-level
 #: preconditioner's condition number grows like s² (the band of frequencies between the coarse grid
 #: and the Jacobi smoother widens), so CG needs ∝ s iterations for the same accuracy. Two-level:
-#: 20·s, i.e. 40 at 512² (s = 2) and 80 at 1024² (s = 4), which leave the astronaut photo
-#: ≈ 0.012 / 0.014 px RMS and 0.07 px p99 from the exact solve (docs/performance.md). Jacobi:
+#: 20·s, i.e. 80 at 512² and 1024² (s = 4), which leave the astronaut photo ≈ 0.002 / 0.015 px
+#: RMS and 0.01 / 0.07 px p99 from the exact solve (see :func:`propagate_defocus`, Notes). Jacobi:
 #: the earlier fixed 60 iterations (0.08 / 0.15 px RMS).
 DEFAULT_REFINE_ITERATIONS = {"two_level": (20, "per_factor"), "jacobi": (60, "fixed")}
 
@@ -117,10 +131,16 @@ PROPAGATION_REFINEMENTS: dict[str, Callable] = {
 # --------------------------------------------------------------------------------------------
 # public entry point
 # --------------------------------------------------------------------------------------------
-def _auto_downsample(h, w, max_pixels):
-    s = 1
+def _auto_downsample(h, w, max_pixels, min_factor=AUTO_MIN_COARSENING):
+    """1 when H·W ≤ ``max_pixels``, else the smallest power of two ≥ ``min_factor`` bringing the coarse
+    grid under ``max_pixels`` (at most min(H, W)/2, so the coarse grid keeps ≥ 2 px per side)."""
+    if h * w <= max_pixels or min(h, w) < 4:
+        return 1
+    s = min_factor
     while (-(-h // s)) * (-(-w // s)) > max_pixels:
         s *= 2
+    while s > min(h, w) // 2:
+        s //= 2
     return s
 
 
@@ -135,7 +155,7 @@ def _upsample(coarse, s, shape):
 def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborhood=3, eps=1e-6,
                       regularization=1e-6, tol=1e-6, solver="amg_pcg", downsample="auto",
                       refinement="two_level", refine_iterations=None,
-                      max_coarse_pixels=AUTO_MAX_COARSE_PIXELS, confidence=None) -> np.ndarray:
+                      max_coarse_pixels=AUTO_MAX_COARSE_PIXELS, confidence=None, coarse_tol=None) -> np.ndarray:
     """Dense defocus map B minimising Eq. (4), from sparse blur σ at edge pixels.
 
     Parameters
@@ -167,7 +187,8 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
         any integer): solve the problem on an s-times coarser grid with ``solver``, interpolate
         bilinearly and refine with ``refine_iterations`` iterations of preconditioned CG on the exact
         full-resolution system (approximate; see Notes). ``"auto"`` (default): 1 when
-        H·W ≤ ``max_coarse_pixels``, else the smallest power of two that brings the coarse grid under it.
+        H·W ≤ ``max_coarse_pixels``, else the smallest power of two ≥ :data:`AUTO_MIN_COARSENING` (4)
+        that brings the coarse grid under it (4× at 512² and 1024², 8× at the photo tools' 1.5 MP).
     refinement : str, keyword-only
         Key of :data:`PROPAGATION_REFINEMENTS` (used when s > 1): ``"two_level"`` (default; CG
         preconditioned by Jacobi + the coarse-grid correction) or ``"jacobi"`` (the earlier, cheaper
@@ -178,6 +199,10 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
         (20·s for ``"two_level"`` — 40 at s = 2, 80 at s = 4 —, 60 for ``"jacobi"``).
     max_coarse_pixels : int, keyword-only
         Pixel budget of the ``"auto"`` coarse grid.
+    coarse_tol : float or None, keyword-only
+        Relative residual at which the coarse solve of the coarse mode (s > 1) stops; None:
+        max(``tol``, :data:`DEFAULT_COARSE_TOL` = 1e-3). The refinement removes most of what the
+        looser coarse solve leaves (see Notes).
     confidence : ndarray, HxW, float in [0, 1], or None, keyword-only
         Beyond the paper: per-edge confidence c_p, so α_p = alpha·c_p at edge pixels (None: the
         paper's α_p = alpha). Ignored off edges.
@@ -203,8 +228,8 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
     4. Coarse mode (s > 1): guide block-averaged over s×s blocks; BM_c = mean of the block's edge
        values; α_c = s²·Σ_block α_p — for a smooth map, (L_c B)² is s⁴ times (L B)² on s⁻² as many
        pixels, so the smoothness energy grows by s² and α is scaled alike to keep their ratio.
-       Build the coarse solver once (AMG hierarchy or LU), solve the coarse Eq. (4) to ``tol`` and
-       interpolate bilinearly (P) to get the start map.
+       Build the coarse solver once (AMG hierarchy or LU), solve the coarse Eq. (4) to ``coarse_tol``
+       (1e-3 by default) and interpolate bilinearly (P) to get the start map.
     5. Refinement (``refinement="two_level"``): ``refine_iterations`` iterations of CG on the exact
        full-resolution system (matrix-free, numba, float64 vectors and scalars, affinities stored in
        float32: the map moves by < 1e-6 px against float64), preconditioned by
@@ -212,10 +237,13 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
        (restriction Pᵀ, one V-cycle of the coarse hierarchy, prolongation P) for the smooth error
        the Jacobi-only CG could not remove (:func:`method.propagation_matrix_free.two_level_pcg`). Cost O(H·W) per
        iteration plus one V-cycle on the (fixed-size) coarse grid; 20·s iterations by default.
-       Error against the exact solve on the astronaut photo (docs/performance.md):
-       0.012 px RMS / 0.070 px p99 / 0.13 px max at 512² (coarse 2×, 40 iterations) and
-       0.014 / 0.066 / 0.16 px at 1024² (coarse 4×, 80 iterations); the Jacobi-only refinement
-       (``refinement="jacobi"``, 60 iterations) leaves 0.083 / 0.49 / 0.88 and 0.152 / 0.73 / 1.18 px.
+       The 3×3 neighbourhood has unrolled kernels (bit-identical to the generic ones, ~5–8× faster).
+       Error of the default against the exact solve on the astronaut photo (paper preset's
+       measures; ``repro.bench`` records it): 0.0024 px RMS / 0.012 px p99 / 0.039 px max at 512²
+       (coarse 4×, 80 iterations) and 0.0149 / 0.070 / 0.19 px at 1024² (coarse 4×, 80
+       iterations); before (2× at 512², coarse solve to ``tol``) 0.0117 / 0.070 / 0.13 and
+       0.0140 / 0.066 / 0.16 px. The Jacobi-only refinement (``refinement="jacobi"``, 60
+       iterations) leaves 0.083 / 0.49 / 0.88 and 0.152 / 0.73 / 1.18 px.
        ``tests/test_propagation.py`` bounds the error on a 320² synthetic image.
     6. Determinism: the AMG setup draws no random numbers (:data:`AMG_PROLONGATION_SMOOTHER`) and
        runs with single-threaded BLAS; the numba kernels are row-parallel without shared writes and
@@ -231,6 +259,9 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
     tol = check_positive("tol", tol)
     if not tol < 1:
         raise ValueError(f"tol={tol!r} is invalid; allowed: 0 < tol < 1")
+    coarse_tol = max(tol, DEFAULT_COARSE_TOL) if coarse_tol is None else check_positive("coarse_tol", coarse_tol)
+    if not coarse_tol < 1:
+        raise ValueError(f"coarse_tol={coarse_tol!r} is invalid; allowed: None or 0 < coarse_tol < 1")
     if not isinstance(refinement, str) or refinement not in PROPAGATION_REFINEMENTS:
         raise ValueError(f"refinement={refinement!r} is unknown; allowed: {sorted(PROPAGATION_REFINEMENTS)}")
     if refine_iterations is not None and (
@@ -282,7 +313,7 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
     del L_c
     rhs_c = (a_c * bm_c).ravel() + lam_c * target
     coarse_level = COARSE_SETUPS[solver](A_c)
-    coarse = coarse_level.solve(rhs_c, np.full(hc * wc, target), tol).reshape(hc, wc)
+    coarse = coarse_level.solve(rhs_c, np.full(hc * wc, target), coarse_tol).reshape(hc, wc)
     x0 = _upsample_crop(coarse, s, (h, w))
     if refine_iterations == 0:
         return x0

@@ -162,8 +162,9 @@ def mid_size_case():
 def test_default_refinement_close_to_exact_mid_size(mid_size_case, downsample):
     """The default (coarse solve + two-level PCG refinement) is within named bounds of the exact solve.
 
-    320² > 256², so ``"auto"`` takes the coarse (2×) path; 4× is the factor used at 1 MP. The
-    Jacobi-only refinement (the earlier default) is ~25× outside these bounds.
+    320² > 256², so ``"auto"`` takes the coarse path (4×, :data:`AUTO_MIN_COARSENING`), the factor
+    also used at 512² and 1 MP. The Jacobi-only refinement (the earlier default) is ~25× outside these
+    bounds.
     """
     ref, bm, exact = mid_size_case
     approx = propagate_defocus(bm, ref, downsample=downsample)
@@ -172,6 +173,30 @@ def test_default_refinement_close_to_exact_mid_size(mid_size_case, downsample):
     assert np.percentile(err, 99) <= PROPAGATION_DEFAULT_VS_EXACT_P99_PX
     old = np.abs(propagate_defocus(bm, ref, downsample=downsample, refinement="jacobi") - exact)
     assert np.sqrt(np.mean(old**2)) > 10 * np.sqrt(np.mean(err**2))
+
+
+def test_auto_downsample_factors():
+    from method.propagation import AUTO_MAX_COARSE_PIXELS, _auto_downsample
+
+    assert _auto_downsample(256, 256, AUTO_MAX_COARSE_PIXELS) == 1  # up to 256²: exact
+    assert _auto_downsample(257, 256, AUTO_MAX_COARSE_PIXELS) == 4  # never 2×: at least 4× coarser
+    assert _auto_downsample(512, 512, AUTO_MAX_COARSE_PIXELS) == 4
+    assert _auto_downsample(1024, 1024, AUTO_MAX_COARSE_PIXELS) == 4
+    assert _auto_downsample(1025, 1024, AUTO_MAX_COARSE_PIXELS) == 8
+    assert _auto_downsample(6, 20000, AUTO_MAX_COARSE_PIXELS) == 2  # the coarse grid keeps >= 2 px a side
+
+
+def test_coarse_tol_default_and_validation(rng):
+    ref = _photo(rng, 160, 160)  # coarse grid 40² > pyamg's max_coarse (500): an iterative coarse solve
+    bm = _sparse(rng, ref)
+    default = propagate_defocus(bm, ref, downsample=4)
+    np.testing.assert_array_equal(default, propagate_defocus(bm, ref, downsample=4, coarse_tol=1e-3))
+    tight = propagate_defocus(bm, ref, downsample=4, coarse_tol=1e-9, refine_iterations=0)
+    loose = propagate_defocus(bm, ref, downsample=4, refine_iterations=0)
+    assert not np.array_equal(tight, loose)  # the option reaches the coarse solve
+    for bad in (0.0, 1.0, -1e-3, "x"):
+        with pytest.raises(ValueError, match="coarse_tol"):
+            propagate_defocus(bm, ref, downsample=4, coarse_tol=bad)
 
 
 def test_auto_downsample_small_image_is_exact(rng):

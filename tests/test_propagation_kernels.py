@@ -106,6 +106,31 @@ def test_fused_direction_and_apply_bit_identical(neighborhood, shape):
     np.testing.assert_array_equal(rowdot, rowdot_ref)
 
 
+@pytest.mark.parametrize("shape", [(3, 4), (7, 5), (37, 70), (70, 33), (65, 64)])
+def test_unrolled_3x3_kernels_bit_identical_to_generic(shape):
+    """The unrolled 3×3 kernels (the default neighbourhood's fast path) give the generic kernels' bits."""
+    rng = np.random.default_rng(8)
+    h, w = shape
+    ref, bm = _case(rng, h, w)
+    a, _, lam, _ = E._data_term(bm, 0.5, 1e-6)
+    a_diag = (a + lam).reshape(h, w)
+    weights, offs = E._padded_weights(ref, 7, 3, 1e-6)
+    assert MF._operator_kernels(offs) == (MF._apply_normal_3x3, MF._direction_and_apply_3x3)
+    assert MF._operator_kernels(E._offsets(5)) == (MF._apply_normal, MF._direction_and_apply)
+    z, p_old = np.pad(rng.standard_normal((h, w)), 1), np.pad(rng.standard_normal((h, w)), 1)
+    outs = []
+    for apply_normal, direction_and_apply in [(MF._apply_normal, MF._direction_and_apply),
+                                              (MF._apply_normal_3x3, MF._direction_and_apply_3x3)]:
+        q1, rd1 = np.zeros_like(z), np.zeros(h)
+        apply_normal(z, weights, offs, a_diag, q1, rd1)
+        p_new, q2, rd2 = np.zeros_like(z), np.zeros_like(z), np.zeros(h)
+        direction_and_apply(z, p_old, -0.61, weights, offs, a_diag, p_new, q2, rd2)
+        outs.append((q1, rd1, p_new, q2, rd2))
+    for generic, unrolled in zip(*outs):
+        np.testing.assert_array_equal(unrolled, generic)
+    assert np.any(outs[0][0] != 0)  # a real product, not zeros on both sides
+
+
 @pytest.mark.parametrize("shape, s", [((37, 70), 4), ((70, 33), 2), ((9, 12), 3)])
 def test_step_restrict_and_precondition_match_sparse_algebra(shape, s):
     from tests.tolerances import PROPAGATION_TRANSPOSE_RTOL

@@ -43,9 +43,11 @@ class Fig11Config:
     # rendered scenes (scenes.SCENES), scored against σ_gt.
     scene_set: str = "paper_cameras"
     # name of the scenes.SCENE_SETS entry ``scenes`` is drawn from (the flat metrics describe it).
-    other_scene_sets: tuple = (("tabletop_stress", (("scenes", ("planes", "tilted_plane", "portrait", "clutter", "shadow_gloss")), ("photos", ())),)),)
-    # further scene sets computed the same way (the photos only once, with the default set): (set name, ((config field, value), ...)) overrides;
-    # their metrics go to metrics["scene_sets"][name], arrays to "<name>__<key>" (experiments.scene_sets).
+    other_scene_sets: tuple = (("tabletop_stress", (("scenes", ("planes", "tilted_plane", "portrait", "clutter",
+                                                               "shadow_gloss")), ("photos", ()))),)
+    # further scene sets computed the same way (the photos only once, with the default set):
+    # (set name, ((config field, value), ...)) overrides; their metrics go to
+    # metrics["scene_sets"][name], arrays to "<name>__<key>" (experiments.scene_sets).
     preset: str = "full"
     # render preset: "small" (160x120 px) or "full" (640x480 px).
     f_number: float = 8.0

@@ -56,7 +56,8 @@ class Fig5Config:
     # which of ``scenes`` have the paper's outliers (written to metrics["outlier_scenes"] for the claims).
     scene_set: str = "paper_cameras"
     # name of the scenes.SCENE_SETS entry ``scenes`` is drawn from (the flat metrics describe it).
-    other_scene_sets: tuple = (("tabletop_stress", (("scenes", ("shadow_gloss", "planes")), ("outlier_scenes", ("shadow_gloss",)))),)
+    other_scene_sets: tuple = (("tabletop_stress", (("scenes", ("shadow_gloss", "planes")),
+                                                    ("outlier_scenes", ("shadow_gloss",)))),)
     # further scene sets computed the same way: (set name, ((config field, value), ...)) overrides;
     # their metrics go to metrics["scene_sets"][name], arrays to "<name>__<key>" (experiments.scene_sets).
     f_numbers: tuple[float, ...] = (8.0, 4.0)

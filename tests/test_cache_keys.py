@@ -195,3 +195,23 @@ def test_cache_root_of_an_installed_copy(tmp_path):
                          env=env, cwd=tmp_path, capture_output=True, text=True, check=True).stdout.split("\n")
     assert out[0].startswith(str(site))
     assert Path(out[1]) == tmp_path / "xdg" / "defocus-repro"
+
+
+@pytest.mark.render
+def test_render_force_rebuilds_the_entry(tmp_path, monkeypatch):
+    monkeypatch.setenv(storage.CACHE_ENV, str(tmp_path / "cache"))
+    from scenes.library import SCENES
+    from scenes.render import render_scene
+
+    sdef = SCENES["tilted_plane"]
+    cam = sdef.camera("small", resolution=(32, 24))
+    first = render_scene(sdef, cam, spp=4, progress=False)
+    manifest = first.path.parent / "manifest.json"
+    stamp = manifest.stat().st_mtime_ns
+    again = render_scene(sdef, cam, spp=4, progress=False)
+    assert again.path == first.path and manifest.stat().st_mtime_ns == stamp  # reused
+    forced = render_scene(sdef, cam, spp=4, progress=False, force=True)
+    assert forced.path == first.path and manifest.stat().st_mtime_ns != stamp  # rebuilt in place
+    import numpy as np
+
+    np.testing.assert_array_equal(forced.rgb, first.rgb)  # same key, same pixels

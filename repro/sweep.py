@@ -440,7 +440,6 @@ def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | N
     t_start = time.perf_counter()
     keys = cell_keys(grid)
     ids = [hash_key(k) for k in keys]
-    out.mkdir(parents=True, exist_ok=True)
     records: dict[str, dict] = {}
     for cid, key in zip(ids, keys):
         rec = read_cell(out, cid, key)
@@ -506,6 +505,7 @@ def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | N
     meta = {"grid": {"n_cells": n_total, "param_names": list(grid.param_names), "metric": grid.metric,
                      "variant_requested": grid.variant},
             "code": keys[0]["code"] if keys else None, "versions": keys[0]["versions"] if keys else None}
+    out.mkdir(parents=True, exist_ok=True)
     paths = [write_table(out / "results.parquet", rows, meta), write_table(out / "timings.parquet", timings, meta)]
     paths.append(plot_metric(rows, grid.metric, out / f"{grid.metric}.png"))
     return SweepRun(rows=rows, timings=timings, n_cells=n_total, n_resumed=len(resumed),

@@ -201,11 +201,32 @@ def test_sigma_bins_put_each_value_alone():
 
 def test_plain_bench_unchanged_without_the_flag(tmp_path, monkeypatch):
     row = {"size": 16, "pixels": 256, "edge_pixels": 3, "timings_s": {"total": 0.5}, "peak_rss_gib": 0.1}
-    monkeypatch.setattr(bench, "_run_size", lambda size, repeat: dict(row, size=size))
+    monkeypatch.setattr(bench, "_run_size", lambda size, repeat, preset="paper": dict(row, size=size, preset=preset))
     monkeypatch.setattr(bench, "run_accuracy", lambda *a, **k: pytest.fail("--accuracy path taken"))
     assert bench.main(["--sizes", "16", "--repeat", "1", "--out", str(tmp_path)]) == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bench.json", "bench.md"]
-    assert _strict_json(tmp_path / "bench.json")["rows"][0]["size"] == 16
+    first = _strict_json(tmp_path / "bench.json")
+    assert first["rows"][0]["size"] == 16
+    assert [r["preset"] for r in first["rows"]] == list(bench.BENCH_PRESETS) and first["before"] is None
+    # a second run keeps the first as "before", in the JSON and the Markdown
+    assert bench.main(["--sizes", "16", "--repeat", "1", "--presets", "robust", "--out", str(tmp_path)]) == 0
+    second = _strict_json(tmp_path / "bench.json")
+    assert second["before"]["rows"] == first["rows"] and [r["preset"] for r in second["rows"]] == ["robust"]
+    assert "## Before" in (tmp_path / "bench.md").read_text(encoding="utf-8")
+
+
+def test_speed_summary_judges_each_preset_on_both_sides():
+    def row(preset, size, total, peak=0.5):
+        return {"preset": preset, "size": size, "timings_s": {"total": total}, "peak_rss_gib": peak}
+
+    rows = [row("paper", 512, 0.9), row("paper", 1024, 1.9), row("robust", 512, 1.1),
+            row("robust", 1024, 2.1, peak=1.6)]
+    s = bench._summary(rows)
+    assert s["paper: meets_time_target_512"] and s["paper: meets_time_target_1mp"]
+    assert s["paper: meets_memory_target"]
+    assert not s["robust: meets_time_target_512"] and not s["robust: meets_time_target_1mp"]
+    assert not s["robust: meets_memory_target"]
+    assert s["paper: growth_512_to_1024"] == pytest.approx(1.9 / 0.9)
 
 
 def test_accuracy_cli_rejects_an_unknown_preset(tmp_path, monkeypatch, capsys):

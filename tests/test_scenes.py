@@ -414,7 +414,7 @@ def test_paper_cameras_are_the_papers():
 def test_paper_cameras_sigma_span_the_papers_regime_at_the_full_preset(cache_dir):
     """Measured on the ground truth (lens-centre-ray depth, Eq. 5): every paper_cameras scene has in-focus
     pixels at the box-filter floor, and its largest σ_gt is about 4 px at f/8 and 8 px at f/4; the tabletop
-    stress scenes go far beyond (≥ 11 px at f/4)."""
+    stress scenes go far beyond (≥ 10.5 px at f/4; shadow_gloss 11.0 px)."""
     from scenes.library.ranges import sigma_gt_ranges
 
     for name in SCENE_SETS["paper_cameras"]:
@@ -426,7 +426,7 @@ def test_paper_cameras_sigma_span_the_papers_regime_at_the_full_preset(cache_dir
         assert r["4"]["max_px"] > 1.8 * r["8"]["max_px"]
     stress = [sigma_gt_ranges(n, presets=("full",))["full"]["f_numbers"]["4"]["max_px"]
               for n in SCENE_SETS["tabletop_stress"]]
-    assert min(stress) >= 11.0
+    assert min(stress) >= 10.5
 
 
 @pytest.mark.render

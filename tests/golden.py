@@ -398,8 +398,11 @@ def measure_spread(runs=SPREAD_RUNS, *, resume: bool = False) -> tuple[dict, dic
         if not (resume and out.exists()):
             env = {**os.environ, "DEFOCUS_MITSUBA_VARIANT": variant}
             t0 = time.perf_counter()
-            subprocess.run([sys.executable, "-m", "tests.golden", "--one-run", str(seed), str(out)],
-                           cwd=ROOT, env=env, check=True)
+            proc = subprocess.run([sys.executable, "-m", "tests.golden", "--one-run", str(seed), str(out)],
+                                  cwd=ROOT, env=env)
+            if proc.returncode != 0:
+                raise RuntimeError(f"the {variant} seed {seed} run failed (exit {proc.returncode}; its traceback "
+                                   "is above); finished runs are kept for --resume")
             meta.write_text(f"{time.perf_counter() - t0:.1f}\n")
         seconds = float(meta.read_text()) if meta.exists() else None
         per_run.append({"variant": variant, "seed": seed, "seconds": seconds, "values": json.loads(out.read_text())})
@@ -463,7 +466,11 @@ def main(argv=None) -> int:
         ap.error(f"--runs {' '.join(args.runs)} is invalid; allowed: VARIANT:SEED ...")
     if len(runs) < 2:
         ap.error("--runs needs at least two runs to measure a spread")
-    baseline, doc = measure_spread(runs, resume=args.resume)
+    try:
+        baseline, doc = measure_spread(runs, resume=args.resume)
+    except RuntimeError as exc:
+        print(f"python -m tests.golden: {exc}", file=sys.stderr)
+        return 2
     _atomic_json(TOLERANCE_FILE, doc)
     if args.regenerate:
         for name in RENDER_GOLDENS:

@@ -88,10 +88,10 @@ def _ellipsoid_mesh(centre, radii, n_lat, n_lon, bsdf: dict):
     mesh = mi.Mesh("ellipsoid", pos.shape[0] * pos.shape[1], faces.shape[0], props=props,
                    has_vertex_normals=True, has_vertex_texcoords=True)
     params = mi.traverse(mesh)
-    params["vertex_positions"] = mi.Float(pos.reshape(-1).astype(np.float32))
-    params["vertex_normals"] = mi.Float(nrm.reshape(-1).astype(np.float32))
-    params["vertex_texcoords"] = mi.Float(uv.reshape(-1).astype(np.float32))
-    params["faces"] = mi.UInt32(faces.reshape(-1).astype(np.uint32))
+    # the buffers' own array types: mi.Float is a Python float in the scalar variants
+    for key, values, dtype in (("vertex_positions", pos, np.float32), ("vertex_normals", nrm, np.float32),
+                               ("vertex_texcoords", uv, np.float32), ("faces", faces, np.uint32)):
+        params[key] = type(params[key])(values.reshape(-1).astype(dtype))
     params.update()
     return mesh
 

@@ -6,7 +6,7 @@ function returning a dict of numpy arrays plus a ``"metrics"`` dict, a ``plot`` 
 frozen config dataclass per mode (``"quick"`` and ``"full"``). Every parameter of an experiment is
 a field of that one dataclass, with a comment giving its meaning and unit.
 
-Compute results are cached in ``<cache>/figures`` through :class:`scenes.storage.Cache`, keyed by
+Compute results are cached in ``<cache>/figures`` through :class:`storage.Cache`, keyed by
 the figure name, the figure's code ``version`` (bump it whenever compute's output changes) and the
 config's fields, as ``arrays.npz`` + ``metrics.json``.
 
@@ -175,13 +175,13 @@ _FINGERPRINT_EXCLUDED = ("experiments/plotting", "experiments/claims.py")
 
 @functools.lru_cache(maxsize=1)
 def code_fingerprint() -> str:
-    """:func:`scenes.storage.source_fingerprint` (16 hex digits) of ``method``, ``scenes`` and ``experiments``.
+    """:func:`storage.source_fingerprint` (16 hex digits) of ``method``, ``scenes`` and ``experiments``.
 
     Part of every figure's cache key, so an edit of the estimator, the scenes or an experiment
     invalidates cached figure data without anyone remembering to bump a version number
     (renders keep their own, finer cache keyed by each scene's content).
     """
-    from scenes.storage import source_fingerprint
+    from storage import source_fingerprint
 
     return source_fingerprint(*(importlib.import_module(p) for p in _FINGERPRINT_PACKAGES),
                               exclude=_FINGERPRINT_EXCLUDED)
@@ -189,9 +189,9 @@ def code_fingerprint() -> str:
 
 def cache_key(figure: Figure, config) -> dict:
     """JSON-able key of a compute result: figure name, code version and source fingerprint, config type and
-    fields, the versions of the numerical and rendering libraries (:data:`scenes.storage.KEY_LIBRARIES`)
+    fields, the versions of the numerical and rendering libraries (:data:`storage.KEY_LIBRARIES`)
     and, for figures that render, the Mitsuba variant."""
-    from scenes.storage import library_versions
+    from storage import library_versions
 
     key = {
         "figure": figure.name,
@@ -226,7 +226,7 @@ def compute_cached(figure: Figure, config, *, force=False, cache_dir=None) -> Fi
     FigureResult
     """
     from scenes.backend import cache_root
-    from scenes.storage import Cache
+    from storage import Cache
 
     if not dataclasses.is_dataclass(config) or not type(config).__dataclass_params__.frozen:
         raise ValueError(f"config {config!r} is invalid; allowed: a frozen dataclass instance")
@@ -259,8 +259,8 @@ def compute_cached(figure: Figure, config, *, force=False, cache_dir=None) -> Fi
 
 def library_versions() -> dict:
     """Versions of Python and the libraries a figure depends on (for the metrics files): those of the
-    cache keys (:data:`scenes.storage.KEY_LIBRARIES`) plus matplotlib."""
-    from scenes.storage import KEY_LIBRARIES
-    from scenes.storage import library_versions as versions
+    cache keys (:data:`storage.KEY_LIBRARIES`) plus matplotlib."""
+    from storage import KEY_LIBRARIES
+    from storage import library_versions as versions
 
     return dict(versions((*KEY_LIBRARIES, "matplotlib")))

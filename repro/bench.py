@@ -684,7 +684,7 @@ def run_accuracy(config: dict | None = None, *, out: Path, progress: bool = True
     4. Verdicts (:func:`judge_accuracy`) from the numbers and the TARGET_* constants.
     """
     from scenes.analytic import SKIMAGE_INTRINSIC_SIGMA_PX
-    from scenes.storage import atomic_write_text
+    from storage import atomic_write_text
 
     from method import PRESETS
 
@@ -760,7 +760,7 @@ def main(argv=None) -> int:
         return 0
     from tqdm import tqdm
 
-    from scenes.storage import atomic_write_text
+    from storage import atomic_write_text
 
     from method import PRESETS
 

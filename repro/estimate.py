@@ -109,7 +109,7 @@ def add_estimation_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by repro.estimate and repro.magnify."""
     from method.blur_estimators import BLUR_ESTIMATORS
     from method.upsampling import DEFAULT_MAX_WORKING_PIXELS
-    from scenes.photo_io import DEFAULT_MAX_PIXELS
+    from repro.photo_io import DEFAULT_MAX_PIXELS
 
     presets = "; ".join(f"{name} ({_preset_blurb(name)})" for name in _presets())
     p.add_argument("--preset", default=DEFAULT_PRESET, metavar="NAME",
@@ -246,7 +246,7 @@ def note(prog, message, *, quiet=False) -> None:
 def load_photo(args, *, prog):
     """Probe (size limits before decoding) and read the photo named by ``args.photo``."""
     from method.validation import MIN_IMAGE_SIDE
-    from scenes.photo_io import probe_photo, read_photo
+    from repro.photo_io import probe_photo, read_photo
 
     header = probe_photo(args.photo)
     if min(header.width, header.height) < MIN_IMAGE_SIDE:
@@ -256,17 +256,17 @@ def load_photo(args, *, prog):
 
 
 def _code_version(params) -> str:
-    """:func:`scenes.storage.source_fingerprint` of what determines a map: the ``method`` package,
+    """:func:`storage.source_fingerprint` of what determines a map: the ``method`` package,
     the photo decoder and display encoding, and the chosen estimator (which may be registered at
     run time from outside ``method``)."""
     import method
     import scenes.display
-    import scenes.photo_io
+    import repro.photo_io
     from method import BLUR_ESTIMATORS
-    from scenes.storage import source_fingerprint
+    from storage import source_fingerprint
 
     extra = [BLUR_ESTIMATORS[params.estimator]] if params.estimator in BLUR_ESTIMATORS else []
-    return source_fingerprint(method, scenes.photo_io, scenes.display, *extra)
+    return source_fingerprint(method, repro.photo_io, scenes.display, *extra)
 
 
 def map_cache_key(photo, params, working_shape_) -> dict:
@@ -278,7 +278,7 @@ def map_cache_key(photo, params, working_shape_) -> dict:
     """
     import dataclasses
 
-    from scenes.storage import library_versions, sha256_file
+    from storage import library_versions, sha256_file
 
     return {
         "kind": "defocus_map",
@@ -325,11 +325,11 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
 
     Parameters
     ----------
-    photo : scenes.photo_io.Photo
+    photo : repro.photo_io.Photo
     params : DefocusParams
     max_working_pixels : int, keyword-only
     use_cache : bool, keyword-only
-        Read/write ``cache_root()/"maps"`` (:class:`scenes.storage.Cache`, checksummed, locked).
+        Read/write ``cache_root()/"maps"`` (:class:`storage.Cache`, checksummed, locked).
     force : bool, keyword-only
         Re-estimate even when the map is cached (the new map replaces the entry).
     progress : callable, optional, keyword-only
@@ -350,7 +350,7 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
     """
     from method.upsampling import downscale_image, upsample_defocus_map, working_shape
     from scenes.backend import cache_root
-    from scenes.storage import Cache
+    from storage import Cache
 
     image = photo.image
     H, W = image.shape[:2]
@@ -413,7 +413,7 @@ def write_map_preview(path, sigma) -> Path:
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
 
-    from scenes.storage import atomic_write
+    from storage import atomic_write
 
     sigma = np.asarray(sigma, dtype=np.float64)
     h, w = sigma.shape
@@ -438,7 +438,7 @@ def write_map_preview(path, sigma) -> Path:
 
 def write_map(path, sigma) -> Path:
     """Write a defocus map by extension: .exr (float32 σ), .png (preview), .npy (raw)."""
-    from scenes.photo_io import write_defocus_map
+    from repro.photo_io import write_defocus_map
 
     path = Path(path)
     if path.suffix.lower() == ".png":
@@ -485,7 +485,7 @@ def main(argv=None) -> int:
     params = defocus_params(args)
     photo_path = Path(args.photo)
     out = Path(args.output) if args.output else default_map_path(photo_path)
-    from scenes.photo_io import probe_photo
+    from repro.photo_io import probe_photo
 
     probe_photo(photo_path)  # a missing/bad photo is reported before anything about the output
     check_output_path(out, photo=photo_path, overwrite=args.overwrite, allowed=MAP_OUTPUT_SUFFIXES,

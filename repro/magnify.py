@@ -111,7 +111,7 @@ def parse_factor(text) -> float:
 
 def default_output_path(photo: Path, factor: float) -> Path:
     """``<folder>/<stem>.magnified-x<factor><ext>`` (PNG when the photo's extension is not writable)."""
-    from scenes.photo_io import OUTPUT_SUFFIXES
+    from repro.photo_io import OUTPUT_SUFFIXES
 
     photo = Path(photo)
     suffix = photo.suffix if photo.suffix.lower() in OUTPUT_SUFFIXES else ".png"
@@ -122,7 +122,7 @@ def main(argv=None) -> int:
     """Entry point; returns the exit status (errors raise; see :func:`repro._cli.run_cli`)."""
     from method.magnification import MAGNIFICATION_KERNELS, MAP_FLOOR_MODES, check_extra_blur, preprocess_defocus_map
     from method.upsampling import magnify_defocus_tiled
-    from scenes.photo_io import OUTPUT_SUFFIXES, output_bit_depth, probe_photo, write_photo
+    from repro.photo_io import OUTPUT_SUFFIXES, output_bit_depth, probe_photo, write_photo
 
     args = _parser().parse_args(argv)
     factor = parse_factor(args.factor)

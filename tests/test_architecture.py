@@ -2,7 +2,8 @@
 
 repro may import everything; experiments imports method and scenes; method and scenes never import
 each other, experiments or repro; nothing imports repro; method imports no renderer, plotting or
-file-I/O library.
+file-I/O library. storage (atomic writes, caches, cache keys) imports no project package and is used by
+every layer but method.
 """
 
 import ast
@@ -14,7 +15,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: Project packages each package must not import.
 FORBIDDEN_PROJECT = {
-    "method": {"scenes", "experiments", "repro"},
+    "storage": {"method", "scenes", "experiments", "repro"},
+    "method": {"scenes", "experiments", "repro", "storage"},
     "scenes": {"method", "experiments", "repro"},
     "experiments": {"repro"},
 }
@@ -50,6 +52,17 @@ def test_matplotlib_only_in_plotting_modules():
                  for p in (ROOT / pkg).rglob("*.py")
                  if "matplotlib" in _imports(p) and "plotting" not in p.parts]
     assert not offenders, offenders
+
+
+def test_photo_io_and_storage_live_where_they_say():
+    """Photo files are read/written only by the photo tools (repro.estimate, repro.magnify): repro/photo_io.py;
+    the cache layer is its own package, storage/."""
+    assert (ROOT / "repro" / "photo_io.py").is_file() and not (ROOT / "scenes" / "photo_io.py").exists()
+    assert (ROOT / "storage" / "__init__.py").is_file() and not (ROOT / "scenes" / "storage.py").exists()
+    users = sorted(str(p.relative_to(ROOT)) for pkg in ("method", "scenes", "experiments", "repro", "storage")
+                   for p in (ROOT / pkg).rglob("*.py") if "photo_io" in p.read_text(encoding="utf-8")
+                   and p.name != "photo_io.py")
+    assert users == ["repro/estimate.py", "repro/magnify.py"], users
 
 
 def test_the_checker_sees_imports(tmp_path):

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-import scenes.storage as storage
-from scenes.storage import KEY_LIBRARIES, default_cache_root, hash_key, library_versions, source_fingerprint
+import storage as storage
+from storage import KEY_LIBRARIES, default_cache_root, hash_key, library_versions, source_fingerprint
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -55,7 +55,7 @@ def test_source_fingerprint_of_functions():
 
 
 def test_code_fingerprints_are_one_function():
-    """The figure, photo-map and estimator fingerprints all come from scenes.storage.source_fingerprint."""
+    """The figure, photo-map and estimator fingerprints all come from storage.source_fingerprint."""
     import experiments
     import method
     import scenes
@@ -187,11 +187,11 @@ def test_cache_root_of_an_installed_copy(tmp_path):
     import shutil
 
     site = tmp_path / "site-packages"
-    shutil.copytree(ROOT / "scenes", site / "scenes", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(ROOT / "storage", site / "storage", ignore=shutil.ignore_patterns("__pycache__"))
     env = {k: v for k, v in os.environ.items() if k != storage.CACHE_ENV}
     env["PYTHONPATH"] = str(site)
     env["XDG_CACHE_HOME"] = str(tmp_path / "xdg")
-    out = subprocess.run([sys.executable, "-c", "import scenes.storage as s; print(s.__file__); print(s.default_cache_root())"],
+    out = subprocess.run([sys.executable, "-c", "import storage as s; print(s.__file__); print(s.default_cache_root())"],
                          env=env, cwd=tmp_path, capture_output=True, text=True, check=True).stdout.split("\n")
     assert out[0].startswith(str(site))
     assert Path(out[1]) == tmp_path / "xdg" / "defocus-repro"

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scenes.photo_io import write_photo
+from repro.photo_io import write_photo
 from tests.photo_cli import textured_photo
 
 ROOT = Path(__file__).resolve().parents[1]

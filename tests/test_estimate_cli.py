@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from repro.estimate import PROG, main
-from scenes.photo_io import write_photo
+from repro.photo_io import write_photo
 from tests.photo_cli import cli_runner, textured_photo
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -161,7 +161,7 @@ def test_presets_paper_and_robust_round_trip(tmp_path, photo, cache_dir, capsys)
     from method import DefocusParams
     from method.pipeline import estimate_defocus_map
     from method.upsampling import DEFAULT_MAX_WORKING_PIXELS
-    from scenes.photo_io import read_photo
+    from repro.photo_io import read_photo
 
     maps = {}
     for name in ("paper", "robust"):
@@ -377,7 +377,7 @@ def test_two_processes_share_one_cache_entry(tmp_path):
     np.testing.assert_array_equal(np.load(tmp_path / "m0.npy"), np.load(tmp_path / "m1.npy"))
     entries = _entries(cache)
     assert len(entries) == 1
-    from scenes.storage import Cache
+    from storage import Cache
 
     manifest = json.loads((entries[0] / "manifest.json").read_text())
     assert Cache(cache / "maps").is_valid(manifest["key"])

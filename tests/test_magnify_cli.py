@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from repro.magnify import PROG, main
-from scenes.photo_io import read_photo, write_photo
+from repro.photo_io import read_photo, write_photo
 from tests.photo_cli import cli_runner, textured_photo
 
 ROOT = Path(__file__).resolve().parents[1]

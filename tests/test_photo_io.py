@@ -1,4 +1,4 @@
-"""scenes/photo_io.py: decoding, bit depths, orientation, metadata, refusals, atomic writes."""
+"""repro/photo_io.py: decoding, bit depths, orientation, metadata, refusals, atomic writes."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import zlib
 import numpy as np
 import pytest
 
-from scenes.photo_io import (
+from repro.photo_io import (
     DEFAULT_MAX_PIXELS,
     PhotoError,
     apply_orientation,

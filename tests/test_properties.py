@@ -259,7 +259,7 @@ def test_guided_upsample_range_and_constant(data):
 @given(h=st.integers(1, 30), w=st.integers(1, 30), bits=st.sampled_from([8, 16]),
        suffix=st.sampled_from([".png", ".tif"]), grey=st.booleans(), seed=st.integers(0, 1000))
 def test_lossless_files_roundtrip(tmp_path, h, w, bits, suffix, grey, seed):
-    from scenes.photo_io import read_photo, write_photo
+    from repro.photo_io import read_photo, write_photo
 
     levels = 2**bits - 1
     rng = np.random.default_rng(seed)

@@ -1,4 +1,7 @@
-"""Atomic writes, cross-process locks and a checksummed content-addressed cache.
+"""The storage layer: atomic writes, cross-process locks and a checksummed content-addressed cache.
+
+Used by every layer of the harness but ``method`` (pure numerics); imports no project package
+(tests/test_architecture.py).
 
 Every output file of the project goes through :func:`atomic_write`: the bytes are written to a
 temporary file in the destination folder, flushed and fsynced, then renamed over the target, so a

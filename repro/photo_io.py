@@ -6,7 +6,7 @@ expects kept: orientation (EXIF), bit depth (16-bit PNG/TIFF in → 16-bit out),
 EXIF and ICC metadata pass through where the format allows.
 
 Every bad file is refused with :class:`PhotoError` (a ``ValueError``) carrying one line that names
-the file and what is wrong; nothing is ever half-written (:func:`scenes.storage.atomic_write`).
+the file and what is wrong; nothing is ever half-written (:func:`storage.atomic_write`).
 
 Decoders
 --------
@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .storage import atomic_write
+from storage import atomic_write
 
 __all__ = [
     "DEFAULT_MAX_PIXELS",
@@ -334,7 +334,7 @@ def _to_unit(arr: np.ndarray, path: Path, notes: list[str]) -> tuple[np.ndarray,
 def _read_exr(path: Path, notes: list[str], repair_nonfinite: bool) -> tuple[np.ndarray, int]:
     import OpenEXR
 
-    from .display import linear_to_srgb
+    from scenes.display import linear_to_srgb
 
     try:
         channels = {k: np.asarray(v.pixels) for k, v in OpenEXR.File(str(path)).channels().items()}
@@ -612,7 +612,7 @@ def write_photo(path, image, *, bit_depth=None, exif=None, icc_profile=None) -> 
             raise PhotoError(f"bit_depth={bit_depth!r} invalid for {suffix}; allowed: 8 or 16")
 
     if suffix == ".exr":
-        from .display import srgb_to_linear
+        from scenes.display import srgb_to_linear
 
         linear = srgb_to_linear(image).astype(np.float32)
         return _write_exr_channels(path, {"RGB" if image.ndim == 3 else "Y": linear})

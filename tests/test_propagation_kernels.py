@@ -188,3 +188,18 @@ def test_two_level_cg_solves_the_system(setup):
                                           coarse_shape=bm_c.shape, maxiter=2000, tol=1e-10)
     assert res <= 1e-10
     assert np.linalg.norm(A @ x.ravel() - rhs) <= 2e-10 * np.linalg.norm(rhs)
+
+
+@pytest.mark.parametrize("env, expected", [(None, "PASSIVE"), ("ACTIVE", "ACTIVE")])
+def test_openmp_wait_policy_default_is_passive_and_the_environment_wins(env, expected):
+    """numba's OpenMP workers must not busy-wait between the refinement's parallel regions (unless asked)."""
+    import os
+    import subprocess
+    import sys
+
+    child_env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
+    if env is not None:
+        child_env["OMP_WAIT_POLICY"] = env
+    code = "import os, method; print(os.environ['OMP_WAIT_POLICY'])"
+    out = subprocess.run([sys.executable, "-c", code], env=child_env, capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == expected

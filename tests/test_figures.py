@@ -164,11 +164,17 @@ def test_fig2_and_fig10_in_parallel(fig10_quick, tmp_path):
 def test_code_fingerprint_ignores_plots_and_claims_but_not_compute_code(tmp_path, monkeypatch):
     import experiments.registry as reg
 
-    for rel, text in {"method/a.py": "x = 1\n", "experiments/fig.py": "y = 1\n",
+    for rel, text in {"method/a.py": "x = 1\n", "scenes/s.py": "v = 1\n", "experiments/fig.py": "y = 1\n",
                       "experiments/claims.py": "z = 1\n", "experiments/plotting/p.py": "w = 1\n"}.items():
         (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / rel).write_text(text)
-    monkeypatch.setattr(reg, "__file__", str(tmp_path / "experiments" / "registry.py"))
+    # the fingerprint of a fake checkout: packages resolved to its folders, paths relative to its root
+    import types
+
+    import storage
+
+    monkeypatch.setattr(reg, "importlib", types.SimpleNamespace(import_module=lambda name: tmp_path / name))
+    monkeypatch.setattr(storage, "_PROJECT_ROOT", tmp_path)
 
     def fp():
         reg.code_fingerprint.cache_clear()

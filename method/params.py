@@ -118,10 +118,11 @@ class DefocusParams:
     # "amg_pcg" (multigrid-preconditioned CG) or "direct" (sparse LU; small images / tests only).
     propagation_downsample: int | str = "auto"
     # "auto": exact solve up to 256², else solve on a grid coarsened by the smallest power of two s
-    # that brings it to ≤ 256² px (2× at 512², 4× at 1 MP, 8× at the photo tools' 1.5 MP), upsample and
-    # refine with 20·s iterations of two-level-preconditioned CG (Jacobi + coarse-grid correction)
-    # on the exact full-resolution system: 0.012 / 0.014 px RMS, 0.07 px p99 from the exact solve
-    # on a photo at 512² / 1024² (docs/performance.md); 1 = exact full-resolution solve;
+    # ≥ 4 (method.propagation.AUTO_MIN_COARSENING) that brings it to ≤ 256² px (4× at 512² and 1 MP,
+    # 8× at the photo tools' 1.5 MP), upsample and refine with 20·s iterations of two-level-
+    # preconditioned CG (Jacobi + coarse-grid correction) on the exact full-resolution system:
+    # 0.0024 / 0.015 px RMS, 0.012 / 0.07 px p99 from the exact solve on a photo at 512² / 1024²
+    # (docs/performance.md); 1 = exact full-resolution solve;
     # 2, 4, … = that coarsening factor.
     propagation_refinement: str = "two_level"
     # refinement of the upsampled coarse solution (key of method.propagation.PROPAGATION_REFINEMENTS):

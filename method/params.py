@@ -117,16 +117,17 @@ class DefocusParams:
     propagation_solver: str = "amg_pcg"
     # "amg_pcg" (multigrid-preconditioned CG) or "direct" (sparse LU; small images / tests only).
     propagation_downsample: int | str = "auto"
-    # "auto": exact solve up to 256², else solve on a grid coarsened by the smallest power of two s
-    # ≥ 4 (method.propagation.AUTO_MIN_COARSENING) that brings it to ≤ 256² px (4× at 512² and 1 MP,
-    # 8× at the photo tools' 1.5 MP), upsample and refine with 20·s iterations of two-level-
-    # preconditioned CG (Jacobi + coarse-grid correction) on the exact full-resolution system:
-    # 0.0024 / 0.015 px RMS, 0.012 / 0.07 px p99 from the exact solve on a photo at 512² / 1024²
-    # (docs/performance.md); 1 = exact full-resolution solve;
-    # 2, 4, … = that coarsening factor.
-    propagation_refinement: str = "two_level"
+    # "auto": exact solve up to 2¹⁵ px (≈ 181²; method.propagation.AUTO_MAX_EXACT_PIXELS), else solve
+    # on a grid coarsened by the smallest power of two s ≥ 4 (AUTO_MIN_COARSENING) that brings it to
+    # ≤ 2¹⁵ px (4× at 256² and 512², 8× at 1 MP and the photo tools' 1.5 MP) with the Galerkin coarse
+    # operator, interpolate and refine with max(4·s, 24) iterations of two-level-preconditioned CG
+    # (Jacobi + coarse-grid correction) on the exact full-resolution system: 0.0059 / 0.0066 px RMS,
+    # 0.030 / 0.030 px p99 from the exact solve on a photo at 512² / 1024² (docs/performance.md);
+    # 1 = exact full-resolution solve; 2, 4, … = that coarsening factor.
+    propagation_refinement: str = "galerkin"
     # refinement of the upsampled coarse solution (key of method.propagation.PROPAGATION_REFINEMENTS):
-    # "two_level" (default, above) or "jacobi" (the cheaper Jacobi-preconditioned CG, ~0.15 px RMS at 1 MP).
+    # "galerkin" (default, above), "two_level" (the same CG with the re-discretised coarse system, the
+    # default before: 20·s iterations) or "jacobi" (Jacobi-preconditioned CG, ~0.15 px RMS at 1 MP).
 
     # --- 5 magnification ------------------------------------------------------------------
     map_clip_percent: float = 5.0

@@ -37,22 +37,25 @@ Where each part lives (as pymatting splits laplacian / solver / preconditioner)
 
 Solving (see :func:`propagate_defocus`, Notes)
 ----------------------------------------------
-Images up to 256² px are solved exactly (pyamg smoothed-aggregation multigrid + CG). Larger ones are
-solved on a grid coarsened by a power of two, at least 4× (4× at 512² and 1 MP, 8× at the photo
-tools' 1.5 MP), to a relative residual of 1e-3; its bilinearly interpolated solution starts a CG on
-the exact full-resolution system, preconditioned by Jacobi plus a coarse-grid correction through the
-same coarse hierarchy (two-level, matrix-free fine level), 20·s iterations. On the astronaut photo
-the default is 0.0024 px RMS / 0.012 px p99 (512²) and 0.015 px RMS / 0.07 px p99 (1024²) from the
-exact solve (:func:`propagate_defocus`, Notes).
+Images up to 2¹⁵ px (≈ 181²; the small renders) are solved exactly (pyamg smoothed-aggregation
+multigrid + CG). Larger ones are solved on a grid coarsened by a power of two, at least 4× (4× at 256²
+and 512², 8× at 1 MP and at the photo tools' 1.5 MP), with the *Galerkin* coarse operator PᵀAP of the
+exact full-resolution system (:mod:`method.propagation_galerkin`); the interpolated coarse solution
+starts a CG on the exact full-resolution system, preconditioned by Jacobi plus a coarse-grid
+correction through the same coarse hierarchy (two-level, matrix-free fine level), max(4·s, 24)
+iterations. On the astronaut photo the default is 0.0059 px RMS / 0.030 px p99 (512²) and 0.0066 px
+RMS / 0.030 px p99 (1024²) from the exact solve (:func:`propagate_defocus`, Notes).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 
 import numpy as np
 from scipy import ndimage
 
+from .propagation_galerkin import galerkin_coarse_operator, prolong, restrict
 from .propagation_matrix_free import jacobi_pcg, two_level_pcg
 from .propagation_solvers import COARSE_SETUPS, PROPAGATION_SOLVERS
 from .propagation_system import (
@@ -77,15 +80,22 @@ __all__ = [
 ]
 
 
-#: Largest number of pixels solved at full resolution by ``downsample="auto"``; bigger images are
-#: solved on a grid coarsened by a power of two (at least :data:`AUTO_MIN_COARSENING`) to at most
-#: this many pixels, then refined.
-AUTO_MAX_COARSE_PIXELS = 256 * 256
+#: Largest number of pixels solved exactly at full resolution by ``downsample="auto"`` (2¹⁵, ≈ 181²:
+#: the small renders, 160×120, and the 128² hash test stay exact); bigger images take the coarse mode.
+#: At 256² the exact AMG solve took 1.7 s, the Galerkin two-level refinement 0.04–0.1 s (0.005 px RMS).
+AUTO_MAX_EXACT_PIXELS = 2 ** 15
 
-#: Smallest coarsening factor of ``downsample="auto"``'s coarse mode. With the unrolled 3×3 kernels
-#: a full-resolution CG iteration costs less than a V-cycle on a 256² coarse grid, so at 512² the
-#: 4× grid with 80 iterations is both faster and closer to the exact solve than the 2× grid with 40
-#: (astronaut, paper preset: 0.0024 vs 0.0117 px RMS, about half the CPU time; 1 MP keeps 4×).
+#: Largest coarse grid of ``downsample="auto"``'s coarse mode, px: the smallest power of two
+#: ≥ :data:`AUTO_MIN_COARSENING` bringing the grid under it (4× up to 724², 8× at 1 MP and at the photo
+#: tools' 1.5 MP). Measured with the Galerkin refinement on the astronaut photo at 1024² (RMS px from
+#: the exact solve after 30 iterations): 8× (128², V-cycle 8.5 ms) 0.0075; 4× (256², V-cycle 19 ms)
+#: slower per iteration and no closer; 16× (64²) 0.072 — the Jacobi part cannot cover the wider band.
+AUTO_MAX_COARSE_PIXELS = 2 ** 15
+
+#: Smallest coarsening factor of ``downsample="auto"``'s coarse mode. Galerkin two-level PCG on the
+#: astronaut photo, RMS px from the exact solve after 20 iterations: at 512², 4× 0.0082 (0.24 s),
+#: 2× 0.025 (0.39 s: a 4× costlier V-cycle and no fewer iterations), 8× 0.016; at 256², 4× 0.0008,
+#: 2× 0.0073.
 AUTO_MIN_COARSENING = 4
 
 #: Relative residual of the coarse solve of the coarse mode when ``coarse_tol`` is None (or ``tol``
@@ -95,46 +105,96 @@ AUTO_MIN_COARSENING = 4
 DEFAULT_COARSE_TOL = 1e-3
 
 #: Default number of full-resolution CG iterations after a coarse solve, per refinement (keys of
-#: :data:`PROPAGATION_REFINEMENTS`), per unit of the coarsening factor s: the two-level
-#: preconditioner's condition number grows like s² (the band of frequencies between the coarse grid
-#: and the Jacobi smoother widens), so CG needs ∝ s iterations for the same accuracy. Two-level:
-#: 20·s, i.e. 80 at 512² and 1024² (s = 4), which leave the astronaut photo ≈ 0.002 / 0.015 px
-#: RMS and 0.01 / 0.07 px p99 from the exact solve (see :func:`propagate_defocus`, Notes). Jacobi:
-#: the earlier fixed 60 iterations (0.08 / 0.15 px RMS).
-DEFAULT_REFINE_ITERATIONS = {"two_level": (20, "per_factor"), "jacobi": (60, "fixed")}
+#: :data:`PROPAGATION_REFINEMENTS`): max(k·s, floor) for the coarsening factor s. The two-level
+#: preconditioner's condition number grows with s (the band of frequencies between the coarse grid
+#: and the Jacobi smoother widens), so CG needs ∝ s iterations for the same accuracy; the floor
+#: covers small s. Galerkin: max(4·s, 24) — 24 at 256² and 512² (s = 4), 32 at 1024² (s = 8); on the
+#: astronaut photo (paper preset's measures) 0.0004 / 0.0059 / 0.0066 px RMS and 0.002 / 0.030 / 0.030
+#: px p99 from the exact solve (``benchmarks/propagation_accuracy.py``). Re-discretised two-level:
+#: 20·s (the default before: 0.0024 / 0.0149 px RMS at 512² / 1024² with s = 4, 80 iterations).
+#: Jacobi: the earlier fixed 60 iterations (0.08 / 0.15 px RMS).
+DEFAULT_REFINE_ITERATIONS = {"galerkin": (4, 24), "two_level": (20, 0), "jacobi": (0, 60)}
 
 
 def _default_refine_iterations(refinement: str, s: int) -> int:
-    n, kind = DEFAULT_REFINE_ITERATIONS[refinement]
-    return n * s if kind == "per_factor" else n
+    per_factor, floor = DEFAULT_REFINE_ITERATIONS[refinement]
+    return max(per_factor * s, floor)
 
 
-def _refine_two_level(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, maxiter, tol):
-    return two_level_pcg(weights, offs, a_diag, rhs, x0, coarse=coarse, s=s,
-                                      coarse_shape=coarse_shape, maxiter=maxiter, tol=tol)
+@dataclasses.dataclass(frozen=True)
+class _FineSystem:
+    """The full-resolution Eq. (4) system in matrix-free form, and the problem it came from."""
+
+    sparse_sigma: np.ndarray   # H×W, px, NaN off edges
+    ref: np.ndarray            # H×W×C guide
+    weights: np.ndarray        # (K, H+2r, W+2r) float32 affinities (zero padding)
+    offs: np.ndarray           # (K, 2) offsets
+    a_diag: np.ndarray         # H×W data term α_p + λ
+    rhs: np.ndarray            # H×W right-hand side α·BM + λ·mean(BM)
+    fill: float                # mean of the measures (start value)
 
 
-def _refine_jacobi(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, maxiter, tol):
-    return jacobi_pcg(weights, offs, a_diag, rhs, x0, maxiter=maxiter, tol=tol)
+def _rediscretised_start(fine, s, *, alpha, regularization, confidence, window, neighborhood, eps,
+                         solver, coarse_tol):
+    """Coarse Eq. (4) rebuilt from the block-averaged guide (α_c = s²·Σ α); its solve, interpolated."""
+    h, w = fine.sparse_sigma.shape
+    ref_c, bm_c, a_c = _coarse_problem(fine.sparse_sigma, fine.ref, s, alpha, confidence)
+    hc, wc = bm_c.shape
+    L_c = colorization_matrix(ref_c, window=window, neighborhood=neighborhood, eps=eps)
+    lam_c = regularization * alpha * s * s
+    target = float(np.sum(a_c * bm_c) / np.sum(a_c))
+    level = COARSE_SETUPS[solver](_assemble(L_c, a_c.ravel(), lam_c))
+    del L_c
+    rhs_c = (a_c * bm_c).ravel() + lam_c * target
+    coarse = level.solve(rhs_c, np.full(hc * wc, target), coarse_tol).reshape(hc, wc)
+    return _upsample_crop(coarse, s, (h, w)), level, float(s * s)
 
 
-#: Full-resolution refinements after a coarse solve (``downsample`` > 1), chosen with
-#: ``refinement="..."``: ``"two_level"`` (default) = CG preconditioned by Jacobi + the coarse-grid
-#: correction (:func:`method.propagation_matrix_free.two_level_pcg`); ``"jacobi"`` = the earlier, cheaper Jacobi-only
-#: CG (:func:`method.propagation_matrix_free.jacobi_pcg`), which leaves the coarse grid's smooth error almost intact.
-PROPAGATION_REFINEMENTS: dict[str, Callable] = {
-    "two_level": _refine_two_level,
-    "jacobi": _refine_jacobi,
+def _galerkin_start(fine, s, *, solver, coarse_tol, **_):
+    """Galerkin coarse operator PᵀAP of the fine system; x0 = P (PᵀAP)⁻¹ Pᵀ rhs (to ``coarse_tol``)."""
+    h, w = fine.a_diag.shape
+    coarse_shape = (-(-h // s), -(-w // s))
+    level = COARSE_SETUPS[solver](galerkin_coarse_operator(
+        fine.weights, fine.offs, fine.a_diag, s=s, coarse_shape=coarse_shape))
+    rhs_c = restrict(fine.rhs, s=s, coarse_shape=coarse_shape)
+    coarse = level.solve(rhs_c.ravel(), np.full(rhs_c.size, fine.fill), coarse_tol).reshape(coarse_shape)
+    return prolong(coarse, s=s, shape=(h, w)), level, 1.0
+
+
+def _refine_two_level(fine, x0, *, coarse, scale, s, coarse_shape, maxiter, tol):
+    return two_level_pcg(fine.weights, fine.offs, fine.a_diag, fine.rhs, x0, coarse=coarse, s=s,
+                         coarse_shape=coarse_shape, maxiter=maxiter, tol=tol, coarse_scale=scale)
+
+
+def _refine_jacobi(fine, x0, *, coarse, scale, s, coarse_shape, maxiter, tol):
+    return jacobi_pcg(fine.weights, fine.offs, fine.a_diag, fine.rhs, x0, maxiter=maxiter, tol=tol)
+
+
+#: Coarse mode of :func:`propagate_defocus` (``downsample`` > 1), chosen with ``refinement="..."``:
+#: name -> (start: coarse level + start map, refine: full-resolution CG).
+#:
+#: * ``"galerkin"`` (default): the coarse level is the Galerkin operator PᵀAP of the exact fine
+#:   system (:func:`method.propagation_galerkin.galerkin_coarse_operator`), its solution
+#:   interpolated starts a CG preconditioned by Jacobi + that coarse-grid correction
+#:   (:func:`method.propagation_matrix_free.two_level_pcg`, c = 1);
+#: * ``"two_level"`` (the default before): the same CG with the coarse level re-discretised from
+#:   the block-averaged guide (c = s²), whose correction is wrong across colour edges;
+#: * ``"jacobi"``: the re-discretised start and a Jacobi-only CG, which leaves the coarse grid's
+#:   smooth error almost intact.
+PROPAGATION_REFINEMENTS: dict[str, tuple[Callable, Callable]] = {
+    "galerkin": (_galerkin_start, _refine_two_level),
+    "two_level": (_rediscretised_start, _refine_two_level),
+    "jacobi": (_rediscretised_start, _refine_jacobi),
 }
 
 
 # --------------------------------------------------------------------------------------------
 # public entry point
 # --------------------------------------------------------------------------------------------
-def _auto_downsample(h, w, max_pixels, min_factor=AUTO_MIN_COARSENING):
-    """1 when H·W ≤ ``max_pixels``, else the smallest power of two ≥ ``min_factor`` bringing the coarse
+def _auto_downsample(h, w, max_pixels, min_factor=AUTO_MIN_COARSENING, max_exact=AUTO_MAX_EXACT_PIXELS):
+    """1 when H·W ≤ ``max_exact``, else the smallest power of two ≥ ``min_factor`` bringing the coarse
     grid under ``max_pixels`` (at most min(H, W)/2, so the coarse grid keeps ≥ 2 px per side)."""
-    if h * w <= max_pixels or min(h, w) < 4:
+    if h * w <= max_exact or min(h, w) < 4:
         return 1
     s = min_factor
     while (-(-h // s)) * (-(-w // s)) > max_pixels:
@@ -154,7 +214,7 @@ def _upsample(coarse, s, shape):
 
 def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborhood=3, eps=1e-6,
                       regularization=1e-6, tol=1e-6, solver="amg_pcg", downsample="auto",
-                      refinement="two_level", refine_iterations=None,
+                      refinement="galerkin", refine_iterations=None,
                       max_coarse_pixels=AUTO_MAX_COARSE_PIXELS, confidence=None, coarse_tol=None) -> np.ndarray:
     """Dense defocus map B minimising Eq. (4), from sparse blur σ at edge pixels.
 
@@ -187,18 +247,19 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
         any integer): solve the problem on an s-times coarser grid with ``solver``, interpolate
         bilinearly and refine with ``refine_iterations`` iterations of preconditioned CG on the exact
         full-resolution system (approximate; see Notes). ``"auto"`` (default): 1 when
-        H·W ≤ ``max_coarse_pixels``, else the smallest power of two ≥ :data:`AUTO_MIN_COARSENING` (4)
-        that brings the coarse grid under it (4× at 512² and 1024², 8× at the photo tools' 1.5 MP).
+        H·W ≤ :data:`AUTO_MAX_EXACT_PIXELS` (2¹⁵), else the smallest power of two
+        ≥ :data:`AUTO_MIN_COARSENING` (4) that brings the coarse grid under ``max_coarse_pixels``
+        (4× at 256² and 512², 8× at 1024² and at the photo tools' 1.5 MP).
     refinement : str, keyword-only
-        Key of :data:`PROPAGATION_REFINEMENTS` (used when s > 1): ``"two_level"`` (default; CG
-        preconditioned by Jacobi + the coarse-grid correction) or ``"jacobi"`` (the earlier, cheaper
-        Jacobi-only CG, ≈ 20× further from the exact solve on photos).
+        Key of :data:`PROPAGATION_REFINEMENTS` (used when s > 1): ``"galerkin"`` (default; CG
+        preconditioned by Jacobi + the Galerkin coarse-grid correction), ``"two_level"`` (the same
+        with the re-discretised coarse system, the default before) or ``"jacobi"`` (Jacobi-only CG).
     refine_iterations : int or None, keyword-only
         Full-resolution CG iterations after a coarse solve (≥ 0; they stop earlier once the relative
         residual reaches ``tol``). None: :data:`DEFAULT_REFINE_ITERATIONS` of ``refinement``
-        (20·s for ``"two_level"`` — 40 at s = 2, 80 at s = 4 —, 60 for ``"jacobi"``).
+        (max(4·s, 24) for ``"galerkin"``, 20·s for ``"two_level"``, 60 for ``"jacobi"``).
     max_coarse_pixels : int, keyword-only
-        Pixel budget of the ``"auto"`` coarse grid.
+        Pixel budget of the ``"auto"`` coarse grid (default :data:`AUTO_MAX_COARSE_PIXELS`, 2¹⁵).
     coarse_tol : float or None, keyword-only
         Relative residual at which the coarse solve of the coarse mode (s > 1) stops; None:
         max(``tol``, :data:`DEFAULT_COARSE_TOL` = 1e-3). The refinement removes most of what the
@@ -223,28 +284,32 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
     1. Affinities w_pq (Eq. 4c) with σ_ip from a ``window``-side box and N(p) a ``neighborhood``-side
        box (:func:`method.propagation_system.colorization_weights`); L = I − W.
     2. α_p = alpha where BM is finite; system (LᵀL + diag α + λI) B = α·BM + λ·mean(BM), λ = regularization·alpha.
-    3. Exact mode (``downsample=1``; ``"auto"`` up to ``max_coarse_pixels``): assemble and solve with
-       ``solver`` (AMG-PCG to ``tol``).
-    4. Coarse mode (s > 1): guide block-averaged over s×s blocks; BM_c = mean of the block's edge
-       values; α_c = s²·Σ_block α_p — for a smooth map, (L_c B)² is s⁴ times (L B)² on s⁻² as many
-       pixels, so the smoothness energy grows by s² and α is scaled alike to keep their ratio.
-       Build the coarse solver once (AMG hierarchy or LU), solve the coarse Eq. (4) to ``coarse_tol``
-       (1e-3 by default) and interpolate bilinearly (P) to get the start map.
-    5. Refinement (``refinement="two_level"``): ``refine_iterations`` iterations of CG on the exact
-       full-resolution system (matrix-free, numba, float64 vectors and scalars, affinities stored in
-       float32: the map moves by < 1e-6 px against float64), preconditioned by
-       M⁻¹ = D⁻¹ + s²·P Ã_c⁻¹ Pᵀ — Jacobi for the oscillatory error plus a coarse-grid correction
-       (restriction Pᵀ, one V-cycle of the coarse hierarchy, prolongation P) for the smooth error
-       the Jacobi-only CG could not remove (:func:`method.propagation_matrix_free.two_level_pcg`). Cost O(H·W) per
-       iteration plus one V-cycle on the (fixed-size) coarse grid; 20·s iterations by default.
-       The 3×3 neighbourhood has unrolled kernels (bit-identical to the generic ones, ~5–8× faster).
+    3. Exact mode (``downsample=1``; ``"auto"`` up to :data:`AUTO_MAX_EXACT_PIXELS`): assemble and
+       solve with ``solver`` (AMG-PCG to ``tol``).
+    4. Coarse mode (s > 1), ``refinement="galerkin"`` (default): the coarse operator is the Galerkin
+       projection A_c = PᵀAP of the exact full-resolution system with the bilinear interpolation P
+       (:func:`method.propagation_galerkin.galerkin_coarse_operator`, formed matrix-free from the
+       affinities, ~0.2 s at 1 MP). Build its solver once (AMG hierarchy or LU), solve
+       A_c B_c = Pᵀ rhs to ``coarse_tol`` (1e-3 by default) and interpolate (P B_c) to get the
+       start map. With ``"two_level"`` / ``"jacobi"`` the coarse problem is instead re-discretised:
+       guide block-averaged over s×s blocks, BM_c = mean of the block's edge values,
+       α_c = s²·Σ_block α_p (for a smooth map (L_c B)² is s⁴ times (L B)² on s⁻² as many pixels, so
+       the smoothness energy grows by s² and α is scaled alike); cheap, but across colour edges a
+       different operator from the fine one.
+    5. Refinement: ``refine_iterations`` iterations of CG on the exact full-resolution system
+       (matrix-free, numba, float64 vectors and scalars, affinities stored in float32: the map moves
+       by < 1e-6 px against float64), preconditioned by M⁻¹ = D⁻¹ + c·P Ã_c⁻¹ Pᵀ — Jacobi for the
+       oscillatory error plus a coarse-grid correction (restriction Pᵀ, one V-cycle of the coarse
+       hierarchy, prolongation P) for the smooth error (c = 1 for the Galerkin operator, s² for
+       the re-discretised one; :func:`method.propagation_matrix_free.two_level_pcg`). Cost O(H·W) per
+       iteration plus one V-cycle on the coarse grid; max(4·s, 24) iterations by default. The 3×3
+       neighbourhood has unrolled kernels (bit-identical to the generic ones, ~5–8× faster).
        Error of the default against the exact solve on the astronaut photo (paper preset's
-       measures; ``repro.bench`` records it): 0.0024 px RMS / 0.012 px p99 / 0.039 px max at 512²
-       (coarse 4×, 80 iterations) and 0.0149 / 0.070 / 0.19 px at 1024² (coarse 4×, 80
-       iterations); before (2× at 512², coarse solve to ``tol``) 0.0117 / 0.070 / 0.13 and
-       0.0140 / 0.066 / 0.16 px. The Jacobi-only refinement (``refinement="jacobi"``, 60
-       iterations) leaves 0.083 / 0.49 / 0.88 and 0.152 / 0.73 / 1.18 px.
-       ``tests/test_propagation.py`` bounds the error on a 320² synthetic image.
+       measures; ``benchmarks/propagation_accuracy.py`` records it): 0.0059 px RMS / 0.030 px p99
+       at 512² (4×, 24 iterations) and 0.0066 / 0.030 px at 1024² (8×, 32 iterations). The
+       re-discretised default before it: 0.0024 / 0.012 and 0.0149 / 0.070 px with 80 iterations
+       each (4×), at 2.4× the time at 1 MP; from the same 8× grid it needs ~160 iterations for
+       0.028 px RMS. ``tests/test_propagation.py`` bounds the error on a 320² synthetic image.
     6. Determinism: the AMG setup draws no random numbers (:data:`AMG_PROLONGATION_SMOOTHER`) and
        runs with single-threaded BLAS; the numba kernels are row-parallel without shared writes and
        add per-row partial sums in row order; the coarse-grid correction is single-threaded. Same
@@ -304,25 +369,17 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
         return solve(A, rhs, x0=x0, tol=tol).reshape(h, w)
 
     # --- coarse solve + full-resolution refinement --------------------------------------------
-    ref_c, bm_c, a_c = _coarse_problem(sparse_sigma, ref, s, alpha, confidence)
-    hc, wc = bm_c.shape
-    L_c = colorization_matrix(ref_c, window=window, neighborhood=neighborhood, eps=eps)
-    lam_c = regularization * alpha * s * s
-    target = float(np.sum(a_c * bm_c) / np.sum(a_c))
-    A_c = _assemble(L_c, a_c.ravel(), lam_c)
-    del L_c
-    rhs_c = (a_c * bm_c).ravel() + lam_c * target
-    coarse_level = COARSE_SETUPS[solver](A_c)
-    coarse = coarse_level.solve(rhs_c, np.full(hc * wc, target), coarse_tol).reshape(hc, wc)
-    x0 = _upsample_crop(coarse, s, (h, w))
-    if refine_iterations == 0:
-        return x0
+    start, refine = PROPAGATION_REFINEMENTS[refinement]
     weights, offs = _padded_weights(ref, window, neighborhood, eps)
     a, rhs, lam, _ = _data_term(sparse_sigma, alpha, regularization, confidence)
-    a_diag = (a + lam).reshape(h, w)
-    x, _res = PROPAGATION_REFINEMENTS[refinement](
-        weights, offs, a_diag, rhs.reshape(h, w), x0, coarse=coarse_level, s=s, coarse_shape=(hc, wc),
-        maxiter=int(refine_iterations), tol=tol)
+    fine = _FineSystem(sparse_sigma, ref, weights, offs, (a + lam).reshape(h, w), rhs.reshape(h, w), fill)
+    x0, coarse_level, scale = start(fine, s, alpha=alpha, regularization=regularization,
+                                    confidence=confidence, window=window, neighborhood=neighborhood,
+                                    eps=eps, solver=solver, coarse_tol=coarse_tol)
+    if refine_iterations == 0:
+        return x0
+    x, _res = refine(fine, x0, coarse=coarse_level, scale=scale, s=s, coarse_shape=(-(-h // s), -(-w // s)),
+                     maxiter=int(refine_iterations), tol=tol)
     return x
 
 

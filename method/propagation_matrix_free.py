@@ -532,7 +532,7 @@ def _precondition(res, dinv, e_x, r, py_ptr, py_idx, py_val, z, rowdot):
         rowdot[y] = acc
 
 
-def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, maxiter, tol):
+def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, maxiter, tol, coarse_scale=None):
     """CG on the full-resolution Eq. (4) system, preconditioned by Jacobi + a coarse-grid correction.
 
     Parameters
@@ -554,6 +554,10 @@ def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, ma
     maxiter : int
     tol : float
         Stop early when ‖res‖ ≤ tol·‖rhs‖.
+    coarse_scale : float or None, keyword-only
+        Factor c of the coarse correction c·P Ã_c⁻¹ Pᵀ: None = s², for the re-discretised coarse
+        system (A_c ≈ s²·PᵀAP); 1 for the Galerkin operator A_c = PᵀAP
+        (:func:`method.propagation_galerkin.galerkin_coarse_operator`).
 
     Returns
     -------
@@ -562,13 +566,15 @@ def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, ma
 
     Notes
     -----
-    Preconditioner M⁻¹ r = D⁻¹ r + s²·P Ã_c⁻¹ Pᵀ r (additive two-level):
+    Preconditioner M⁻¹ r = D⁻¹ r + c·P Ã_c⁻¹ Pᵀ r (additive two-level; c = s² or 1, see
+    ``coarse_scale``):
 
     1. D = diag(LᵀL + diag a) (Jacobi), damping the oscillatory error the coarse grid cannot see;
     2. Pᵀ r: restriction by the transpose of the bilinear interpolation P used for the start map
        (:func:`bilinear_1d`, separable);
-    3. Ã_c⁻¹: the coarse approximate inverse. The coarse system is built with α_c = s²·Σ_block α, so
-       A_c ≈ s²·PᵀAP (see :func:`propagate_defocus`, Notes) and s²·P A_c⁻¹ Pᵀ ≈ P (PᵀAP)⁻¹ Pᵀ;
+    3. Ã_c⁻¹: the coarse approximate inverse. Either the Galerkin operator A_c = PᵀAP (c = 1), or the
+       re-discretised coarse system built with α_c = s²·Σ_block α, so A_c ≈ s²·PᵀAP (see
+       :func:`method.propagation.propagate_defocus`, Notes) and s²·P A_c⁻¹ Pᵀ ≈ P (PᵀAP)⁻¹ Pᵀ;
     4. prolongation P and the sum with step 1.
 
     M is symmetric positive definite and the same linear map at every iteration, so plain
@@ -595,7 +601,7 @@ def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, ma
     shape = (h + 2 * r, w + 2 * r)
     (py_ptr, py_idx, py_val), (ty_ptr, ty_idx, ty_val) = bilinear_1d(h, hc, s)
     (px_ptr, px_idx, px_val), (tx_ptr, tx_idx, tx_val) = bilinear_1d(w, wc, s)
-    scale = float(s * s)
+    scale = float(s * s) if coarse_scale is None else float(coarse_scale)
 
     def padded(a):
         out = np.zeros(shape)

@@ -37,7 +37,7 @@ def _sparse(rng, ref, density=0.05):
 
 def test_solvers_registered():
     assert set(PROPAGATION_SOLVERS) == {"amg_pcg", "direct"}
-    assert set(PROPAGATION_REFINEMENTS) == {"two_level", "jacobi"}
+    assert set(PROPAGATION_REFINEMENTS) == {"galerkin", "two_level", "jacobi"}
 
 
 @pytest.mark.parametrize("neighborhood", [3, 5, 7])
@@ -129,7 +129,7 @@ def test_step_kept_at_colour_edge(rng, downsample):
     assert np.min(jumps[:, 29]) > 0.9
 
 
-@pytest.mark.parametrize("refinement", ["two_level", "jacobi"])
+@pytest.mark.parametrize("refinement", ["galerkin", "two_level", "jacobi"])
 @pytest.mark.parametrize("solver", ["amg_pcg", "direct"])
 def test_coarse_mode_close_to_exact(rng, refinement, solver):
     ref = _photo(rng, 128, 128)
@@ -162,9 +162,9 @@ def mid_size_case():
 def test_default_refinement_close_to_exact_mid_size(mid_size_case, downsample):
     """The default (coarse solve + two-level PCG refinement) is within named bounds of the exact solve.
 
-    320² > 256², so ``"auto"`` takes the coarse path (4×, :data:`AUTO_MIN_COARSENING`), the factor
-    also used at 512² and 1 MP; 2× was the auto factor at 512² before issue 11. The Jacobi-only
-    refinement (the earlier default) is ~25× outside these bounds.
+    320² > 2¹⁵ px, so ``"auto"`` takes the coarse path (4×, :data:`AUTO_MIN_COARSENING`), the factor
+    also used at 512²; 2× was the auto factor at 512² before issue 11. The Jacobi-only refinement
+    (an earlier default) is ~60× outside these bounds.
     """
     ref, bm, exact = mid_size_case
     approx = propagate_defocus(bm, ref, downsample=downsample)
@@ -176,13 +176,15 @@ def test_default_refinement_close_to_exact_mid_size(mid_size_case, downsample):
 
 
 def test_auto_downsample_factors():
-    from method.propagation import AUTO_MAX_COARSE_PIXELS, _auto_downsample
+    from method.propagation import AUTO_MAX_COARSE_PIXELS, AUTO_MAX_EXACT_PIXELS, _auto_downsample
 
-    assert _auto_downsample(256, 256, AUTO_MAX_COARSE_PIXELS) == 1  # up to 256²: exact
-    assert _auto_downsample(257, 256, AUTO_MAX_COARSE_PIXELS) == 4  # never 2×: at least 4× coarser
+    assert AUTO_MAX_EXACT_PIXELS >= 160 * 120  # the small renders (CI goldens) are solved exactly
+    assert _auto_downsample(181, 181, AUTO_MAX_COARSE_PIXELS) == 1  # up to 2^15 px: exact
+    assert _auto_downsample(182, 181, AUTO_MAX_COARSE_PIXELS) == 4  # never 2×: at least 4× coarser
+    assert _auto_downsample(256, 256, AUTO_MAX_COARSE_PIXELS) == 4
     assert _auto_downsample(512, 512, AUTO_MAX_COARSE_PIXELS) == 4
-    assert _auto_downsample(1024, 1024, AUTO_MAX_COARSE_PIXELS) == 4
-    assert _auto_downsample(1025, 1024, AUTO_MAX_COARSE_PIXELS) == 8
+    assert _auto_downsample(724, 724, AUTO_MAX_COARSE_PIXELS) == 4
+    assert _auto_downsample(1024, 1024, AUTO_MAX_COARSE_PIXELS) == 8
     assert _auto_downsample(6, 20000, AUTO_MAX_COARSE_PIXELS) == 2  # the coarse grid keeps >= 2 px a side
 
 

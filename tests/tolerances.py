@@ -179,12 +179,12 @@ PIPELINE_TWO_REGION_SIGMA_RTOL = 0.15
 
 # --- propagation: default (coarse solve + two-level PCG refinement) vs exact solve -----------------
 #: Default ``propagate_defocus`` (auto: coarse 4×, and downsample=2) vs the exact solve (tol 1e-10)
-#: on a 320² textured synthetic image with 1 % of the pixels measured, px. Measured 3.6e-5 px RMS /
-#: 1.3e-4 px p99 (2×) and 2.3e-6 / 9.5e-6 px (4×) with the coarse solve to 1e-3 (to 1e-6 before
-#: issue 11: 2.7e-5 / 1.0e-4 and 2.2e-6 / 9.1e-6 px);
-#: the earlier Jacobi-only refinement gave 1.3e-2 / 4.0e-2 px, so these bounds fail on it. On the
-#: astronaut photo the default (4× coarse grid solved to 1e-3, 80 two-level iterations) is 0.0024 /
-#: 0.0149 px RMS from the exact solve at 512² / 1024² (method/propagation.py, propagate_defocus Notes).
+#: on a 320² textured synthetic image with 1 % of the pixels measured, px. Galerkin refinement
+#: (default since session 4, 24 iterations): measured 4.6e-5 px RMS / 2.1e-4 px p99 (4×) and
+#: 3.3e-4 / 1.1e-3 px (2×); the re-discretised two-level refinement (80 / 40 iterations) 2.3e-6 /
+#: 9.5e-6 and 3.6e-5 / 1.3e-4 px; the Jacobi-only refinement 2.8e-2 / 1.2e-1 px, so these bounds
+#: fail on it. On the astronaut photo the default is 0.0059 / 0.0066 px RMS from the exact solve at
+#: 512² / 1024² (method/propagation.py, propagate_defocus Notes).
 PROPAGATION_DEFAULT_VS_EXACT_RMS_PX = 5e-4
 PROPAGATION_DEFAULT_VS_EXACT_P99_PX = 2e-3
 #: Restriction is the exact transpose of the bilinear prolongation: |⟨Pᵀu, v⟩ − ⟨u, Pv⟩| relative.

@@ -1,0 +1,107 @@
+"""The Galerkin coarse operator of the two-level propagation (method.propagation_galerkin).
+
+Oracle: the matrix-free kernel against the explicit sparse product Pᵀ (LᵀL + diag a) P of the
+assembled Eq. (4) system; the transfer operators against each other and against the start-map
+interpolation; and the reason the operator exists — with the same coarse grid and the same number
+of CG iterations, the Galerkin refinement ends closer to the exact solve than the re-discretised one.
+"""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from method import propagation as P
+from method import propagation_system as E
+from method.propagation_galerkin import galerkin_coarse_operator, prolong, restrict
+from method.propagation_matrix_free import bilinear_1d
+
+
+def _case(rng, h, w, density=0.2):
+    ref = np.clip(rng.random((h, w, 3)) * 0.4 + np.linspace(0, 0.5, w)[None, :, None], 0, 1)
+    a = np.where(rng.random((h, w)) < density, 0.5, 0.0) + 1e-7
+    return ref, a
+
+
+def _explicit(ref, a, s, neighborhood):
+    h, w = a.shape
+    hc, wc = -(-h // s), -(-w // s)
+    L = E.colorization_matrix(ref, window=7, neighborhood=neighborhood)
+    A = (L.T @ L + sp.diags(a.ravel())).tocsr()
+
+    def p1(n, nc):
+        (ptr, idx, val), _ = bilinear_1d(n, nc, s)
+        return sp.csr_matrix((val, idx, ptr), shape=(n, nc))
+
+    Pm = sp.kron(p1(h, hc), p1(w, wc)).tocsr()
+    return (Pm.T @ A @ Pm).toarray(), Pm, (hc, wc)
+
+
+@pytest.mark.parametrize("shape,s,neighborhood", [
+    ((37, 29), 2, 3), ((40, 50), 4, 3), ((33, 41), 8, 3), ((30, 26), 2, 5), ((64, 64), 4, 7), ((9, 70), 4, 3)])
+def test_matrix_free_galerkin_operator_equals_explicit_product(shape, s, neighborhood):
+    rng = np.random.default_rng(3)
+    ref, a = _case(rng, *shape)
+    weights, offs = E._padded_weights(ref, 7, neighborhood, 1e-6, dtype=np.float64)
+    expected, _, coarse_shape = _explicit(ref, a, s, neighborhood)
+    got = galerkin_coarse_operator(weights, offs, a, s=s, coarse_shape=coarse_shape)
+    np.testing.assert_allclose(got.toarray(), expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+    assert got.has_sorted_indices
+    np.testing.assert_allclose(got.toarray(), got.toarray().T, atol=1e-13 * np.abs(expected).max())
+    assert np.linalg.eigvalsh(got.toarray()).min() > 0  # SPD: a > 0 everywhere here
+
+
+def test_galerkin_operator_is_deterministic_and_float32_weights_close():
+    rng = np.random.default_rng(5)
+    ref, a = _case(rng, 50, 61)
+    w64, offs = E._padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
+    w32, _ = E._padded_weights(ref, 7, 3, 1e-6)
+    shape = (-(-50 // 4), -(-61 // 4))
+    g1 = galerkin_coarse_operator(w32, offs, a, s=4, coarse_shape=shape)
+    g2 = galerkin_coarse_operator(w32, offs, a, s=4, coarse_shape=shape)
+    assert (g1 != g2).nnz == 0
+    g64 = galerkin_coarse_operator(w64, offs, a, s=4, coarse_shape=shape)
+    assert abs(g1 - g64).max() < 1e-6 * abs(g64).max()
+
+
+def test_transfer_operators_are_transposes_and_match_the_start_map_interpolation():
+    rng = np.random.default_rng(9)
+    h, w, s = 45, 38, 4
+    hc, wc = -(-h // s), -(-w // s)
+    u = rng.standard_normal((hc, wc))
+    v = rng.standard_normal((h, w))
+    lhs = float(np.sum(prolong(u, s=s, shape=(h, w)) * v))
+    rhs = float(np.sum(u * restrict(v, s=s, coarse_shape=(hc, wc))))
+    assert abs(lhs - rhs) <= 1e-12 * max(abs(lhs), 1.0)
+    np.testing.assert_allclose(prolong(u, s=s, shape=(h, w)), P._upsample_crop(u, s, (h, w)), atol=1e-12)
+
+
+def test_galerkin_operator_rejects_mismatched_shapes():
+    rng = np.random.default_rng(1)
+    ref, a = _case(rng, 20, 24)
+    weights, offs = E._padded_weights(ref, 7, 3, 1e-6)
+    with pytest.raises(ValueError, match="coarse_shape"):
+        galerkin_coarse_operator(weights, offs, a, s=4, coarse_shape=(6, 6))
+    with pytest.raises(ValueError, match="weights"):
+        galerkin_coarse_operator(weights[:, 1:], offs, a, s=4, coarse_shape=(5, 6))
+
+
+def test_galerkin_refinement_beats_the_rediscretised_one_at_equal_work():
+    """Same coarse grid, same iteration count: the Galerkin coarse correction ends ≥ 3× closer.
+
+    Measured on this 320² image (1 % measured) at 4× and 24 iterations: 4.6e-5 vs 8.1e-4 px RMS
+    (17.9×); at 8× and 24 iterations 5.7e-3 vs 2.0e-2 (3.6×); at 12 iterations 4.2× / 2.1×.
+    """
+    from tests.test_propagation import _sparse, _textured
+
+    rng = np.random.default_rng(20070101)
+    ref = _textured(rng, 320, 320)
+    bm = _sparse(rng, ref, density=0.01)
+    exact = P.propagate_defocus(bm, ref, downsample=1, tol=1e-10)
+
+    def rms(refinement):
+        x = P.propagate_defocus(bm, ref, downsample=4, refinement=refinement, refine_iterations=24)
+        return float(np.sqrt(np.mean((x - exact) ** 2)))
+
+    galerkin, rediscretised = rms("galerkin"), rms("two_level")
+    assert galerkin * 3 < rediscretised
+    assert galerkin < 2e-4

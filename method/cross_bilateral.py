@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import numba
 import numpy as np
 from scipy import ndimage
 
@@ -122,8 +123,39 @@ def _brute_force_product(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, 
 GRID_CELL_PER_SIGMA_PRODUCT = 0.75
 
 
+@numba.njit(cache=True)
+def _splat_multilinear(base, frac, dims, wv, bias, grid_n, grid_d):
+    """Multilinear splat of M points into two flat grids of shape ``dims`` (row-major).
+
+    Point m adds Π_k (frac or 1 − frac) · (wv[m], bias[m]) to each of the 2^d corners of its cell;
+    one serial pass in point order, corners in binary order (highest dimension = lowest bit), so
+    the sums do not depend on the machine.
+    """
+    nd, m = base.shape
+    strides = np.empty(nd, dtype=np.int64)
+    acc = 1
+    for k in range(nd - 1, -1, -1):
+        strides[k] = acc
+        acc *= dims[k]
+    for j in range(m):
+        for corner in range(1 << nd):
+            wgt = 1.0
+            idx = 0
+            for k in range(nd):
+                bit = (corner >> (nd - 1 - k)) & 1
+                f = frac[k, j]
+                wgt *= f if bit == 1 else 1.0 - f
+                idx += (base[k, j] + bit) * strides[k]
+            grid_n[idx] += wgt * wv[j]
+            grid_d[idx] += wgt * bias[j]
+
+
 def _grid_product(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, cell=GRID_CELL_PER_SIGMA_PRODUCT):
-    """Bilateral grid over (y, x, C_1, …, C_n) for the product kernel: multilinear splat/slice."""
+    """Bilateral grid over (y, x, C_1, …, C_n) for the product kernel: multilinear splat/slice.
+
+    The splat is one numba pass (:func:`_splat_multilinear`); with 2⁵ corners per point into a
+    grid of ~3·10⁶ cells, per-corner ``np.bincount`` calls cost ~0.5 s at any image size.
+    """
     hs, hr = cell * sigma_s, cell * sigma_r
     blur_s = np.sqrt(max(sigma_s**2 - hs**2 / 3, 0.0)) / hs
     blur_r = np.sqrt(max(sigma_r**2 - hr**2 / 3, 0.0)) / hr
@@ -136,12 +168,9 @@ def _grid_product(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, cell=GR
     grid_n = np.zeros(size)
     grid_d = np.zeros(size)
     nd = coords.shape[0]
-    for corner in range(1 << nd):
-        o = np.array([(corner >> (nd - 1 - k)) & 1 for k in range(nd)])
-        wgt = np.prod(np.where(o[:, None] == 1, frac, 1.0 - frac), axis=0)
-        idx = np.ravel_multi_index(tuple(base + o[:, None]), dims)
-        grid_n += np.bincount(idx, weights=wgt * bias * values, minlength=size)
-        grid_d += np.bincount(idx, weights=wgt * bias, minlength=size)
+    _splat_multilinear(base, np.ascontiguousarray(frac), np.asarray(dims, dtype=np.int64),
+                       np.ascontiguousarray(bias * values, dtype=np.float64),
+                       np.ascontiguousarray(bias, dtype=np.float64), grid_n, grid_d)
     sig = (blur_s, blur_s) + (blur_r,) * (nd - 2)
     grid_n = ndimage.gaussian_filter(grid_n.reshape(dims), sig, mode="constant", truncate=3.0)
     grid_d = ndimage.gaussian_filter(grid_d.reshape(dims), sig, mode="constant", truncate=3.0)

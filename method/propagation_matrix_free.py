@@ -15,20 +15,14 @@ order, so the iterates are bit-identical for any number of threads.
 
 from __future__ import annotations
 
-import os
-
 import numba
 import numpy as np
 import scipy.sparse as sp
 
-#: OpenMP wait policy for numba's "omp" threading layer, set (unless the environment already sets
-#: one) before the first parallel region starts the OpenMP runtime. By default its worker threads
-#: busy-wait after every parallel region; the refinement runs ~4 regions per CG iteration with the
-#: serial coarse V-cycle in between, during which the spinning thread takes the second core from the
-#: main thread and from other jobs. Measured on this 2-core machine at load ≈ 3.8 (1024², paper
-#: preset's measures): propagation 5.5 s wall / 5.4 s CPU with the default policy, 4.0 / 3.8 s with
-#: PASSIVE; bit-identical results (the kernels' results do not depend on scheduling).
-OMP_WAIT_POLICY = os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+# OpenMP wait policy: numba's "omp" worker threads busy-wait after every parallel region by default,
+# and the refinement runs ~3 regions per CG iteration with the serial coarse V-cycle in between. The
+# entry points (``repro``, see repro/__init__.py) set OMP_WAIT_POLICY=PASSIVE; this pure-numerics
+# package leaves the process environment alone (a library user can set it before the first call).
 
 __all__ = ["bilinear_1d", "jacobi_pcg", "two_level_pcg"]
 

@@ -169,7 +169,10 @@ ACCURACY_CONFIG = {
     # preset -> seeds it runs on, if not all (zhuo_sim's matting-Laplacian propagation, run three times
     # by stage_errors, costs ~15 s per mosaic: one seed keeps --accuracy under ~10 min; no target on it)
     "preset_seeds": {"zhuo_sim": (0,)},
-    "scenes": ("portrait", "planes", "clutter", "shadow_gloss"),
+    # scene set -> scenes (every scene of both sets of scenes.SCENE_SETS); one table and one verdict
+    # per set (the dense-map target is judged per case and on each set's mean)
+    "scene_sets": {"tabletop_stress": ("portrait", "planes", "tilted_plane", "clutter", "shadow_gloss"),
+                   "paper_cameras": ("portrait_garden", "street_figures", "patio_table", "heron_at_the_lake")},
     "f_numbers": (8.0, 4.0),
     "render_preset": "small",
     "estimators": ("zero_crossing", "gradient_ratio"),  # run in the paper pipeline
@@ -339,15 +342,15 @@ def _measure_rendered(config: dict, bar) -> dict:
     from scenes import render_scene
 
     cases = []
-    for scene in config["scenes"]:
+    for scene_set, scene in ((k, v) for k, scenes in config["scene_sets"].items() for v in scenes):
         for f_number in config["f_numbers"]:
             render = render_scene(scene, preset=config["render_preset"], f_number=float(f_number), progress=False)
             image, gt = input_image(render), ground_truth_sigma(render)
             valid = ~render.occlusion_boundary
             runs = [("presets", p, DefocusParams.preset(p)) for p in config["presets"]]
             runs += [("estimators", e, DefocusParams().replace(estimator=e)) for e in config["estimators"]]
-            case = {"scene": scene, "f_number": float(f_number), "shape": list(image.shape[:2]),
-                    "presets": {}, "estimators": {}}
+            case = {"scene_set": scene_set, "scene": scene, "f_number": float(f_number),
+                    "shape": list(image.shape[:2]), "presets": {}, "estimators": {}}
             for kind, name, params in runs:
                 bar.set_postfix_str(f"{scene} f/{f_number:g} {name}")
                 t = _time.perf_counter()
@@ -446,14 +449,21 @@ def judge_accuracy(measured: dict) -> dict:
         ok = None
         if p and r and p["mae"] is not None and r["mae"] is not None:
             ok = bool(r["mae"] <= TARGET_RENDER_DENSE_RATIO * p["mae"])
-        per_case.append({"scene": c["scene"], "f_number": c["f_number"], "ratio": r["mae"] / p["mae"] if ok is not None
-                         and p["mae"] > 0 else None, "pass": ok})
-    rendered = {"cases": per_case, "mean": None, "sparse": None}
-    if per_case and all(v["pass"] is not None for v in per_case):
-        mp = sum(c["presets"]["paper"]["dense_textured"]["mae"] for c in cases) / len(cases)
-        mr = sum(c["presets"]["robust"]["dense_textured"]["mae"] for c in cases) / len(cases)
-        rendered["mean"] = {"paper_mae": mp, "robust_mae": mr, "ratio": mr / mp if mp > 0 else None,
-                            "pass": bool(mr <= TARGET_RENDER_DENSE_RATIO * mp)}
+        per_case.append({"scene_set": c.get("scene_set"), "scene": c["scene"], "f_number": c["f_number"],
+                         "ratio": r["mae"] / p["mae"] if ok is not None and p["mae"] > 0 else None, "pass": ok})
+    sets = {}
+    for name in dict.fromkeys(c.get("scene_set") for c in cases):
+        mine = [c for c in cases if c.get("scene_set") == name]
+        verdicts = [v for v in per_case if v["scene_set"] == name]
+        mean = None
+        if verdicts and all(v["pass"] is not None for v in verdicts):
+            mp = sum(c["presets"]["paper"]["dense_textured"]["mae"] for c in mine) / len(mine)
+            mr = sum(c["presets"]["robust"]["dense_textured"]["mae"] for c in mine) / len(mine)
+            mean = {"paper_mae": mp, "robust_mae": mr, "ratio": mr / mp if mp > 0 else None,
+                    "pass": bool(mr <= TARGET_RENDER_DENSE_RATIO * mp)}
+        sets[name] = {"cases": verdicts, "mean": mean,
+                      "pass": _all_pass([v["pass"] for v in verdicts] + ([mean["pass"]] if mean else [None]))}
+    rendered = {"cases": per_case, "sets": sets, "sparse": None}
     scene, f_number = TARGET_SPARSE_CASE
     for c in cases:
         if (c["scene"], c["f_number"]) == (scene, float(f_number)) and "robust" in c["presets"] and c["estimators"]:
@@ -463,8 +473,8 @@ def judge_accuracy(measured: dict) -> dict:
                 best = min(base, key=base.get)
                 rendered["sparse"] = {"scene": scene, "f_number": float(f_number), "robust_mae": rob,
                                       "best_estimator": best, "best_mae": base[best], "pass": bool(rob <= base[best])}
-    rendered["pass"] = _all_pass([v["pass"] for v in per_case]
-                                 + [rendered[k]["pass"] for k in ("mean", "sparse") if rendered[k]])
+    rendered["pass"] = _all_pass([v["pass"] for v in sets.values()]
+                                 + ([rendered["sparse"]["pass"]] if rendered["sparse"] else []))
     out["rendered"] = rendered
     rows = {(r["preset"], r["size"]): r for r in measured.get("speed", {}).get("rows", [])}
     paper, robust = rows.get(("paper", TARGET_SPEED_SIZE)), rows.get(("robust", TARGET_SPEED_SIZE))
@@ -485,7 +495,7 @@ def measure_accuracy(config: dict, *, progress: bool = True) -> dict:
 
     n_analytic = len(config["datasets"]) * len(config["noise_stds"]) * sum(
         len(set(_preset_seeds(config, p)) & set(config["seeds"])) for p in config["presets"])
-    n_render = len(config["scenes"]) * len(config["f_numbers"]) * (len(config["presets"]) + len(config["estimators"]))
+    n_render = sum(len(v) for v in config["scene_sets"].values()) * len(config["f_numbers"]) * (len(config["presets"]) + len(config["estimators"]))
     n_speed = (len(config["speed_presets"]) * len(config["speed_sizes"]) * config["speed_repeat"]
                + sum(len(s) for s in config["speed_single"].values()))
     out = {}
@@ -608,33 +618,36 @@ def accuracy_markdown(report: dict) -> str:
         presets = list(cases[0]["presets"])
         ests = list(cases[0]["estimators"])
         lines += [f"## 2. Rendered scenes ({cfg['render_preset']} preset, "
-                  f"{cases[0]['shape'][1]}×{cases[0]['shape'][0]} px, 8-bit sRGB)", "",
+                  f"{cases[0]['shape'][1]}×{cases[0]['shape'][0]} px, 8-bit sRGB), one table per scene set", "",
                   "Dense textured MAE and sparse edge MAE (px) over valid pixels (not occlusion boundaries); "
                   "sparse coverage in brackets; estimators run in the paper pipeline. "
-                  f"Targets: robust dense ≤ {TARGET_RENDER_DENSE_RATIO:g} × paper per case and on the mean; "
+                  f"Targets: robust dense ≤ {TARGET_RENDER_DENSE_RATIO:g} × paper per case and on each set's mean; "
                   f"robust sparse MAE on {TARGET_SPARSE_CASE[0]} f/{TARGET_SPARSE_CASE[1]:g} ≤ min over "
-                  f"{', '.join(ests) or 'the estimators'}.", "",
-                  "| scene | f/N | " + " | ".join(f"dense {p}" for p in presets) + " | robust/paper | verdict | "
-                  + " | ".join(f"sparse {p}" for p in presets + ests) + " |",
-                  "|---|---|" + "---|" * (2 * len(presets) + len(ests) + 2)]
-        by_case = {(v["scene"], v["f_number"]): v for v in rv["cases"]}
-        for c in cases:
-            v = by_case[(c["scene"], c["f_number"])]
-            runs = [c["presets"][p] for p in presets] + [c["estimators"][e] for e in ests]
-            lines.append(f"| {c['scene']} | {c['f_number']:g} | "
-                         + " | ".join(_f(c["presets"][p]["dense_textured"]["mae"]) for p in presets)
-                         + f" | {_f(v['ratio'])} | {_word(v['pass'])} | "
-                         + " | ".join(f"{_f(r['sparse']['mae'])} ({_f(r['sparse']['coverage'], '.0%')})" for r in runs)
-                         + " |")
-        means = [sum(c["presets"][p]["dense_textured"]["mae"] or 0.0 for c in cases) / len(cases) for p in presets]
-        m = rv["mean"] or {}
-        lines.append("| **mean** | | " + " | ".join(_f(x) for x in means)
-                     + f" | {_f(m.get('ratio'))} | **{_word(m.get('pass'))}** | "
-                     + " | ".join("" for _ in presets + ests)
-                     + " |")
+                  f"{', '.join(ests) or 'the estimators'}.", ""]
+        by_case = {(v["scene_set"], v["scene"], v["f_number"]): v for v in rv["cases"]}
+        for name, sv in rv.get("sets", {}).items():
+            mine = [c for c in cases if c.get("scene_set") == name]
+            lines += [f"### Scene set `{name}` — **{_word(sv['pass'])}**", "",
+                      "| scene | f/N | " + " | ".join(f"dense {p}" for p in presets) + " | robust/paper | verdict | "
+                      + " | ".join(f"sparse {p}" for p in presets + ests) + " |",
+                      "|---|---|" + "---|" * (2 * len(presets) + len(ests) + 2)]
+            for c in mine:
+                v = by_case[(name, c["scene"], c["f_number"])]
+                runs = [c["presets"][p] for p in presets] + [c["estimators"][e] for e in ests]
+                lines.append(f"| {c['scene']} | {c['f_number']:g} | "
+                             + " | ".join(_f(c["presets"][p]["dense_textured"]["mae"]) for p in presets)
+                             + f" | {_f(v['ratio'])} | {_word(v['pass'])} | "
+                             + " | ".join(f"{_f(r['sparse']['mae'])} ({_f(r['sparse']['coverage'], '.0%')})"
+                                          for r in runs)
+                             + " |")
+            means = [sum(c["presets"][p]["dense_textured"]["mae"] or 0.0 for c in mine) / len(mine) for p in presets]
+            m = sv["mean"] or {}
+            lines += ["| **mean** | | " + " | ".join(_f(x) for x in means)
+                      + f" | {_f(m.get('ratio'))} | **{_word(m.get('pass'))}** | "
+                      + " | ".join("" for _ in presets + ests) + " |", ""]
         s = rv["sparse"]
         if s:
-            lines += ["", f"Sparse target, {s['scene']} f/{s['f_number']:g}: robust {s['robust_mae']:.3f} px vs "
+            lines += [f"Sparse target, {s['scene']} f/{s['f_number']:g}: robust {s['robust_mae']:.3f} px vs "
                       f"best estimator {s['best_estimator']} {s['best_mae']:.3f} px → **{_word(s['pass'])}**."]
         lines.append("")
     rows = report["speed"]["rows"]

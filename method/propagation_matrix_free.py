@@ -526,7 +526,8 @@ def _precondition(res, dinv, e_x, r, py_ptr, py_idx, py_val, z, rowdot):
         rowdot[y] = acc
 
 
-def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, maxiter, tol, coarse_scale=None):
+def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, maxiter, tol, coarse_scale=None,
+                  vector_dtype=np.float64):
     """CG on the full-resolution Eq. (4) system, preconditioned by Jacobi + a coarse-grid correction.
 
     Parameters
@@ -548,6 +549,10 @@ def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, ma
     maxiter : int
     tol : float
         Stop early when ‖res‖ ≤ tol·‖rhs‖.
+    vector_dtype : numpy dtype, keyword-only
+        Storage of the CG vectors (x, residuals, directions, D⁻¹, a); CG scalars and per-row sums are
+        float64 whatever it is. float64 (default) or float32 (the driver's choice: half the memory
+        traffic of the memory-bound iterations).
     coarse_scale : float or None, keyword-only
         Factor c of the coarse correction c·P Ã_c⁻¹ Pᵀ: None = s², for the re-discretised coarse
         system (A_c ≈ s²·PᵀAP); 1 for the Galerkin operator A_c = PᵀAP
@@ -572,8 +577,8 @@ def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, ma
     4. prolongation P and the sum with step 1.
 
     M is symmetric positive definite and the same linear map at every iteration, so plain
-    (non-flexible) CG applies. The fine operator stays matrix-free; vectors and CG scalars are
-    float64. One iteration = three row-parallel numba regions plus the serial coarse part:
+    (non-flexible) CG applies. The fine operator stays matrix-free; CG scalars are float64, vectors
+    ``vector_dtype``. One iteration = three row-parallel numba regions plus the serial coarse part:
 
     a. :func:`_direction_and_apply`: p ← z + β·p, q = A p, p·q per row;
     b. :func:`_step_and_restrict`: x += step·p, res −= step·q, ‖res‖² per row, r_c = Pᵀ res;
@@ -597,21 +602,24 @@ def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, ma
     (px_ptr, px_idx, px_val), (tx_ptr, tx_idx, tx_val) = bilinear_1d(w, wc, s)
     scale = float(s * s) if coarse_scale is None else float(coarse_scale)
 
+    vdt = np.dtype(vector_dtype)
+
     def padded(a):
-        out = np.zeros(shape)
+        out = np.zeros(shape, vdt)
         out[inner] = a
         return out
 
     apply_normal, direction_and_apply = _operator_kernels(offs)
     diag = np.zeros(shape)
     _normal_diagonal(weights, offs, a_diag, r, diag)
-    dinv = np.zeros(shape)
+    dinv = np.zeros(shape, vdt)
     dinv[inner] = 1.0 / diag[inner]
+    a_diag = np.ascontiguousarray(a_diag, dtype=vdt)
     x = padded(x0)
-    p, p_next = np.zeros(shape), np.zeros(shape)
-    res_next = np.zeros(shape)
-    q = np.zeros(shape)
-    z = np.zeros(shape)
+    p, p_next = np.zeros(shape, vdt), np.zeros(shape, vdt)
+    res_next = np.zeros(shape, vdt)
+    q = np.zeros(shape, vdt)
+    z = np.zeros(shape, vdt)
     rowdot = np.zeros(h)
     rowsq = np.zeros(h)
     tmp = np.zeros((hc, w))
@@ -655,7 +663,7 @@ def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, ma
             rz_new = precondition(res, r_c)
             beta = rz_new / rz
             rz = rz_new
-    return x[inner].copy(), rnorm / bnorm
+    return x[inner].astype(np.float64), rnorm / bnorm
 
 
 

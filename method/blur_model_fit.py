@@ -124,10 +124,11 @@ def _score(r, a, b, K, table, cum, i, j):
 
 @numba.njit(cache=True, nogil=True)
 def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
-                s_grid, t0_grid, table, cum, coarse_stride, out_s, out_res, out_win):
+                s_grid, t0_grid, table, cum, coarse_stride, out_s, out_res, out_win, out_energy):
     # out_res[n]: normalised residual (‖r‖² − best score)/‖r‖² of the best grid fit, in [0, 1]
     # (NaN where out_s is NaN); out_win[n]: number of samples b − a + 1 in the fit window (0 where
-    # no window). Both are only written, never read: out_s does not depend on them.
+    # no window); out_energy[n]: ‖r‖² over the fit window, (image units / px²)² (NaN where out_s is
+    # NaN). All three are only written, never read: out_s does not depend on them.
     h, w = ixx.shape
     K = (table.shape[2] - 1) // 2
     n_s = s_grid.shape[0]
@@ -139,6 +140,7 @@ def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
         out_s[n] = np.nan
         out_res[n] = np.nan
         out_win[n] = 0
+        out_energy[n] = np.nan
         i0, j0 = rows[n], cols[n]
         c, s = cos_t[n], sin_t[n]
         if abs(c) >= abs(s):
@@ -236,6 +238,7 @@ def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
                 pos += max(-0.5, min(0.5, delta))
         s_prime = s_grid[0] * (s_grid[1] / s_grid[0]) ** pos
         out_s[n] = s_prime * proj
+        out_energy[n] = energy_r
         if energy_r > 0.0:
             out_res[n] = max(0.0, energy_r - best) / energy_r
 
@@ -299,6 +302,7 @@ def estimate_blur_model_fit(gray, edge_map, *, params):
 def _paper_rules(params) -> bool:
     """True when every beyond-the-paper model-fit switch of ``params`` is off."""
     return (getattr(params, "fit_max_scale", None) is None and getattr(params, "fit_min_samples", 3) <= 3
+            and getattr(params, "fit_scale_ratio", 1.0) == 1.0
             and not np.isfinite(getattr(params, "fit_max_width_ratio", np.inf))
             and getattr(params, "fit_below_scale", "zero") == "zero")
 
@@ -344,6 +348,34 @@ def apply_fit_rules(diagnostics, *, params) -> np.ndarray:
     return sb
 
 
+def fit_scales(edge_map, *, params):
+    """``edge_map`` with σ2 replaced by the scale the Eq. (2c) fit samples (beyond-the-paper rules).
+
+    Parameters
+    ----------
+    edge_map : EdgeMap
+        Output of ``detect_edges``; ``sigma2`` (px) is each edge pixel's minimum reliable σ2.
+    params : DefocusParams, keyword-only
+        ``fit_scale_ratio`` (dimensionless), ``fit_max_scale`` (px or None), ``sigma2_scales`` (px).
+
+    Returns
+    -------
+    EdgeMap
+        ``edge_map`` itself when both rules are off (the paper: fit at σ2(p)); else a copy whose
+        σ2 is min(σ2(p), max(fit_scale_ratio · σ2(p), min(sigma2_scales)), fit_max_scale).
+    """
+    ratio = float(getattr(params, "fit_scale_ratio", 1.0))
+    max_scale = getattr(params, "fit_max_scale", None)
+    if ratio == 1.0 and max_scale is None:
+        return edge_map
+    s2 = np.asarray(edge_map.sigma2)
+    with np.errstate(invalid="ignore"):
+        fit = s2 if ratio == 1.0 else np.minimum(s2, np.maximum(ratio * s2, min(params.sigma2_scales)))
+        if max_scale is not None:
+            fit = np.minimum(fit, float(max_scale))
+    return dataclasses.replace(edge_map, sigma2=np.where(np.isfinite(s2), fit, s2))
+
+
 def _model_fit_with_residual(gray, edge_map, *, params):
     """Private hook: :func:`estimate_blur_model_fit`'s σb map plus the normalised fit residual.
 
@@ -374,6 +406,8 @@ def _model_fit_diagnostics(gray, edge_map, *, params):
         Fitted model width s = d/2 = √(σb² + σ2²) before Eq. (2d), px; NaN off edges / failed fits.
     sigma2 : float64
         The σ2 of the responses that were fitted (the edge's minimum reliable σ2), px; NaN off edges.
+    energy : float64
+        ‖r‖² of the sampled response over the fit window, (image units / px²)²; NaN where σb is NaN.
     """
     img = check_edge_inputs(gray, edge_map)
     w_min = (int(params.fit_window_min) - 1) // 2
@@ -384,11 +418,10 @@ def _model_fit_diagnostics(gray, edge_map, *, params):
     win = np.zeros(img.shape, dtype=np.int64)
     width = np.full(img.shape, np.nan)
     s2_map = np.full(img.shape, np.nan)
-    diag = {"sigma_b": out, "residual": res, "window": win, "width": width, "sigma2": s2_map}
-    max_scale = getattr(params, "fit_max_scale", None)
-    if max_scale is not None:  # fit at min(σ2, max_scale): a finer response than the detector's
-        edge_map = dataclasses.replace(edge_map, sigma2=np.where(
-            np.isfinite(edge_map.sigma2), np.minimum(edge_map.sigma2, float(max_scale)), edge_map.sigma2))
+    energy = np.full(img.shape, np.nan)
+    diag = {"sigma_b": out, "residual": res, "window": win, "width": width, "sigma2": s2_map,
+            "energy": energy}
+    edge_map = fit_scales(edge_map, params=params)
     groups = edge_pixels_by_scale(edge_map)
     if not groups:
         return diag
@@ -410,12 +443,14 @@ def _model_fit_diagnostics(gray, edge_map, *, params):
         s_est = np.empty(rows.size)
         r_est = np.empty(rows.size)
         w_est = np.empty(rows.size, dtype=np.int64)
+        e_est = np.empty(rows.size)
         _fit_kernel(ixx, ixy, iyy, rows, cols, np.cos(th), np.sin(th), w_min, w_max, FIT_KAPPA,
-                    s_grid, t0_grid, table, cum, COARSE_STRIDE, s_est, r_est, w_est)
+                    s_grid, t0_grid, table, cum, COARSE_STRIDE, s_est, r_est, w_est, e_est)
         sigma_b = blur_from_extrema_distance(2.0 * s_est, sigma2)
         out[rows, cols] = np.clip(sigma_b, 0.0, float(params.max_sigma))
         res[rows, cols] = r_est
         win[rows, cols] = w_est
         width[rows, cols] = s_est
+        energy[rows, cols] = e_est
         s2_map[rows, cols] = sigma2
     return diag

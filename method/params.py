@@ -47,6 +47,23 @@ class DefocusParams:
     # Robust preset: 0.03 (the largest ρ of analytic steps with noise 2.5/255 + 8 bits) with
     # estimator "model_fit_checked": on the dead-leaves mosaic the in-focus bias of the fit grows with
     # ρ (+0.08 px at ρ < 0.01, +0.74 px at 0.1–0.2); small renders' edge MAE 1.4–2.1 → 0.27–0.73 px.
+    fit_residual_noise: float = 0.0
+    # beyond the paper (estimator "model_fit_checked"): k, dimensionless; the residual test becomes
+    # ρ ≤ fit_max_residual + k · N · v_n(σ2) / ‖r‖², with N the samples in the fit window, ‖r‖² their
+    # energy and v_n(σ2) the variance of the steered 2nd-derivative response to white noise of std
+    # noise_std (method.blur_model_fit_checked.noise_residual_share): the noise's expected share of
+    # ρ, which grows as ~s⁴ with the response width s, so a fixed ρ limit keeps only the narrower
+    # (lower) fits of blurry edges. 0: a fixed limit (fit_max_residual alone; every preset). Measured
+    # and not in the robust preset (issue 8): k = 2 lowers the dead-leaves mosaic's σ 5 / σ 6 dense MAE
+    # 0.70 / 1.34 → 0.39 / 0.80 px (2/255, seeds 0–1) but admits fits +0.5–1.3 px too wide of in-focus
+    # low-contrast render edges (small tabletop renders 0.44 → 0.48 px, shadow_gloss 0.34/0.45 → 0.39/0.54).
+    fit_scale_ratio: float = 1.0
+    # beyond the paper: the Eq. (2c) fit samples the responses at min(σ2(p), max(fit_scale_ratio ·
+    # σ2(p), min(sigma2_scales))) px (then capped by fit_max_scale), dimensionless; 1: the detector's
+    # minimum reliable σ2(p) (paper). Measured and not in the robust preset (issue 8): 0.5 lowers the
+    # edge MAE of edges detected at σ2 = 1–2 px (renders 0.24 → 0.17, 0.51 → 0.34 px) and the
+    # tabletop renders' dense mean 0.44 → 0.41 px, but raises the dead-leaves σ 3 tile 0.26 → 0.38 px
+    # (2/255) and the paper_cameras renders' mean 0.237 → 0.246 px.
     fit_max_scale: float | None = None
     # beyond the paper (robust preset): fit Eq. (2c) to the responses at min(σ2(p), fit_max_scale) px
     # instead of the detector's minimum reliable σ2(p). At coarse σ2 (4–16 px) the fit window spans
@@ -189,6 +206,10 @@ class DefocusParams:
             bad("refinement_robust_iterations", "integer >= 0")
         if not (self.refinement_robust_scale > 0 and self.refinement_robust_scale < float("inf")):
             bad("refinement_robust_scale", "finite and > 0")
+        if not (self.fit_residual_noise >= 0 and self.fit_residual_noise < float("inf")):
+            bad("fit_residual_noise", "finite and >= 0 (dimensionless)")
+        if not 0 < self.fit_scale_ratio <= 1:
+            bad("fit_scale_ratio", "0 < ratio <= 1 (dimensionless)")
         if self.fit_max_scale is not None and not self.fit_max_scale > 0:
             bad("fit_max_scale", "None or > 0 (px)")
         if not (isinstance(self.fit_min_samples, int) and self.fit_min_samples >= 3):

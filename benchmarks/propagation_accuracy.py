@@ -26,9 +26,12 @@ HERE = Path(__file__).resolve().parents[1] / "report" / "bench"  # where results
 sys.path.insert(0, str(HERE.parents[1]))
 
 VARIANTS = {
-    "two_level (default: 20·s its)": dict(),
-    "two_level, 80 its": dict(refine_iterations=80),
-    "jacobi, 60 its (previous default)": dict(refinement="jacobi", refine_iterations=60),
+    "galerkin (default: max(4·s, 24) its)": dict(),
+    "galerkin, 48 its": dict(refine_iterations=48),
+    "two_level re-discretised, 4x, 80 its (previous default)": dict(refinement="two_level", downsample=4,
+                                                                     refine_iterations=80),
+    "two_level re-discretised, auto factor, 20·s its": dict(refinement="two_level"),
+    "jacobi, 60 its": dict(refinement="jacobi", refine_iterations=60),
 }
 
 

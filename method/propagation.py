@@ -161,16 +161,23 @@ def _galerkin_start(fine, s, *, solver, coarse_tol, **_):
     return prolong(coarse, s=s, shape=(h, w)), level, 1.0
 
 
-#: Storage of the refinement's CG vectors (scalars and per-row sums stay float64). float32 halves
-#: their memory traffic — the fine iterations are memory-bound: 1024², 32 iterations 0.87 → 0.74 s
-#: at load 2 — and moves the map by ≤ 1.2e-5 px against float64 vectors (astronaut photo).
+#: Storage of the Galerkin refinement's CG vectors (scalars and per-row sums stay float64). float32
+#: halves their memory traffic — the fine iterations are memory-bound: 1024², 32 iterations 0.87 →
+#: 0.74 s at load 2 — and moves the default map by ≤ 1.2e-5 px against float64 vectors (astronaut
+#: photo; RMS from the exact solve unchanged at 0.0059 px at 512²). Round-off sets a floor near
+#: 5e-4 px RMS (48 iterations: 0.00050 vs 0.00047 px), so the re-discretised comparison, which
+#: runs 80 iterations, keeps float64 (it would end at 0.0034 instead of 0.0024 px).
 REFINE_VECTOR_DTYPE = np.float32
 
 
-def _refine_two_level(fine, x0, *, coarse, scale, s, coarse_shape, maxiter, tol):
+def _refine_two_level(fine, x0, *, coarse, scale, s, coarse_shape, maxiter, tol, vector_dtype=np.float64):
     return two_level_pcg(fine.weights, fine.offs, fine.a_diag, fine.rhs, x0, coarse=coarse, s=s,
                          coarse_shape=coarse_shape, maxiter=maxiter, tol=tol, coarse_scale=scale,
-                         vector_dtype=REFINE_VECTOR_DTYPE)
+                         vector_dtype=vector_dtype)
+
+
+def _refine_galerkin(fine, x0, **kw):
+    return _refine_two_level(fine, x0, vector_dtype=REFINE_VECTOR_DTYPE, **kw)
 
 
 def _refine_jacobi(fine, x0, *, coarse, scale, s, coarse_shape, maxiter, tol):
@@ -189,7 +196,7 @@ def _refine_jacobi(fine, x0, *, coarse, scale, s, coarse_shape, maxiter, tol):
 #: * ``"jacobi"``: the re-discretised start and a Jacobi-only CG, which leaves the coarse grid's
 #:   smooth error almost intact.
 PROPAGATION_REFINEMENTS: dict[str, tuple[Callable, Callable]] = {
-    "galerkin": (_galerkin_start, _refine_two_level),
+    "galerkin": (_galerkin_start, _refine_galerkin),
     "two_level": (_rediscretised_start, _refine_two_level),
     "jacobi": (_rediscretised_start, _refine_jacobi),
 }
@@ -304,8 +311,9 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
        the smoothness energy grows by s² and α is scaled alike); cheap, but across colour edges a
        different operator from the fine one.
     5. Refinement: ``refine_iterations`` iterations of CG on the exact full-resolution system
-       (matrix-free, numba; affinities and vectors stored in float32, scalars and sums in float64:
-       the map moves by ≤ 1.2e-5 px against float64 storage, :data:`REFINE_VECTOR_DTYPE`), preconditioned by M⁻¹ = D⁻¹ + c·P Ã_c⁻¹ Pᵀ — Jacobi for the
+       (matrix-free, numba; affinities stored in float32, and with ``"galerkin"`` the vectors too —
+       scalars and sums in float64; the map moves by ≤ 1.2e-5 px against float64 vectors,
+       :data:`REFINE_VECTOR_DTYPE`), preconditioned by M⁻¹ = D⁻¹ + c·P Ã_c⁻¹ Pᵀ — Jacobi for the
        oscillatory error plus a coarse-grid correction (restriction Pᵀ, one V-cycle of the coarse
        hierarchy, prolongation P) for the smooth error (c = 1 for the Galerkin operator, s² for
        the re-discretised one; :func:`method.propagation_matrix_free.two_level_pcg`). Cost O(H·W) per

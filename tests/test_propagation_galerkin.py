@@ -105,3 +105,26 @@ def test_galerkin_refinement_beats_the_rediscretised_one_at_equal_work():
     galerkin, rediscretised = rms("galerkin"), rms("two_level")
     assert galerkin * 3 < rediscretised
     assert galerkin < 2e-4
+
+
+@pytest.mark.parametrize("shape,s", [((50, 61), 4), ((33, 70), 8), ((40, 29), 2)])
+def test_specialised_3x3_kernel_equals_the_generic_one_to_round_off(shape, s):
+    import method.propagation_galerkin as G
+
+    rng = np.random.default_rng(21)
+    ref, a = _case(rng, *shape)
+    weights, offs = E._padded_weights(ref, 7, 3, 1e-6)
+    h, w = shape
+    hc, wc = -(-h // s), -(-w // s)
+    (pyp, pyi, pyv), _ = bilinear_1d(h, hc, s)
+    (pxp, pxi, pxv), _ = bilinear_1d(w, wc, s)
+    ylo, my = G._coarse_span(pyp, pyi, h, 1)
+    xlo, mx = G._coarse_span(pxp, pxi, w, 1)
+    assert max(my, mx) == 3
+    block_rows = np.minimum(np.arange(hc + 1, dtype=np.int64) * s, h)
+    generic = np.zeros((hc, wc, 5, 5))
+    special = np.zeros((hc, wc, 5, 5))
+    G._galerkin_stencil(weights, offs, a, 1, pyp, pyi, pyv, pxp, pxi, pxv, ylo, xlo, 3, block_rows, 4, generic)
+    G._galerkin_stencil_3x3(weights, offs, a, G._window_tables(pyp, pyi, pyv, ylo, h, 1, 3),
+                            G._window_tables(pxp, pxi, pxv, xlo, w, 1, 3), ylo, xlo, block_rows, 4, special)
+    np.testing.assert_allclose(special, generic, rtol=0, atol=1e-14 * np.abs(generic).max())

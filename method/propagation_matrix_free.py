@@ -5,7 +5,8 @@ full-resolution normal equations ``(LᵀL + diag a) x = rhs`` without assembling
 applied from the affinities, :func:`method.propagation_system._padded_weights`), preconditioned by
 
 * :func:`two_level_pcg` (default): Jacobi + a coarse-grid correction (bilinear P, Pᵀ and one V-cycle
-  / LU solve of the coarse level of :mod:`method.propagation_solvers`);
+  / LU solve of the coarse level of :mod:`method.propagation_solvers`: the Galerkin operator of
+  :mod:`method.propagation_galerkin` by default, or the re-discretised coarse system);
 * :func:`jacobi_pcg`: Jacobi alone (the earlier refinement, kept as the comparison).
 
 Vectors live on a grid zero-padded by the neighbourhood radius r so the stencils need no bounds

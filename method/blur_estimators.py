@@ -26,11 +26,11 @@ import numpy as np
 
 from .blur_gradient_ratio import estimate_blur_gradient_ratio
 from .blur_model_fit import estimate_blur_model_fit
-from .blur_model_fit_checked import estimate_blur_model_fit_checked
+from .blur_model_fit_checked import estimate_blur_model_fit_checked, estimate_blur_model_fit_checked_confidence
 from .blur_zero_crossing import estimate_blur_zero_crossing
 from .elder_zucker_edges import check_edge_inputs
 
-__all__ = ["BLUR_ESTIMATORS", "estimate_blur"]
+__all__ = ["BLUR_ESTIMATORS", "estimate_blur", "estimate_blur_with_confidence", "uses_measure_confidence"]
 
 #: name -> estimator fn(gray, edge_map, *, params) -> (H, W) float64 σ in px, NaN off edges.
 BLUR_ESTIMATORS: dict[str, Callable[..., np.ndarray]] = {
@@ -81,3 +81,44 @@ def estimate_blur(gray, edge_map, *, params, method=None):
     out = out.copy()
     out[~np.asarray(edge_map.edges, dtype=bool)] = np.nan
     return out
+
+
+def uses_measure_confidence(params) -> bool:
+    """Whether ``params`` ask for a per-measure confidence (beyond the paper; issue 8).
+
+    True for estimator ``"model_fit_checked"`` with ``fit_residual_noise`` > 0 and
+    ``relaxed_fit_weight`` < 1 (every other setting: every measure has confidence 1).
+    """
+    return (params.estimator == "model_fit_checked" and float(params.fit_residual_noise) > 0
+            and float(params.relaxed_fit_weight) < 1.0)
+
+
+def estimate_blur_with_confidence(gray, edge_map, *, params):
+    """:func:`estimate_blur` plus a per-measure confidence c_q in (0, 1] (None when all are 1).
+
+    Parameters
+    ----------
+    gray : ndarray, shape (H, W), float
+        Luminance in [0, 1].
+    edge_map : EdgeMap
+        Output of :func:`method.elder_zucker_edges.detect_edges` for ``gray``.
+    params : DefocusParams, keyword-only
+
+    Returns
+    -------
+    sigma : ndarray, shape (H, W), float64
+        As :func:`estimate_blur` (σ in px, NaN off edges and where the estimator fails).
+    confidence : ndarray, shape (H, W), float64, or None
+        None unless :func:`uses_measure_confidence`; then 1 for the measures passing the strict
+        residual test, ``params.relaxed_fit_weight`` for those admitted by the noise allowance
+        only, NaN where ``sigma`` is NaN (one fit: :func:`~method.blur_model_fit_checked.estimate_blur_model_fit_checked_confidence`).
+    """
+    if not uses_measure_confidence(params):
+        return estimate_blur(gray, edge_map, params=params), None
+    img = check_edge_inputs(gray, edge_map)
+    sigma, conf = estimate_blur_model_fit_checked_confidence(img, edge_map, params=params)
+    off = ~np.asarray(edge_map.edges, dtype=bool)
+    sigma = np.asarray(sigma, dtype=np.float64).copy()
+    sigma[off] = np.nan
+    conf = np.where(np.isfinite(sigma), conf, np.nan)
+    return sigma, conf

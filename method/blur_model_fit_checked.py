@@ -17,7 +17,8 @@ import numpy as np
 
 from .blur_model_fit import _model_fit_diagnostics, _paper_rules, apply_fit_rules
 
-__all__ = ["estimate_blur_model_fit_checked", "noise_residual_share", "steered_second_noise_variance"]
+__all__ = ["estimate_blur_model_fit_checked", "estimate_blur_model_fit_checked_confidence", "noise_residual_share",
+           "steered_second_noise_variance"]
 
 
 @functools.lru_cache(maxsize=32)
@@ -117,7 +118,7 @@ def estimate_blur_model_fit_checked(gray, edge_map, *, params):
        ``fit_min_samples``, ``fit_max_width_ratio``, ``fit_below_scale``; the robust preset), apply
        them (:func:`~method.blur_model_fit.apply_fit_rules`).
     3. Keep σb where ρ ≤ ``params.fit_max_residual``; NaN elsewhere.
-    4. ``params.fit_residual_noise`` = k > 0 (beyond the paper; off in every preset): the limit is
+    4. ``params.fit_residual_noise`` = k > 0 (beyond the paper; robust preset: k = 2): the limit is
        ``fit_max_residual`` + k · :func:`noise_residual_share` (per pixel), i.e. the residual the
        sensor noise ``params.noise_std`` is expected to leave is allowed on top.
 
@@ -129,14 +130,53 @@ def estimate_blur_model_fit_checked(gray, edge_map, *, params):
     guarantee a good σb: at coarse σ2 a well-fitting d can still give a large σb error through
     Eq. (2d).
     """
+    return estimate_blur_model_fit_checked_confidence(gray, edge_map, params=params)[0]
+
+
+def estimate_blur_model_fit_checked_confidence(gray, edge_map, *, params):
+    """:func:`estimate_blur_model_fit_checked` plus a per-measure confidence from the same single fit.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (H, W), float
+        Luminance in [0, 1].
+    edge_map : EdgeMap
+        Edges, θ and minimum reliable σ2 from ``detect_edges(gray, ...)``.
+    params : DefocusParams, keyword-only
+        As :func:`estimate_blur_model_fit_checked`, plus ``relaxed_fit_weight`` (dimensionless,
+        in (0, 1]).
+
+    Returns
+    -------
+    sigma_b : ndarray, shape (H, W), float64
+        Identical to :func:`estimate_blur_model_fit_checked`.
+    confidence : ndarray, shape (H, W), float64
+        1 where the measure passes the strict test ρ ≤ ``fit_max_residual``;
+        ``relaxed_fit_weight`` where it passes only thanks to the noise allowance
+        (``fit_residual_noise`` > 0, Notes 4 of :func:`estimate_blur_model_fit_checked`);
+        NaN where ``sigma_b`` is NaN.
+
+    Notes
+    -----
+    Beyond the paper (issue 8). The confidence multiplies each measure's weight in Eq. (3) and its
+    α_p in Eq. (4) (:func:`method.pipeline.refine_stage`, :func:`method.pipeline.propagate_stage`),
+    so the relaxed measures (fits of blurry edges, but also of in-focus low-contrast edges fitted
+    too wide) decide the map only where no strict measure is near. The fit runs once.
+    """
     diagnostics = _model_fit_diagnostics(gray, edge_map, params=params)
     sigma_b, residual = diagnostics["sigma_b"], diagnostics["residual"]
     if not _paper_rules(params):  # the beyond-the-paper plausibility rules (robust preset) first
         sigma_b = apply_fit_rules(diagnostics, params=params)
-    limit = float(params.fit_max_residual)
+    strict_limit = float(params.fit_max_residual)
+    limit = strict_limit
     k = float(getattr(params, "fit_residual_noise", 0.0))
     if k > 0:  # beyond the paper: allow the residual that the sensor noise alone leaves (Notes, 4)
         limit = limit + k * noise_residual_share(diagnostics, noise_std=params.noise_std)
     with np.errstate(invalid="ignore"):
         good = residual <= limit  # False where residual is NaN
-    return np.where(good, sigma_b, np.nan)
+        strict = residual <= strict_limit
+    sigma_b = np.where(good, sigma_b, np.nan)
+    c_relaxed = float(getattr(params, "relaxed_fit_weight", 1.0))
+    confidence = np.where(strict, 1.0, c_relaxed)
+    confidence[~np.isfinite(sigma_b)] = np.nan
+    return sigma_b, confidence

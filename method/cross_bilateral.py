@@ -192,7 +192,7 @@ RANGE_KERNELS = ("sum", "product")
 
 def biased_cross_bilateral(sparse_sigma, reference, *, sigma_spatial=0.10, sigma_range=0.10,
                            sharpness_bias=True, bias_scale=2.0, method="grid", range_kernel="sum",
-                           robust_iterations=0, robust_scale=0.5) -> np.ndarray:
+                           robust_iterations=0, robust_scale=0.5, weights=None) -> np.ndarray:
     """Biased cross-bilateral filter of the sparse blur measure, Eq. (3).
 
     Parameters
@@ -221,6 +221,10 @@ def biased_cross_bilateral(sparse_sigma, reference, *, sigma_spatial=0.10, sigma
         r_q = BM_q − bCBF_q from the previous pass, c_q = robust_scale·(bCBF_q + 0.5 px).
     robust_scale : float, keyword-only
         Relative Cauchy scale of the re-weighting (dimensionless, > 0).
+    weights : ndarray, HxW, float, or None, keyword-only
+        Beyond the paper: per-measure confidence c_q in (0, 1] at the finite pixels of
+        ``sparse_sigma`` (ignored elsewhere), multiplying b(BM_q) in the numerator and in k.
+        None: every c_q = 1 (the paper; bit-identical).
 
     Returns
     -------
@@ -269,6 +273,14 @@ def biased_cross_bilateral(sparse_sigma, reference, *, sigma_spatial=0.10, sigma
     colors = ref[edge]
     bias = (np.exp(-(values - values.min()) / float(bias_scale)) if sharpness_bias
             else np.ones_like(values))
+    if weights is not None:
+        wq = np.asarray(weights, dtype=np.float64)
+        if wq.shape != (h, w):
+            raise ValueError(f"weights has shape {wq.shape}; expected {(h, w)}")
+        wq = wq[edge]
+        if not np.all(np.isfinite(wq) & (wq > 0) & (wq <= 1)):
+            raise ValueError("weights must be finite and in (0, 1] at the finite measures")
+        bias = bias * wq
     sigma_s = float(sigma_spatial) * max(h, w)
     span = float(ref.max() - ref.min())
     sigma_r = float(sigma_range) * span if span > 0 else 1.0

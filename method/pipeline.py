@@ -19,7 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .blur_estimators import estimate_blur
+from .blur_estimators import estimate_blur_with_confidence
 from .cross_bilateral import biased_cross_bilateral
 from .elder_zucker_edges import EdgeMap, detect_edges
 from .luma import LUMA_WEIGHTS, luminance  # noqa: F401 (LUMA_WEIGHTS re-exported)
@@ -51,6 +51,9 @@ class DefocusResult:
     cpu_timings: dict = dataclasses.field(default_factory=dict)
     # CPU seconds of the whole process (all threads: numba, FFT workers) per stage and "total"
     # (time.process_time); with ``timings`` it shows the algorithmic cost on a shared machine.
+    measure_confidence: np.ndarray | None = None
+    # float64 HxW per-measure confidence c_q in (0, 1] (params.relaxed_fit_weight for measures admitted
+    # by the fit's noise allowance only, 1 otherwise; NaN off measures), or None when every c_q = 1.
 
 
 def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] | None = None) -> DefocusResult:
@@ -126,8 +129,8 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
     done("edges", t)
 
     t = stage("blur_at_edges")
-    sparse = np.asarray(estimate_blur(gray, edge_map, params=params), dtype=np.float64)
-    sparse = np.where(edge_map.edges, sparse, np.nan)
+    sparse, confidence = estimate_blur_with_confidence(gray, edge_map, params=params)
+    sparse = np.where(edge_map.edges, np.asarray(sparse, dtype=np.float64), np.nan)
     edge_map = dataclasses.replace(edge_map, hessians=None)  # do not keep ~12 MB/σ2 in the result
     done("blur_at_edges", t)
 
@@ -145,25 +148,26 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
         return DefocusResult(
             edges=edge_map.edges.copy(), sparse_sigma=sparse, refined_sigma=np.full(shape, np.nan),
             defocus_map=np.zeros(shape), edge_map=edge_map, timings=timings, params=params,
-            cpu_timings=cpu,
+            cpu_timings=cpu, measure_confidence=confidence,
         )
 
     t = stage("cross_bilateral")
-    refined = refine_stage(sparse, rgb, params=params)
+    refined = refine_stage(sparse, rgb, params=params, confidence=confidence)
     done("cross_bilateral", t)
 
     t = stage("propagation")
-    dense = propagate_stage(refined, rgb, params=params, sparse_sigma=sparse)
+    dense = propagate_stage(refined, rgb, params=params, sparse_sigma=sparse, confidence=confidence)
     done("propagation", t)
     timings["total"] = time.perf_counter() - t_start
     cpu["total"] = time.process_time() - c_start
     return DefocusResult(
         edges=edge_map.edges.copy(), sparse_sigma=sparse, refined_sigma=refined,
         defocus_map=dense, edge_map=edge_map, timings=timings, params=params, cpu_timings=cpu,
+        measure_confidence=confidence,
     )
 
 
-def refine_stage(sparse_sigma, rgb, *, params) -> np.ndarray:
+def refine_stage(sparse_sigma, rgb, *, params, confidence=None) -> np.ndarray:
     """Stage 3: the cross-bilateral refinement of Eq. (3) as ``params`` configure it.
 
     Parameters
@@ -175,6 +179,9 @@ def refine_stage(sparse_sigma, rgb, *, params) -> np.ndarray:
     params : DefocusParams, keyword-only
         ``bilateral_*``, ``sharpness_bias``, ``bias_scale`` with ``bias_reference`` (px, or a
         fraction of max(H, W)), ``refinement_robust_*``.
+    confidence : ndarray, HxW, float in (0, 1], or None, keyword-only
+        Beyond the paper: per-measure confidence c_q multiplying its Eq. (3) weight (the
+        estimator's ``measure_confidence``); None: all 1 (paper; oracle inputs).
 
     Returns
     -------
@@ -194,6 +201,7 @@ def refine_stage(sparse_sigma, rgb, *, params) -> np.ndarray:
         range_kernel=params.bilateral_range_kernel,
         robust_iterations=params.refinement_robust_iterations,
         robust_scale=params.refinement_robust_scale,
+        weights=confidence,
     )
 
 
@@ -215,7 +223,7 @@ def edge_confidence(sparse_sigma, refined_sigma) -> np.ndarray:
         return np.exp(-0.5 * ((sparse_sigma - refined_sigma) / tau) ** 2)
 
 
-def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None) -> np.ndarray:
+def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None, confidence=None) -> np.ndarray:
     """Stage 4: propagation (Eq. 4, or the registered ``params.propagation``), clipped to [0, max_sigma].
 
     Parameters
@@ -227,15 +235,22 @@ def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None) -> np.ndar
     params : DefocusParams, keyword-only
     sparse_sigma : ndarray, HxW, float, or None, keyword-only
         The raw measures, needed by ``alpha_confidence="agreement"`` (None: refined used as raw).
+    confidence : ndarray, HxW, float in (0, 1], or None, keyword-only
+        Beyond the paper: per-measure confidence c_p (the estimator's ``measure_confidence``), so
+        α_p = α·c_p (times the agreement factor when ``alpha_confidence="agreement"``); None: 1.
 
     Returns
     -------
     ndarray, HxW, float64
         Dense σ, px, in [0, max_sigma].
     """
+    measure = None if confidence is None else np.asarray(confidence, dtype=np.float64)
     confidence = None
     if params.alpha_confidence == "agreement":
         raw = refined_sigma if sparse_sigma is None else sparse_sigma
-        confidence = np.where(np.isfinite(refined_sigma), edge_confidence(raw, refined_sigma), np.nan)
+        agreement = np.where(np.isfinite(refined_sigma), edge_confidence(raw, refined_sigma), np.nan)
+        confidence = agreement if measure is None else agreement * measure
+    elif measure is not None:
+        confidence = np.where(np.isfinite(refined_sigma), measure, np.nan)
     dense = propagate_blur_measures(refined_sigma, rgb, params=params, confidence=confidence)
     return np.clip(dense, 0.0, params.max_sigma)

@@ -1,5 +1,6 @@
-"""Beyond-the-paper model-fit switches of issue 8 (off in every preset): the noise-aware residual test
-(``fit_residual_noise``) and the fit scale tied to the detector's σ2 (``fit_scale_ratio``)."""
+"""Beyond-the-paper model-fit switches of issue 8: the noise-aware residual test (``fit_residual_noise``;
+in the robust preset with ``relaxed_fit_weight``, see tests/test_relaxed_fit_confidence.py) and the fit
+scale tied to the detector's σ2 (``fit_scale_ratio``; off in every preset)."""
 
 import dataclasses
 import math
@@ -95,12 +96,18 @@ def test_residual_noise_allowance_keeps_noisy_blurry_steps_at_their_sigma():
     assert abs(np.median(relaxed[np.isfinite(relaxed)]) - 6.0) <= 0.05 * 6.0
 
 
-def test_residual_noise_off_is_bit_identical():
+def test_residual_noise_off_is_the_fixed_limit():
+    """k = 0: exactly the measures with ρ ≤ fit_max_residual (σ unchanged); k = 2 only adds measures."""
     sc = step_edge((64, 64), sigma=3.0, angle=0.4, noise_std=2 / 255, quantize_bits=8, rng=1)
-    em = detect_edges(sc.image)
-    a = estimate_blur(sc.image, em, params=ROBUST)
-    b = estimate_blur(sc.image, em, params=ROBUST.replace(fit_residual_noise=0.0))
-    np.testing.assert_array_equal(a, b)
+    em = detect_edges(sc.image, keep_hessians=True)
+    off = ROBUST.replace(fit_residual_noise=0.0)
+    a = estimate_blur(sc.image, em, params=off)
+    rho = _model_fit_diagnostics(sc.image, em, params=off)["residual"]
+    with np.errstate(invalid="ignore"):
+        np.testing.assert_array_equal(np.isfinite(a), em.edges & (rho <= off.fit_max_residual) & np.isfinite(a))
+    b = estimate_blur(sc.image, em, params=ROBUST)
+    np.testing.assert_array_equal(b[np.isfinite(a)], a[np.isfinite(a)])
+    assert np.isfinite(b).sum() >= np.isfinite(a).sum()
 
 
 def test_fit_scales_mapping():
@@ -146,7 +153,9 @@ def test_fields_validated(field, bad):
             DefocusParams(**{field: v})
 
 
-def test_fields_off_in_every_preset():
-    for name in ("paper", "robust", "zhuo_sim"):
+def test_fields_in_the_presets():
+    for name in ("paper", "zhuo_sim"):
         p = DefocusParams.preset(name)
-        assert p.fit_residual_noise == 0.0 and p.fit_scale_ratio == 1.0
+        assert p.fit_residual_noise == 0.0 and p.fit_scale_ratio == 1.0 and p.relaxed_fit_weight == 1.0
+    r = DefocusParams.preset("robust")
+    assert r.fit_residual_noise == 2.0 and r.relaxed_fit_weight == 0.02 and r.fit_scale_ratio == 1.0

@@ -205,3 +205,16 @@ def test_openmp_wait_policy_set_by_the_entry_points_not_by_method(env, expected)
             "print(before, os.environ['OMP_WAIT_POLICY'])")
     out = subprocess.run([sys.executable, "-c", code], env=child_env, capture_output=True, text=True, check=True)
     assert out.stdout.split() == [env or "unset", expected]
+
+
+def test_unrolled_rgb_weights_kernel_bit_identical_to_the_generic_one():
+    """The 3×3 / RGB affinity kernel (fixed sizes) gives the same bytes as the generic one."""
+    rng = np.random.default_rng(4)
+    ref = np.ascontiguousarray(np.clip(rng.random((37, 53, 3)) * 0.5 + np.linspace(0, 0.4, 53)[None, :, None], 0, 1))
+    inv = np.ascontiguousarray(0.5 / np.maximum(E._local_variance(ref, 7), 1e-6))
+    offs = E._offsets(3)
+    generic, unrolled = np.zeros((8, 37, 53)), np.zeros((8, 37, 53))
+    E._weights_kernel(ref, inv, offs, generic)
+    E._weights_kernel_3x3_rgb(ref, inv, offs, unrolled)
+    assert np.array_equal(generic, unrolled)
+    np.testing.assert_allclose(generic.sum(axis=0), 1.0, rtol=1e-12)

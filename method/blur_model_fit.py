@@ -122,125 +122,134 @@ def _score(r, a, b, K, table, cum, i, j):
     return dot * dot / energy
 
 
-@numba.njit(cache=True, nogil=True)
+#: Edge pixels per parallel chunk of :func:`_fit_kernel`.
+_FIT_CHUNK = 256
+
+
+@numba.njit(cache=True, nogil=True, parallel=True)
 def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
                 s_grid, t0_grid, table, cum, coarse_stride, out_s, out_res, out_win, out_energy):
     # out_res[n]: normalised residual (‖r‖² − best score)/‖r‖² of the best grid fit, in [0, 1]
     # (NaN where out_s is NaN); out_win[n]: number of samples b − a + 1 in the fit window (0 where
     # no window); out_energy[n]: ‖r‖² over the fit window, (image units / px²)² (NaN where out_s is
     # NaN). All three are only written, never read: out_s does not depend on them.
+    # Edge pixels are independent: chunks of _FIT_CHUNK run in parallel, each with its own sample
+    # buffer r (only r[kmin..kmax] of the current pixel is ever read), so the results are the same
+    # bytes for any thread count.
     h, w = ixx.shape
     K = (table.shape[2] - 1) // 2
     n_s = s_grid.shape[0]
     n_t = t0_grid.shape[0]
     t0_min = t0_grid[0]
     t0_step = t0_grid[1] - t0_grid[0]
-    r = np.zeros(2 * K + 1)
-    for n in range(rows.shape[0]):
-        out_s[n] = np.nan
-        out_res[n] = np.nan
-        out_win[n] = 0
-        out_energy[n] = np.nan
-        i0, j0 = rows[n], cols[n]
-        c, s = cos_t[n], sin_t[n]
-        if abs(c) >= abs(s):
-            di, dj, proj = 0, (1 if c >= 0 else -1), abs(c)
-        else:
-            di, dj, proj = (1 if s >= 0 else -1), 0, abs(s)
-        cc, cs2, ss = c * c, 2.0 * c * s, s * s
-        # 1. sample r(k) along the dominant axis (exact pixel values, steered with θ of the edge)
-        kmin, kmax = 0, 0
-        for k in range(1, w_max + 1):
-            ii, jj = i0 - k * di, j0 - k * dj
-            if ii < 0 or ii >= h or jj < 0 or jj >= w:
-                break
-            kmin = -k
-        for k in range(1, w_max + 1):
-            ii, jj = i0 + k * di, j0 + k * dj
-            if ii < 0 or ii >= h or jj < 0 or jj >= w:
-                break
-            kmax = k
-        if kmin > -1 or kmax < 1:
-            continue
-        for k in range(kmin, kmax + 1):
-            ii, jj = i0 + k * di, j0 + k * dj
-            r[k + K] = cc * ixx[ii, jj] + cs2 * ixy[ii, jj] + ss * iyy[ii, jj]
-        # 2. sub-pixel zero crossing k0 (sampling steps) from r(−1), r(0), r(1)
-        rm, r0, rp = r[K - 1], r[K], r[K + 1]
-        if r0 > 0.0 and rp < 0.0:
-            k0 = r0 / (r0 - rp)
-        elif r0 < 0.0 and rm > 0.0:
-            k0 = -1.0 + rm / (rm - r0)
-        else:
-            k0 = 0.0
-        # 3. window: walk to the discrete extrema on the dark (k<0) and bright (k>0) sides
-        kd = -1
-        while kd - 1 >= kmin and r[kd - 1 + K] >= r[kd + K]:
-            kd -= 1
-        kb = 1
-        while kb + 1 <= kmax and r[kb + 1 + K] <= r[kb + K]:
-            kb += 1
-        # walk on past each extremum while the response keeps decaying with the same sign: the
-        # first local minimum of |r| is where a neighbouring edge's response takes over
-        ed = kd
-        while ed - 1 >= kmin and r[ed - 1 + K] > 0.0 and r[ed - 1 + K] <= r[ed + K]:
-            ed -= 1
-        eb = kb
-        while eb + 1 <= kmax and r[eb + 1 + K] < 0.0 and r[eb + 1 + K] >= r[eb + K]:
-            eb += 1
-        ha = int(math.ceil(kappa * max(-kd, kb)))
-        hb = ha
-        ha = max(w_min, min(w_max, ha, -ed))
-        hb = max(w_min, min(w_max, hb, eb))
-        a = max(-ha, kmin)
-        b = min(hb, kmax)
-        if b - a + 1 < 3:
-            continue
-        out_win[n] = b - a + 1
-        energy_r = 0.0
-        for k in range(a, b + 1):
-            energy_r += r[k + K] * r[k + K]
-        # 4. brute force: coarse over s' at the nearest t0, then fine over (s', t0)
-        jc = int(round((k0 - t0_min) / t0_step))
-        jc = max(0, min(n_t - 1, jc))
-        best_i, best = -1, 0.0
-        for i in range(0, n_s, coarse_stride):
-            sc = _score(r, a, b, K, table, cum, i, jc)
-            if sc > best:
-                best, best_i = sc, i
-        if best_i < 0:
-            continue
-        # fine pass by coordinate descent: s' around the coarse optimum, then t0, then s' again
-        bi, bj = best_i, jc
-        for i in range(max(0, best_i - coarse_stride), min(n_s, best_i + coarse_stride + 1)):
-            sc = _score(r, a, b, K, table, cum, i, jc)
-            if sc > best:
-                best, bi = sc, i
-        i_mid = bi
-        for j in range(max(0, jc - 4), min(n_t, jc + 5)):
-            sc = _score(r, a, b, K, table, cum, i_mid, j)
-            if sc > best:
-                best, bj = sc, j
-        j_mid = bj
-        for i in range(max(0, i_mid - 3), min(n_s, i_mid + 4)):
-            sc = _score(r, a, b, K, table, cum, i, j_mid)
-            if sc > best:
-                best, bi = sc, i
-        # 5. parabolic refinement of the squared error on the log-s' grid
-        pos = float(bi)
-        if 0 < bi < n_s - 1:
-            e_m = energy_r - _score(r, a, b, K, table, cum, bi - 1, bj)
-            e_0 = energy_r - best
-            e_p = energy_r - _score(r, a, b, K, table, cum, bi + 1, bj)
-            den = e_m - 2.0 * e_0 + e_p
-            if den > 0.0:
-                delta = 0.5 * (e_m - e_p) / den
-                pos += max(-0.5, min(0.5, delta))
-        s_prime = s_grid[0] * (s_grid[1] / s_grid[0]) ** pos
-        out_s[n] = s_prime * proj
-        out_energy[n] = energy_r
-        if energy_r > 0.0:
-            out_res[n] = max(0.0, energy_r - best) / energy_r
+    nrows = rows.shape[0]
+    for chunk in numba.prange((nrows + _FIT_CHUNK - 1) // _FIT_CHUNK):
+        r = np.zeros(2 * K + 1)
+        for n in range(chunk * _FIT_CHUNK, min(nrows, (chunk + 1) * _FIT_CHUNK)):
+            out_s[n] = np.nan
+            out_res[n] = np.nan
+            out_win[n] = 0
+            out_energy[n] = np.nan
+            i0, j0 = rows[n], cols[n]
+            c, s = cos_t[n], sin_t[n]
+            if abs(c) >= abs(s):
+                di, dj, proj = 0, (1 if c >= 0 else -1), abs(c)
+            else:
+                di, dj, proj = (1 if s >= 0 else -1), 0, abs(s)
+            cc, cs2, ss = c * c, 2.0 * c * s, s * s
+            # 1. sample r(k) along the dominant axis (exact pixel values, steered with θ of the edge)
+            kmin, kmax = 0, 0
+            for k in range(1, w_max + 1):
+                ii, jj = i0 - k * di, j0 - k * dj
+                if ii < 0 or ii >= h or jj < 0 or jj >= w:
+                    break
+                kmin = -k
+            for k in range(1, w_max + 1):
+                ii, jj = i0 + k * di, j0 + k * dj
+                if ii < 0 or ii >= h or jj < 0 or jj >= w:
+                    break
+                kmax = k
+            if kmin > -1 or kmax < 1:
+                continue
+            for k in range(kmin, kmax + 1):
+                ii, jj = i0 + k * di, j0 + k * dj
+                r[k + K] = cc * ixx[ii, jj] + cs2 * ixy[ii, jj] + ss * iyy[ii, jj]
+            # 2. sub-pixel zero crossing k0 (sampling steps) from r(−1), r(0), r(1)
+            rm, r0, rp = r[K - 1], r[K], r[K + 1]
+            if r0 > 0.0 and rp < 0.0:
+                k0 = r0 / (r0 - rp)
+            elif r0 < 0.0 and rm > 0.0:
+                k0 = -1.0 + rm / (rm - r0)
+            else:
+                k0 = 0.0
+            # 3. window: walk to the discrete extrema on the dark (k<0) and bright (k>0) sides
+            kd = -1
+            while kd - 1 >= kmin and r[kd - 1 + K] >= r[kd + K]:
+                kd -= 1
+            kb = 1
+            while kb + 1 <= kmax and r[kb + 1 + K] <= r[kb + K]:
+                kb += 1
+            # walk on past each extremum while the response keeps decaying with the same sign: the
+            # first local minimum of |r| is where a neighbouring edge's response takes over
+            ed = kd
+            while ed - 1 >= kmin and r[ed - 1 + K] > 0.0 and r[ed - 1 + K] <= r[ed + K]:
+                ed -= 1
+            eb = kb
+            while eb + 1 <= kmax and r[eb + 1 + K] < 0.0 and r[eb + 1 + K] >= r[eb + K]:
+                eb += 1
+            ha = int(math.ceil(kappa * max(-kd, kb)))
+            hb = ha
+            ha = max(w_min, min(w_max, ha, -ed))
+            hb = max(w_min, min(w_max, hb, eb))
+            a = max(-ha, kmin)
+            b = min(hb, kmax)
+            if b - a + 1 < 3:
+                continue
+            out_win[n] = b - a + 1
+            energy_r = 0.0
+            for k in range(a, b + 1):
+                energy_r += r[k + K] * r[k + K]
+            # 4. brute force: coarse over s' at the nearest t0, then fine over (s', t0)
+            jc = int(round((k0 - t0_min) / t0_step))
+            jc = max(0, min(n_t - 1, jc))
+            best_i, best = -1, 0.0
+            for i in range(0, n_s, coarse_stride):
+                sc = _score(r, a, b, K, table, cum, i, jc)
+                if sc > best:
+                    best, best_i = sc, i
+            if best_i < 0:
+                continue
+            # fine pass by coordinate descent: s' around the coarse optimum, then t0, then s' again
+            bi, bj = best_i, jc
+            for i in range(max(0, best_i - coarse_stride), min(n_s, best_i + coarse_stride + 1)):
+                sc = _score(r, a, b, K, table, cum, i, jc)
+                if sc > best:
+                    best, bi = sc, i
+            i_mid = bi
+            for j in range(max(0, jc - 4), min(n_t, jc + 5)):
+                sc = _score(r, a, b, K, table, cum, i_mid, j)
+                if sc > best:
+                    best, bj = sc, j
+            j_mid = bj
+            for i in range(max(0, i_mid - 3), min(n_s, i_mid + 4)):
+                sc = _score(r, a, b, K, table, cum, i, j_mid)
+                if sc > best:
+                    best, bi = sc, i
+            # 5. parabolic refinement of the squared error on the log-s' grid
+            pos = float(bi)
+            if 0 < bi < n_s - 1:
+                e_m = energy_r - _score(r, a, b, K, table, cum, bi - 1, bj)
+                e_0 = energy_r - best
+                e_p = energy_r - _score(r, a, b, K, table, cum, bi + 1, bj)
+                den = e_m - 2.0 * e_0 + e_p
+                if den > 0.0:
+                    delta = 0.5 * (e_m - e_p) / den
+                    pos += max(-0.5, min(0.5, delta))
+            s_prime = s_grid[0] * (s_grid[1] / s_grid[0]) ** pos
+            out_s[n] = s_prime * proj
+            out_energy[n] = energy_r
+            if energy_r > 0.0:
+                out_res[n] = max(0.0, energy_r - best) / energy_r
 
 
 def estimate_blur_model_fit(gray, edge_map, *, params):

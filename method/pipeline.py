@@ -124,7 +124,7 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
         sigma2_scales=params.sigma2_scales,
         noise_std=params.noise_std,
         false_positive_rate=params.false_positive_rate,
-        keep_hessians=params.estimator == "model_fit",
+        keep_hessians=params.estimator in ("model_fit", "model_fit_checked"),  # both sample them again
     )
     done("edges", t)
 

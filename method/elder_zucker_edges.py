@@ -71,12 +71,16 @@ class EdgeMap:
     hessians: dict | None = dataclasses.field(default=None, repr=False, compare=False)
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, parallel=True)
 def _gradient_pass(ix, iy, c1, scale, sigma1, theta, gmag):
-    """Assign σ1 = scale, θ and |∇| to unresolved pixels whose |∇| exceeds c1; count the rest."""
+    """Assign σ1 = scale, θ and |∇| to unresolved pixels whose |∇| exceeds c1; count the rest.
+
+    Every pixel reads and writes only itself: rows run in parallel (the count is an integer sum),
+    with the same result for any thread count.
+    """
     h, w = ix.shape
     left = 0
-    for i in range(h):
+    for i in numba.prange(h):
         for j in range(w):
             if sigma1[i, j] == sigma1[i, j]:  # already resolved (not NaN)
                 continue
@@ -92,7 +96,7 @@ def _gradient_pass(ix, iy, c1, scale, sigma1, theta, gmag):
     return left
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, parallel=True)
 def _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, c2, scale, level, sigma1, sigma2, edge_level):
     """One σ2 scale of the 2nd-derivative test for every undecided pixel with a reliable gradient.
 
@@ -101,11 +105,15 @@ def _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, c2, scale, level, sigma1, s
     moreover r(p − e) > 0 > r(p + e), the linearly interpolated crossing lies in [−1/2, 1/2)
     steps of p, and neither neighbour became an edge at a smaller scale. Returns the number of
     pixels still undecided and the number of new edge pixels.
+
+    A pixel writes only its own σ2 and edge level and reads its neighbours' edge levels only for
+    levels below this one (set by earlier passes), so rows run in parallel with the same result
+    for any thread count (the counts are integer sums).
     """
     h, w = ixx.shape
     left = 0
     new = 0
-    for i in range(h):
+    for i in numba.prange(h):
         for j in range(w):
             if sigma1[i, j] != sigma1[i, j] or sigma2[i, j] == sigma2[i, j]:
                 continue

@@ -53,7 +53,6 @@ import dataclasses
 from collections.abc import Callable
 
 import numpy as np
-from scipy import ndimage
 
 from .propagation_galerkin import galerkin_coarse_operator, prolong, restrict
 from .propagation_matrix_free import jacobi_pcg, two_level_pcg
@@ -148,7 +147,7 @@ def _rediscretised_start(fine, s, *, alpha, regularization, confidence, window, 
     del L_c
     rhs_c = (a_c * bm_c).ravel() + lam_c * target
     coarse = level.solve(rhs_c, np.full(hc * wc, target), coarse_tol).reshape(hc, wc)
-    return _upsample_crop(coarse, s, (h, w)), level, float(s * s)
+    return prolong(coarse, s=s, shape=(h, w)), level, float(s * s)
 
 
 def _galerkin_start(fine, s, *, solver, coarse_tol, **_):
@@ -217,14 +216,6 @@ def _auto_downsample(h, w, max_pixels, min_factor=AUTO_MIN_COARSENING, max_exact
     while s > min(h, w) // 2:
         s //= 2
     return s
-
-
-def _upsample(coarse, s, shape):
-    """Bilinear interpolation of a block-centred coarse map onto the fine pixel centres."""
-    h, w = shape
-    ys = (np.arange(h) + 0.5) / s - 0.5
-    xs = (np.arange(w) + 0.5) / s - 0.5
-    return ndimage.map_coordinates(coarse, np.meshgrid(ys, xs, indexing="ij"), order=1, mode="nearest")
 
 
 def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborhood=3, eps=1e-6,
@@ -304,7 +295,7 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
     4. Coarse mode (s > 1), ``refinement="galerkin"`` (default): the coarse operator is the Galerkin
        projection A_c = PᵀAP of the exact full-resolution system with the bilinear interpolation P
        (:func:`method.propagation_galerkin.galerkin_coarse_operator`, formed matrix-free from the
-       affinities, ~0.2 s at 1 MP). Build its solver once (AMG hierarchy or LU), solve
+       affinities, ~0.1 s at 1 MP). Build its solver once (AMG hierarchy or LU), solve
        A_c B_c = Pᵀ rhs to ``coarse_tol`` (1e-3 by default) and interpolate (P B_c) to get the
        start map. With ``"two_level"`` / ``"jacobi"`` the coarse problem is instead re-discretised:
        guide block-averaged over s×s blocks, BM_c = mean of the block's edge values,
@@ -398,8 +389,3 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
                      maxiter=int(refine_iterations), tol=tol)
     return x
 
-
-def _upsample_crop(coarse, s, shape):
-    h, w = shape
-    hp, wp = coarse.shape[0] * s, coarse.shape[1] * s
-    return _upsample(coarse, s, (hp, wp))[:h, :w]

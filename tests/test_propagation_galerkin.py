@@ -63,7 +63,7 @@ def test_galerkin_operator_is_deterministic_and_float32_weights_close():
     assert abs(g1 - g64).max() < 1e-6 * abs(g64).max()
 
 
-def test_transfer_operators_are_transposes_and_match_the_start_map_interpolation():
+def test_transfer_operators_are_transposes_and_match_the_explicit_kronecker_product():
     rng = np.random.default_rng(9)
     h, w, s = 45, 38, 4
     hc, wc = -(-h // s), -(-w // s)
@@ -72,7 +72,13 @@ def test_transfer_operators_are_transposes_and_match_the_start_map_interpolation
     lhs = float(np.sum(prolong(u, s=s, shape=(h, w)) * v))
     rhs = float(np.sum(u * restrict(v, s=s, coarse_shape=(hc, wc))))
     assert abs(lhs - rhs) <= 1e-12 * max(abs(lhs), 1.0)
-    np.testing.assert_allclose(prolong(u, s=s, shape=(h, w)), P._upsample_crop(u, s, (h, w)), atol=1e-12)
+    (pyp, pyi, pyv), _ = bilinear_1d(h, hc, s)
+    (pxp, pxi, pxv), _ = bilinear_1d(w, wc, s)
+    Py = sp.csr_matrix((pyv, pyi, pyp), shape=(h, hc)).toarray()
+    Px = sp.csr_matrix((pxv, pxi, pxp), shape=(w, wc)).toarray()
+    np.testing.assert_allclose(prolong(u, s=s, shape=(h, w)), Py @ u @ Px.T, atol=1e-12)  # rows P_y, columns P_x
+    # block-centred: a constant coarse map interpolates to the same constant everywhere
+    np.testing.assert_allclose(prolong(np.full((hc, wc), 2.5), s=s, shape=(h, w)), 2.5, atol=1e-12)
 
 
 def test_galerkin_operator_rejects_mismatched_shapes():

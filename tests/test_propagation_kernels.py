@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from method import propagation as P
 from method import propagation_matrix_free as MF
 from method import propagation_solvers as S
 from method import propagation_system as E
@@ -79,8 +78,15 @@ def test_bilinear_is_the_start_map_interpolation_and_its_transpose(n, s):
     P1, T1 = _csr(fwd, (n, nc)), _csr(tr, (nc, n))
     assert abs(T1 - P1.T).max() == 0
     np.testing.assert_allclose(np.asarray(P1.sum(axis=1)).ravel(), 1.0, rtol=1e-15)  # partition of unity
-    c = rng.random((nc, nc))  # P₁ ⊗ P₁ is the interpolation that makes the start map
-    np.testing.assert_allclose(P._upsample_crop(c, s, (n, n)), P1 @ c @ P1.T, atol=1e-14)
+    c = rng.random((nc, nc))  # P₁ ⊗ P₁ makes the start map: bilinear at block-centred coordinates
+    from scipy import ndimage
+
+    from method.propagation_galerkin import prolong
+
+    pos = (np.arange(n) + 0.5) / s - 0.5  # fine pixel centres in coarse sample units
+    oracle = ndimage.map_coordinates(c, np.meshgrid(pos, pos, indexing="ij"), order=1, mode="nearest")
+    np.testing.assert_allclose(P1 @ c @ P1.T, oracle, atol=1e-14)
+    np.testing.assert_allclose(prolong(c, s=s, shape=(n, n)), oracle, atol=1e-14)
 
 
 @pytest.mark.parametrize("neighborhood", [3, 5])

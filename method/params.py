@@ -92,6 +92,15 @@ class DefocusParams:
     fit_below_scale: str = "zero"
     # what d/2 ≤ σ2 gives (Eq. 2d has no real root): "zero" (paper: σb = 0) or "nan" (no measure
     # unless σ2 is the finest scale, where it is a sharp edge).
+    fit_psf: str = "gaussian"
+    # the blur model whose step response the fit matches (method.blur_model_fit.FIT_PSF_MODELS):
+    # "gaussian" (Eq. 2c, the paper), "disk" (a uniform disk, the thin lens's defocus;
+    # method.disk_edge_response), "best" (both, per edge the smaller residual) or "auto" (both, one
+    # model per image: method.blur_model_fit.select_psf_model). Every model reports the per-axis std
+    # of its PSF through Eq. (2d) (a disk of diameter c: c/4). Robust: "auto" (session 5: picks Eq. 2c
+    # on every Gaussian mosaic of the accuracy bench, so those are unchanged; small renders'
+    # textured dense MAE tabletop 0.393 → 0.370, paper_cameras 0.234 → 0.208 px; "best" 0.370 / 0.221
+    # but dead-leaves σ 3 0.28 → 0.39 px; "disk" 0.383 / 0.208, clutter f/4 0.53 → 0.75 px).
 
     # --- 3.3 biased cross-bilateral refinement (Eq. 3) ------------------------------------
     bilateral_sigma_spatial: float = 0.10
@@ -180,6 +189,7 @@ class DefocusParams:
 
         # The registries define the allowed names (lazy: they import this module's users).
         from .blur_estimators import BLUR_ESTIMATORS
+        from .blur_model_fit import FIT_PSF_MODELS
         from .cross_bilateral import BILATERAL_METHODS, RANGE_KERNELS
         from .magnification import MAP_FLOOR_MODES
         from .propagation import PROPAGATION_REFINEMENTS, PROPAGATION_SOLVERS
@@ -232,6 +242,7 @@ class DefocusParams:
             bad("fit_max_width_ratio", "> 0 (inf: no limit)")
         if self.fit_below_scale not in ("zero", "nan"):
             bad("fit_below_scale", "'zero' or 'nan'")
+        check_name("fit_psf", FIT_PSF_MODELS)
         if self.alpha_confidence not in ("none", "agreement"):
             bad("alpha_confidence", "'none' or 'agreement'")
         if not self.matting_lambda > 0:
@@ -301,6 +312,7 @@ ROBUST_CHANGES: dict = {
     "fit_max_scale": 2.0,
     "fit_max_width_ratio": 0.75,
     "fit_below_scale": "nan",
+    "fit_psf": "auto",
     "fit_residual_noise": 2.0,
     "relaxed_fit_weight": 0.02,
     "bilateral_range_kernel": "product",

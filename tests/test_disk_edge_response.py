@@ -1,0 +1,179 @@
+"""The disk-blurred step response (method.disk_edge_response) and the model fit's PSF models (fit_psf).
+
+Analytic truth: a step blurred by a uniform disk of diameter c (the thin lens's defocus, Eq. 5) has
+per-axis std c/4; the disk model recovers it, the paper's Gaussian model (Eq. 2c) over-estimates it
+or rejects the fit, and the per-image selection ("auto", the robust preset) picks the right model on
+disk- and Gaussian-blurred images alike.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import quad
+from scipy.ndimage import gaussian_filter
+from scipy.signal import fftconvolve
+
+from method import DefocusParams
+from method.blur_estimators import estimate_blur_with_confidence
+from method.blur_model_fit import (FIT_PSF_MODELS, PSF_SELECT_MIN_EDGES, _model_fit_diagnostics, response_model,
+                                   select_psf_model)
+from method.disk_edge_response import DISK_RHO_MAX, disk_line_spread, disk_step_response
+from method.elder_zucker_edges import detect_edges
+
+#: Table lookup vs direct integration, relative to the peak |r| (measured ≤ 1.4e-3).
+RESPONSE_RTOL = 2.5e-3
+#: Median σ of the disk fit on disk-blurred steps (8 bits + noise 1/255) vs c/4 (measured ≤ 2 %).
+DISK_FIT_RTOL = 0.04
+
+
+def _direct_response(t, radius, sigma2):
+    """Slow oracle: ∫ L_R(x) g'_σ2(t − x) dx by adaptive quadrature."""
+    def f(x):
+        u = t - x
+        return (disk_line_spread(x, radius=radius)
+                * (-u / (math.sqrt(2 * math.pi) * sigma2 ** 3) * math.exp(-0.5 * (u / sigma2) ** 2)))
+    return quad(f, -radius, radius, points=[max(-radius, min(radius, t))], limit=400, epsabs=1e-14)[0]
+
+
+@pytest.mark.parametrize("radius, sigma2", [(0.2, 0.5), (1.0, 0.5), (3.0, 0.5), (6.0, 1.0), (12.0, 2.0),
+                                            (40.0, 0.5), (2.0, 4.0)])
+def test_response_matches_direct_integration(radius, sigma2):
+    t = np.linspace(-radius - 5 * sigma2, radius + 5 * sigma2, 241)
+    got = disk_step_response(t, radius=radius, sigma2=sigma2)
+    want = np.array([_direct_response(x, radius, sigma2) for x in t])
+    assert np.max(np.abs(got - want)) <= RESPONSE_RTOL * np.max(np.abs(want))
+
+
+def test_response_is_the_gaussian_model_for_a_tiny_disk():
+    sigma2 = 2.0
+    radius = sigma2 / (1.01 * DISK_RHO_MAX)  # beyond the table: the Gaussian of the same second moment
+    t = np.linspace(-10, 10, 101)
+    s = math.sqrt(sigma2 ** 2 + radius ** 2 / 4)
+    np.testing.assert_allclose(disk_step_response(t, radius=radius, sigma2=sigma2), response_model(t, s=s),
+                               rtol=0, atol=1e-12)
+    # just inside the table the two agree closely too (no jump at the switch)
+    inside = sigma2 / (0.99 * DISK_RHO_MAX)
+    a = disk_step_response(t, radius=inside, sigma2=sigma2)
+    b = response_model(t, s=math.sqrt(sigma2 ** 2 + inside ** 2 / 4))
+    assert np.max(np.abs(a - b)) <= 1e-3 * np.max(np.abs(b))
+
+
+def test_line_spread_moments():
+    x = np.linspace(-3, 3, 600001)
+    dx = x[1] - x[0]
+    lsf = disk_line_spread(x, radius=2.5)
+    assert abs(np.sum(lsf) * dx - 1) < 1e-6
+    assert abs(np.sum(x ** 2 * lsf) * dx - 2.5 ** 2 / 4) < 1e-5  # per-axis std R/2 = c/4
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, math.nan, math.inf])
+def test_bad_radius_or_scale(bad):
+    with pytest.raises(ValueError, match="radius"):
+        disk_step_response([0.0], radius=bad, sigma2=1.0)
+    with pytest.raises(ValueError, match="sigma2"):
+        disk_step_response([0.0], radius=1.0, sigma2=bad)
+    with pytest.raises(ValueError, match="radius"):
+        disk_line_spread([0.0], radius=bad)
+
+
+def _disk_kernel(radius, supersample=8):
+    n = int(math.ceil(radius)) + 1
+    y, x = (np.mgrid[-n * supersample:(n + 1) * supersample, -n * supersample:(n + 1) * supersample] + 0.5) \
+        / supersample - 0.5
+    inside = (x ** 2 + y ** 2 <= radius ** 2).astype(float)
+    k = inside.reshape(2 * n + 1, supersample, 2 * n + 1, supersample).sum((1, 3))
+    return k / k.sum()
+
+
+def _blurred_step(sigma, psf, *, size=128, angle=0.3, seed=0):
+    """A straight step (0.2 → 0.8) blurred by a disk of diameter 4σ or a Gaussian σ; 8 bits + noise 1/255."""
+    yy, xx = np.mgrid[:size, :size]
+    c = size / 2 * (math.cos(angle) + math.sin(angle))
+    step = np.where(xx * math.cos(angle) + yy * math.sin(angle) > c, 0.8, 0.2)
+    if psf == "disk":
+        pad = 40
+        img = fftconvolve(np.pad(step, pad, mode="edge"), _disk_kernel(2 * sigma), mode="same")[pad:-pad, pad:-pad]
+    else:
+        img = gaussian_filter(step, sigma, mode="nearest")
+    img = img + np.random.default_rng(seed).normal(0, 1 / 255, img.shape)
+    return np.round(np.clip(img, 0, 1) * 255) / 255
+
+
+def _median_fit(img, params):
+    em = detect_edges(img, noise_std=params.noise_std)
+    inner = em.edges.copy()
+    inner[:20] = inner[-20:] = False
+    inner[:, :20] = inner[:, -20:] = False
+    sigma, _ = estimate_blur_with_confidence(img, em, params=params)
+    ok = inner & np.isfinite(sigma)
+    return (float(np.median(sigma[ok])) if ok.any() else math.nan), ok.sum() / inner.sum()
+
+
+@pytest.mark.parametrize("sigma", [1.0, 2.0, 3.0, 4.0, 6.0])
+def test_disk_fit_recovers_disk_blur_and_the_gaussian_fit_does_not(sigma):
+    img = _blurred_step(sigma, "disk")
+    got, coverage = _median_fit(img, DefocusParams.preset("robust", fit_psf="disk"))
+    assert coverage > 0.9
+    assert abs(got - sigma) <= DISK_FIT_RTOL * sigma, got
+    gauss, g_coverage = _median_fit(img, DefocusParams.preset("robust", fit_psf="gaussian"))
+    # the paper's model: ≥ 10 % too wide, or its goodness-of-fit test rejects most of the edge
+    assert g_coverage < 0.6 or gauss > 1.1 * sigma, (gauss, g_coverage)
+
+
+@pytest.mark.parametrize("psf", ["disk", "gaussian"])
+def test_auto_selects_the_blurring_model(psf):
+    img = _blurred_step(3.0, psf)
+    robust = DefocusParams.preset("robust")
+    assert robust.fit_psf == "auto"
+    em = detect_edges(img, noise_std=robust.noise_std)
+    g = _model_fit_diagnostics(img, em, params=robust.replace(fit_psf="gaussian"))
+    d = _model_fit_diagnostics(img, em, params=robust.replace(fit_psf="disk"))
+    assert select_psf_model(g, d["width"], d["residual"]) == psf
+    # and "auto" gives exactly that model's measures
+    auto, _ = estimate_blur_with_confidence(img, em, params=robust)
+    want, _ = estimate_blur_with_confidence(img, em, params=robust.replace(fit_psf=psf))
+    np.testing.assert_array_equal(auto, want)
+
+
+def test_auto_keeps_the_paper_model_without_evidence():
+    """Fewer than PSF_SELECT_MIN_EDGES resolved, well-fitted edges: Eq. (2c)."""
+    img = _blurred_step(3.0, "disk")
+    robust = DefocusParams.preset("robust")
+    em = detect_edges(img, noise_std=robust.noise_std)
+    g = _model_fit_diagnostics(img, em, params=robust.replace(fit_psf="gaussian"))
+    d = _model_fit_diagnostics(img, em, params=robust.replace(fit_psf="disk"))
+    keep = np.flatnonzero(np.isfinite(d["residual"]).ravel())[:PSF_SELECT_MIN_EDGES - 1]
+    few = np.full(d["residual"].size, np.nan)
+    few[keep] = d["residual"].ravel()[keep]
+    assert select_psf_model(g, d["width"], few.reshape(d["residual"].shape)) == "gaussian"
+
+
+def test_best_takes_the_smaller_residual_per_edge():
+    img = _blurred_step(2.0, "disk")
+    robust = DefocusParams.preset("robust")
+    em = detect_edges(img, noise_std=robust.noise_std)
+    g = _model_fit_diagnostics(img, em, params=robust.replace(fit_psf="gaussian"))
+    d = _model_fit_diagnostics(img, em, params=robust.replace(fit_psf="disk"))
+    b = _model_fit_diagnostics(img, em, params=robust.replace(fit_psf="best"))
+    ok = np.isfinite(g["residual"]) & np.isfinite(d["residual"])
+    np.testing.assert_array_equal(b["residual"][ok], np.minimum(g["residual"], d["residual"])[ok])
+    assert b["disk"][ok].any() and not b["disk"][ok].all() or b["disk"][ok].all()
+    np.testing.assert_array_equal(b["width"][ok & b["disk"]], d["width"][ok & b["disk"]])
+
+
+def test_gaussian_model_is_the_paper_fit_bit_for_bit():
+    """fit_psf="gaussian" (the paper's default) leaves the Eq. (2c) fit exactly as it was."""
+    img = _blurred_step(2.0, "gaussian")
+    paper = DefocusParams()
+    assert paper.fit_psf == "gaussian" and set(FIT_PSF_MODELS) == {"gaussian", "disk", "best", "auto"}
+    em = detect_edges(img, noise_std=paper.noise_std)
+    g = _model_fit_diagnostics(img, em, params=paper)
+    assert not g["disk"].any()
+    d = _model_fit_diagnostics(img, em, params=paper.replace(fit_psf="disk"))
+    # the disk fit runs on the same windows (same samples and energy) and differs in width
+    np.testing.assert_array_equal(g["window"], d["window"])
+    np.testing.assert_array_equal(g["energy"], d["energy"])
+    assert np.nanmax(np.abs(g["width"] - d["width"])) > 0.05

@@ -19,7 +19,7 @@ import math
 import numba
 import numpy as np
 
-from .disk_edge_response import DISK_RHO_MAX, _disk_value_rows, _response_table, _rho_row
+from .disk_edge_response import DISK_RHO_MAX, _response_table, _rho_row
 from .elder_zucker_edges import check_edge_inputs, edge_pixels_by_scale
 from .gaussian_derivatives import GaussianDerivativeBank
 
@@ -125,14 +125,38 @@ def _score(r, a, b, K, table, cum, i, j):
 
 @numba.njit(cache=True, nogil=True)
 def _score_disk(r, a, b, K, s_prime, t0, sig_p, dvalues, doffsets, dlengths, dsteps):
-    """As :func:`_score` for the disk-blurred template of width s' at filter scale σ' (sampling steps)."""
+    """As :func:`_score` for the disk-blurred template of width s' at filter scale σ' (sampling steps).
+
+    The template m(k) = G((k − t0)/R'; σ'/R') with R' = 2√(s'² − σ'²) (method.disk_edge_response),
+    linear in log ρ between two table rows and linear in v within each (the same interpolation as
+    ``disk_edge_response._disk_value``, with the per-row index scale hoisted out of the loop).
+    """
     radius = 2.0 * math.sqrt(s_prime * s_prime - sig_p * sig_p)
     row, wt = _rho_row(dlengths, sig_p / radius)
-    inv = 1.0 / radius
+    o0, o1 = doffsets[row], doffsets[row + 1]
+    n0, n1 = dlengths[row] - 1, dlengths[row + 1] - 1
+    c0 = 1.0 / (radius * dsteps[row])  # table index per sample
+    c1 = 1.0 / (radius * dsteps[row + 1])
+    w0 = 1.0 - wt
     dot = 0.0
     energy = 0.0
     for k in range(a, b + 1):
-        m = _disk_value_rows(dvalues, doffsets, dlengths, dsteps, row, wt, (k - t0) * inv)
+        u = k - t0
+        sign = 1.0
+        if u < 0.0:
+            u, sign = -u, -1.0
+        m = 0.0
+        f = u * c0
+        i = int(f)
+        if i < n0:
+            q = f - i
+            m += w0 * ((1.0 - q) * dvalues[o0 + i] + q * dvalues[o0 + i + 1])
+        f = u * c1
+        i = int(f)
+        if i < n1:
+            q = f - i
+            m += wt * ((1.0 - q) * dvalues[o1 + i] + q * dvalues[o1 + i + 1])
+        m *= sign
         dot += r[k + K] * m
         energy += m * m
     if dot <= 0.0 or energy <= 0.0:
@@ -524,9 +548,9 @@ def _model_fit_diagnostics(gray, edge_map, *, params):
     cached = edge_map.hessians or {}
     bank = None
     theta = np.asarray(edge_map.theta, dtype=np.float64)
-    # "auto" fits the disk model first only where it can decide (resolved blur, select_psf_model),
-    # and on the remaining edges only if it chose the disk; "disk" and "best" fit it everywhere
-    first_min_width = {"gaussian": -1.0, "auto": PSF_SELECT_MIN_WIDTH}.get(psf, 0.0)
+    # "disk" and "best" fit the disk model on every edge in the same pass; "auto" fits it first on a
+    # sample of the edges that can decide (select_psf_model), and on all edges only if it chose it
+    first_min_width = 0.0 if psf in ("disk", "best") else -1.0
     fitted = []
     for sigma2, rows, cols in groups:
         if sigma2 in cached:
@@ -550,21 +574,41 @@ def _model_fit_diagnostics(gray, edge_map, *, params):
         s2_map[rows, cols] = sigma2
         disk_width[rows, cols] = sd_est
         disk_res[rows, cols] = rd_est
-        if psf == "auto":
-            fitted.append((sigma2, rows, cols, th, (ixx, ixy, iyy)))
-    if psf == "auto" and select_psf_model(diag, disk_width, disk_res) == "disk":
+        fitted.append((sigma2, rows, cols, th, (ixx, ixy, iyy)))
+
+    def fit_disk(select):  # disk fits on the edge pixels where select(group's rows, cols) is True
         for sigma2, rows, cols, th, hessian in fitted:
-            rest = np.isfinite(width[rows, cols]) & ~np.isfinite(disk_width[rows, cols])
-            if rest.any():
-                rr, cc = rows[rest], cols[rest]
-                *_, sd_est, rd_est = _run_fit_kernel(hessian, rr, cc, th[rest], w_min, w_max,
+            sel = select(rows, cols)
+            if sel.any():
+                rr, cc = rows[sel], cols[sel]
+                *_, sd_est, rd_est = _run_fit_kernel(hessian, rr, cc, th[sel], w_min, w_max,
                                                      (s_grid, t0_grid, table, cum), sigma2, 0.0, disk_table)
                 disk_width[rr, cc] = sd_est
                 disk_res[rr, cc] = rd_est
-        _choose_psf(diag, disk_width, disk_res, psf="disk", max_sigma=float(params.max_sigma))
+
+    if psf == "auto":
+        fit_disk(lambda rr, cc: _psf_selection_sample(width, s2_map)[rr, cc])
+        if select_psf_model(diag, disk_width, disk_res) == "disk":
+            fit_disk(lambda rr, cc: np.isfinite(width[rr, cc]) & ~np.isfinite(disk_width[rr, cc]))
+            _choose_psf(diag, disk_width, disk_res, psf="disk", max_sigma=float(params.max_sigma))
     elif psf in ("disk", "best"):
         _choose_psf(diag, disk_width, disk_res, psf=psf, max_sigma=float(params.max_sigma))
     return diag
+
+
+def _psf_selection_sample(width, sigma2):
+    """Edge pixels whose disk fit ``select_psf_model`` needs: resolved blur, at most PSF_SELECT_SAMPLE of them.
+
+    Candidates have a finite Gaussian width s > PSF_SELECT_MIN_WIDTH · σ2; beyond PSF_SELECT_SAMPLE
+    candidates every k-th one in raster order is kept (deterministic; the statistic is a mean).
+    """
+    with np.errstate(invalid="ignore"):
+        cand = np.isfinite(width) & (width > PSF_SELECT_MIN_WIDTH * sigma2)
+    idx = np.flatnonzero(cand)
+    if idx.size > PSF_SELECT_SAMPLE:
+        cand = np.zeros_like(cand)
+        cand.flat[idx[:: int(math.ceil(idx.size / PSF_SELECT_SAMPLE))]] = True
+    return cand
 
 
 def _run_fit_kernel(hessian, rows, cols, theta, w_min, w_max, templates, sigma2, disk_min_width, disk_table):
@@ -596,6 +640,8 @@ def _choose_psf(diag, disk_width, disk_res, *, psf, max_sigma):
 PSF_SELECT_MIN_WIDTH = 1.5
 PSF_SELECT_MAX_RESIDUAL = 0.01
 PSF_SELECT_MIN_EDGES = 5
+#: At most this many candidate edges get the disk fit before "auto" decides (a deterministic sample).
+PSF_SELECT_SAMPLE = 4000
 
 
 def select_psf_model(diag, disk_width, disk_res) -> str:

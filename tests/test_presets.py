@@ -201,12 +201,12 @@ REFINEMENT_FIELDS = ("bilateral_sigma_spatial", "bilateral_sigma_range", "bilate
 #:
 #: * helps the dense map: estimator="model_fit_checked" +0.260, fit_max_scale +0.039,
 #:   fit_max_residual +0.028, fit_max_width_ratio +0.082 (+0.013 / +0.234 / 0.000 per seed);
-#: * relaxed_fit_weight (0.02, issue 8) +0.021 (+0.039 / +0.020 / +0.007 per seed): with it off the
+#: * relaxed_fit_weight (0.1 since session 5; at 0.02 +0.021, +0.039 / +0.020 / +0.007 per seed; at 0.1 +0.017): with it off the
 #:   measures the noise allowance adds count fully and the in-focus tiles get their too-wide fits;
 DENSE_HELPS = ("estimator", "fit_max_scale", "fit_max_residual", "fit_max_width_ratio", "relaxed_fit_weight")
 #: * neutral on this σ ≤ 4 mosaic, helps blurry texture (σ 5–8): fit_residual_noise (k = 2, issue 8),
 #:   dense −0.004, sparse −0.044 px (it adds measures, ~25 % more here, of poorer fits); its gain is
-#:   on σ ≥ 5 tiles (tests/test_relaxed_fit_confidence.py: σ 6 tile 1.41 → 1.16 px) with the
+#:   on σ ≥ 5 tiles (tests/test_relaxed_fit_confidence.py: σ 6 tile 1.40 → 1.09 px) with the
 #:   relaxed measures at relaxed_fit_weight;
 DENSE_NEUTRAL_BLURRY_HELPS = ("fit_residual_noise",)
 #: * no effect on the dense map but helps the sparse stage: fit_below_scale, dense +0.001, sparse

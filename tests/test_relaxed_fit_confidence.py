@@ -33,7 +33,7 @@ def blurry_mosaic():
 
 
 def test_robust_preset_uses_the_confidence():
-    assert ROBUST.fit_residual_noise == 2.0 and ROBUST.relaxed_fit_weight == 0.02
+    assert ROBUST.fit_residual_noise == 2.0 and ROBUST.relaxed_fit_weight == 0.1
     assert uses_measure_confidence(ROBUST)
     assert not uses_measure_confidence(DefocusParams())  # paper
     assert not uses_measure_confidence(STRICT) and not uses_measure_confidence(RELAXED_FULL)
@@ -55,13 +55,13 @@ def test_strict_relaxed_split_from_one_fit(blurry_mosaic):
     strict = estimate_blur(gray, em, params=STRICT)
     fin = np.isfinite(sigma)
     assert np.array_equal(np.isfinite(conf), fin)
-    assert set(np.unique(conf[fin])) == {1.0, 0.02}
+    assert set(np.unique(conf[fin])) == {1.0, ROBUST.relaxed_fit_weight}
     np.testing.assert_array_equal(conf == 1.0, np.isfinite(strict))
     np.testing.assert_array_equal(sigma[conf == 1.0], strict[conf == 1.0])
     # the relaxed ones are exactly those with fit_max_residual < ρ (they passed the noise allowance)
     rho = _model_fit_diagnostics(gray, em, params=ROBUST)["residual"]
-    assert np.all(rho[conf == 0.02] > ROBUST.fit_max_residual)
-    assert (conf == 0.02).sum() > 0.2 * fin.sum()  # the blurry tiles do get relaxed measures
+    assert np.all(rho[conf < 1] > ROBUST.fit_max_residual)
+    assert (conf < 1).sum() > 0.2 * fin.sum()  # the blurry tiles do get relaxed measures
 
 
 def test_pipeline_plumbs_the_confidence(blurry_mosaic):
@@ -93,7 +93,7 @@ def test_pipeline_plumbs_the_confidence(blurry_mosaic):
 def test_low_confidence_measures_decide_only_where_no_strict_one_is_near():
     """Eq. (3) + (4) with known sparse maps: a sharp left half with correct strict measures (σ 1) and
     scattered too-wide relaxed ones (σ 2.5, the renders' in-focus low-contrast edges), a blurry right
-    half with relaxed measures only (σ 5). With c = 0.02 both halves come out closer to the truth
+    half with relaxed measures only (σ 5). With c = the robust preset's weight both halves come out closer to the truth
     than with every measure at weight 1 (left) and than without the relaxed measures (right)."""
     h, w = 64, 128
     rng = np.random.default_rng(5)
@@ -107,7 +107,7 @@ def test_low_confidence_measures_decide_only_where_no_strict_one_is_near():
     blurry = (xx >= w // 2) & (pick < 0.04)
     sparse = np.full((h, w), np.nan)
     sparse[strict], sparse[wrong], sparse[blurry] = 1.0, 2.5, 5.0
-    conf = np.where(strict, 1.0, 0.02)
+    conf = np.where(strict, 1.0, ROBUST.relaxed_fit_weight)
     conf[~np.isfinite(sparse)] = np.nan
     p = ROBUST
 
@@ -131,8 +131,9 @@ def test_low_confidence_measures_decide_only_where_no_strict_one_is_near():
 
 def test_relaxed_weight_recovers_blurry_mosaic_better():
     """End to end: on 96×192 dead-leaves mosaics (σ 1 and σ 6 tiles, 8-bit + noise 2/255, seeds 0–2)
-    robust (relaxed measures at c = 0.02) recovers the σ 6 tile better than the strict test alone
-    (measured: seed-mean MAE 1.41 → 1.16 px) and keeps the σ 1 tile (0.173 → 0.171 px)."""
+    robust (relaxed measures at c = relaxed_fit_weight) recovers the σ 6 tile better than the strict test alone
+    (measured, session 5 with c = 0.1 and fit_psf="auto": seed-mean MAE 1.40 → 1.09 px) and keeps the σ 1
+    tile (0.173 → 0.168 px)."""
     err = {"robust": [], "strict": []}
     for seed in (0, 1, 2):
         m = texture_mosaic(texture="dead_leaves", sigmas=(1.0, 6.0), tile=96, cols=2, noise_std=2.0 / 255,

@@ -158,17 +158,17 @@ def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageO
 
     Notes
     -----
-    Mirrors :func:`method.estimate_defocus_map` stage by stage: luminance → ``detect_edges`` →
-    ``estimate_blur_with_confidence`` (the blur and, for presets that weight their measures —
-    ``relaxed_fit_weight`` — the per-measure confidence used by both later stages) → the refinement (:func:`method.pipeline.refine_stage`; Eq. 3 as ``params``
+    Runs the stages of :func:`method.estimate_defocus_map` (the same functions of :mod:`method.pipeline`):
+    luminance → :func:`~method.pipeline.edges_stage` → :func:`~method.pipeline.blur_stage` (the blur and,
+    for presets that weight their measures — ``relaxed_fit_weight`` — the per-measure confidence used by
+    both later stages) → the refinement (:func:`method.pipeline.refine_stage`; Eq. 3 as ``params``
     configure it) once, then the propagation (:func:`method.pipeline.propagate_stage` with
     ``params.replace(alpha=a)``, clipped to [0, ``params.max_sigma``]) per α. When
     ``params.propagation`` has no α (anything but ``"colorization"``, Eq. 4), it runs once and the
     map is repeated for every α (``timings`` then has one ``"propagation"`` entry).
     """
-    from method import DefocusParams, detect_edges, luminance
-    from method.blur_estimators import estimate_blur_with_confidence
-    from method.pipeline import propagate_stage, refine_stage
+    from method import DefocusParams, luminance
+    from method.pipeline import blur_stage, edges_stage, propagate_stage, refine_stage
 
     params = DefocusParams() if params is None else params
     alphas = [float(a) for a in alphas]
@@ -178,10 +178,7 @@ def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageO
     gray = luminance(rgb)
     timings = {}
     t0 = time.perf_counter()
-    edge_map = detect_edges(gray, sigma1_scales=params.sigma1_scales, sigma2_scales=params.sigma2_scales,
-                            noise_std=params.noise_std, false_positive_rate=params.false_positive_rate)
-    sparse, confidence = estimate_blur_with_confidence(gray, edge_map, params=params)
-    sparse = np.where(edge_map.edges, np.asarray(sparse, dtype=np.float64), np.nan)
+    sparse, confidence, edge_map = blur_stage(gray, edges_stage(gray, params=params), params=params)
     if not np.any(np.isfinite(sparse)):
         raise ValueError("no edge pixel found in the image; the α sweep needs edge measures")
     refined = refine_stage(sparse, rgb, params=params, confidence=confidence)

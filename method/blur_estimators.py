@@ -16,6 +16,15 @@ Adding an estimator is one new function plus one registry line, e.g.::
     "my_idea": estimate_blur_my_idea,
 
 and then ``DefocusParams(estimator="my_idea")`` or ``estimate_blur(..., method="my_idea")``.
+
+Two optional capabilities, each one more registry line:
+
+- an estimator that samples the detector's 2nd-derivative responses again lists its name in
+  :data:`USES_DETECTOR_HESSIANS` (the pipeline then keeps them from the edge detector);
+- an estimator that can weigh its own measures registers ``(fn_with_confidence, asks)`` in
+  :data:`MEASURE_CONFIDENCE`: ``fn_with_confidence(gray, edge_map, *, params) -> (σ, c)`` with c in
+  (0, 1] per measure, and ``asks(params) -> bool`` whether these ``params`` use it; the confidence
+  multiplies each measure's weight in Eq. (3) and its α_p in Eq. (4) (:mod:`method.pipeline`).
 """
 
 from __future__ import annotations
@@ -26,11 +35,13 @@ import numpy as np
 
 from .blur_gradient_ratio import estimate_blur_gradient_ratio
 from .blur_model_fit import estimate_blur_model_fit
-from .blur_model_fit_checked import estimate_blur_model_fit_checked, estimate_blur_model_fit_checked_confidence
+from .blur_model_fit_checked import (estimate_blur_model_fit_checked, estimate_blur_model_fit_checked_confidence,
+                                     relaxed_confidence_used)
 from .blur_zero_crossing import estimate_blur_zero_crossing
 from .elder_zucker_edges import check_edge_inputs
 
-__all__ = ["BLUR_ESTIMATORS", "estimate_blur", "estimate_blur_with_confidence", "uses_measure_confidence"]
+__all__ = ["BLUR_ESTIMATORS", "MEASURE_CONFIDENCE", "USES_DETECTOR_HESSIANS", "estimate_blur",
+           "estimate_blur_with_confidence", "uses_measure_confidence"]
 
 #: name -> estimator fn(gray, edge_map, *, params) -> (H, W) float64 σ in px, NaN off edges.
 BLUR_ESTIMATORS: dict[str, Callable[..., np.ndarray]] = {
@@ -38,6 +49,16 @@ BLUR_ESTIMATORS: dict[str, Callable[..., np.ndarray]] = {
     "model_fit_checked": estimate_blur_model_fit_checked,  # model_fit, NaN where the fit is poor
     "zero_crossing": estimate_blur_zero_crossing,  # Elder & Zucker: 3rd-derivative zero crossings
     "gradient_ratio": estimate_blur_gradient_ratio,  # Zhuo & Sim 2011 re-blur gradient ratio
+}
+
+#: Estimators that sample the edge detector's 2nd-derivative responses (``EdgeMap.hessians``) again.
+USES_DETECTOR_HESSIANS: frozenset[str] = frozenset({"model_fit", "model_fit_checked"})
+
+#: name -> (fn(gray, edge_map, *, params) -> (σ, confidence), asks(params) -> bool): estimators of
+#: :data:`BLUR_ESTIMATORS` that can also weigh their own measures (c_q in (0, 1], NaN where σ is NaN);
+#: ``asks`` says whether ``params`` use that confidence. Every other estimator's measures weigh 1.
+MEASURE_CONFIDENCE: dict[str, tuple[Callable[..., tuple[np.ndarray, np.ndarray]], Callable[..., bool]]] = {
+    "model_fit_checked": (estimate_blur_model_fit_checked_confidence, relaxed_confidence_used),
 }
 
 
@@ -86,11 +107,11 @@ def estimate_blur(gray, edge_map, *, params, method=None):
 def uses_measure_confidence(params) -> bool:
     """Whether ``params`` ask for a per-measure confidence (beyond the paper; issue 8).
 
-    True for estimator ``"model_fit_checked"`` with ``fit_residual_noise`` > 0 and
-    ``relaxed_fit_weight`` < 1 (every other setting: every measure has confidence 1).
+    True when ``params.estimator`` is registered in :data:`MEASURE_CONFIDENCE` and its ``asks(params)``
+    is true (``model_fit_checked``: ``fit_residual_noise`` > 0 and ``relaxed_fit_weight`` < 1).
     """
-    return (params.estimator == "model_fit_checked" and float(params.fit_residual_noise) > 0
-            and float(params.relaxed_fit_weight) < 1.0)
+    entry = MEASURE_CONFIDENCE.get(params.estimator)
+    return entry is not None and bool(entry[1](params))
 
 
 def estimate_blur_with_confidence(gray, edge_map, *, params):
@@ -109,14 +130,15 @@ def estimate_blur_with_confidence(gray, edge_map, *, params):
     sigma : ndarray, shape (H, W), float64
         As :func:`estimate_blur` (σ in px, NaN off edges and where the estimator fails).
     confidence : ndarray, shape (H, W), float64, or None
-        None unless :func:`uses_measure_confidence`; then 1 for the measures passing the strict
+        None unless :func:`uses_measure_confidence`; then the registered estimator's confidence
+        (:data:`MEASURE_CONFIDENCE`; ``model_fit_checked``: 1 for the measures passing the strict
         residual test, ``params.relaxed_fit_weight`` for those admitted by the noise allowance
-        only, NaN where ``sigma`` is NaN (one fit: :func:`~method.blur_model_fit_checked.estimate_blur_model_fit_checked_confidence`).
+        only), NaN where ``sigma`` is NaN. σ and the confidence come from one call.
     """
     if not uses_measure_confidence(params):
         return estimate_blur(gray, edge_map, params=params), None
     img = check_edge_inputs(gray, edge_map)
-    sigma, conf = estimate_blur_model_fit_checked_confidence(img, edge_map, params=params)
+    sigma, conf = MEASURE_CONFIDENCE[params.estimator][0](img, edge_map, params=params)
     off = ~np.asarray(edge_map.edges, dtype=bool)
     sigma = np.asarray(sigma, dtype=np.float64).copy()
     sigma[off] = np.nan

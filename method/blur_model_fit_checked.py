@@ -18,7 +18,7 @@ import numpy as np
 from .blur_model_fit import _model_fit_diagnostics, _paper_rules, apply_fit_rules
 
 __all__ = ["estimate_blur_model_fit_checked", "estimate_blur_model_fit_checked_confidence", "noise_residual_share",
-           "steered_second_noise_variance"]
+           "relaxed_confidence_used", "steered_second_noise_variance"]
 
 
 @functools.lru_cache(maxsize=32)
@@ -80,6 +80,13 @@ def noise_residual_share(diagnostics, *, noise_std):
         share = (diagnostics["window"] * steered_second_noise_variance(diagnostics["sigma2"], noise_std)
                  / diagnostics["energy"])
     return np.where(np.isfinite(share), share, 0.0)
+
+
+def relaxed_confidence_used(params) -> bool:
+    """Whether ``params`` give relaxed measures a confidence below 1: ``fit_residual_noise`` > 0 and
+    ``relaxed_fit_weight`` < 1 (else every measure of this estimator weighs 1)."""
+    return (float(getattr(params, "fit_residual_noise", 0.0)) > 0
+            and float(getattr(params, "relaxed_fit_weight", 1.0)) < 1.0)
 
 
 def estimate_blur_model_fit_checked(gray, edge_map, *, params):

@@ -19,7 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .blur_estimators import estimate_blur_with_confidence
+from .blur_estimators import USES_DETECTOR_HESSIANS, estimate_blur_with_confidence
 from .cross_bilateral import biased_cross_bilateral
 from .elder_zucker_edges import EdgeMap, detect_edges
 from .luma import LUMA_WEIGHTS, luminance  # noqa: F401 (LUMA_WEIGHTS re-exported)
@@ -27,8 +27,8 @@ from .params import DefocusParams
 from .propagation_methods import propagate_blur_measures
 from .validation import validate_image
 
-__all__ = ["DefocusResult", "NoEdgesWarning", "edge_confidence", "estimate_defocus_map", "luminance",
-           "propagate_stage", "refine_stage"]
+__all__ = ["DefocusResult", "NoEdgesWarning", "blur_stage", "edge_confidence", "edges_stage", "estimate_defocus_map",
+           "luminance", "propagate_stage", "refine_stage"]
 
 STAGES = ("edges", "blur_at_edges", "cross_bilateral", "propagation")
 
@@ -88,10 +88,11 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
     -----
     1. Luminance (Rec. 709 weights) of the input feeds the edge detector; the RGB input is the
        reference image of the cross-bilateral filter and of the propagation affinities.
-    2. Multiscale Elder–Zucker edges with the Eq. (9) thresholds (Sec. 3.1); for the model-fit
-       estimator the detector keeps its 2nd-derivative responses at the σ2 that produced edges.
-    3. Blur σ at edge pixels with ``params.estimator`` (Sec. 3.2), reusing those responses; they
-       are dropped from the returned EdgeMap.
+    2. Multiscale Elder–Zucker edges with the Eq. (9) thresholds (Sec. 3.1; :func:`edges_stage`);
+       for the estimators that sample them again (model fit) the detector keeps its 2nd-derivative
+       responses at the σ2 that produced edges.
+    3. Blur σ at edge pixels with ``params.estimator`` (Sec. 3.2; :func:`blur_stage`), reusing
+       those responses; they are dropped from the returned EdgeMap.
     4. Biased cross-bilateral refinement of the sparse measures, Eq. (3) (Sec. 3.3).
     5. Propagation by minimising Eq. (4): (LᵀL + diag α) B = α·BM (Sec. 4).
     """
@@ -118,20 +119,11 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
         cpu[name] = time.process_time() - c_last[0]
 
     t = stage("edges")
-    edge_map = detect_edges(
-        gray,
-        sigma1_scales=params.sigma1_scales,
-        sigma2_scales=params.sigma2_scales,
-        noise_std=params.noise_std,
-        false_positive_rate=params.false_positive_rate,
-        keep_hessians=params.estimator in ("model_fit", "model_fit_checked"),  # both sample them again
-    )
+    edge_map = edges_stage(gray, params=params)
     done("edges", t)
 
     t = stage("blur_at_edges")
-    sparse, confidence = estimate_blur_with_confidence(gray, edge_map, params=params)
-    sparse = np.where(edge_map.edges, np.asarray(sparse, dtype=np.float64), np.nan)
-    edge_map = dataclasses.replace(edge_map, hessians=None)  # do not keep ~12 MB/σ2 in the result
+    sparse, confidence, edge_map = blur_stage(gray, edge_map, params=params)
     done("blur_at_edges", t)
 
     shape = gray.shape
@@ -165,6 +157,52 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
         defocus_map=dense, edge_map=edge_map, timings=timings, params=params, cpu_timings=cpu,
         measure_confidence=confidence,
     )
+
+
+def edges_stage(gray, *, params):
+    """Elder–Zucker edges with minimum reliable scales (Sec. 3.1) as ``params`` configure them.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (H, W), float
+        Luminance in [0, 1] (:func:`luminance`).
+    params : DefocusParams, keyword-only
+        ``sigma1_scales``, ``sigma2_scales`` (px), ``noise_std``, ``false_positive_rate``,
+        ``estimator`` (the detector keeps its 2nd-derivative responses for the estimators of
+        :data:`method.blur_estimators.USES_DETECTOR_HESSIANS`).
+
+    Returns
+    -------
+    EdgeMap
+    """
+    return detect_edges(gray, sigma1_scales=params.sigma1_scales, sigma2_scales=params.sigma2_scales,
+                        noise_std=params.noise_std, false_positive_rate=params.false_positive_rate,
+                        keep_hessians=params.estimator in USES_DETECTOR_HESSIANS)
+
+
+def blur_stage(gray, edge_map, *, params):
+    """Blur measures at the edges (Sec. 3.2) with the estimator of ``params``, and their confidence.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (H, W), float
+        Luminance in [0, 1].
+    edge_map : EdgeMap
+        Output of :func:`edges_stage` for ``gray``.
+    params : DefocusParams, keyword-only
+
+    Returns
+    -------
+    sparse_sigma : ndarray, shape (H, W), float64
+        σ in px at edge pixels, NaN elsewhere and where the estimator fails.
+    confidence : ndarray, shape (H, W), float64, or None
+        Per-measure confidence (:func:`method.blur_estimators.estimate_blur_with_confidence`).
+    edge_map : EdgeMap
+        ``edge_map`` without its 2nd-derivative responses (~12 MB per σ2 at 1 MP, not kept).
+    """
+    sparse, confidence = estimate_blur_with_confidence(gray, edge_map, params=params)
+    sparse = np.where(edge_map.edges, np.asarray(sparse, dtype=np.float64), np.nan)
+    return sparse, confidence, dataclasses.replace(edge_map, hessians=None)
 
 
 def refine_stage(sparse_sigma, rgb, *, params, confidence=None) -> np.ndarray:

@@ -170,3 +170,34 @@ def test_cross_bilateral_weights():
         biased_cross_bilateral(bm, ref, weights=np.zeros((h, w)))
     with pytest.raises(ValueError, match="weights"):
         biased_cross_bilateral(bm, ref, weights=np.ones((h, w + 1)))
+
+
+def test_a_registered_confidence_estimator_drives_the_pipeline(monkeypatch, blurry_mosaic):
+    """The confidence is a registry capability: an estimator registered in MEASURE_CONFIDENCE (here a
+    test one, half of whose measures weigh 0.05) has its confidence reach both later stages."""
+    import method.blur_estimators as be
+    from method.pipeline import blur_stage, edges_stage
+
+    def fit(gray, edge_map, *, params):
+        return be.estimate_blur(gray, edge_map, params=params, method="model_fit")
+
+    def fit_with_confidence(gray, edge_map, *, params):
+        sigma = fit(gray, edge_map, params=params)
+        conf = np.where(np.arange(sigma.size).reshape(sigma.shape) % 2 == 0, 1.0, 0.05)
+        return sigma, np.where(np.isfinite(sigma), conf, np.nan)
+
+    monkeypatch.setitem(be.BLUR_ESTIMATORS, "halved", fit)
+    monkeypatch.setitem(be.MEASURE_CONFIDENCE, "halved", (fit_with_confidence, lambda params: True))
+    m = blurry_mosaic
+    p = DefocusParams(estimator="halved")
+    assert uses_measure_confidence(p) and not uses_measure_confidence(DefocusParams(estimator="model_fit"))
+    gray = luminance(m.image)
+    sparse, conf, _ = blur_stage(gray, edges_stage(gray, params=p), params=p)
+    assert set(np.unique(conf[np.isfinite(conf)])) == {0.05, 1.0}
+    r = estimate_defocus_map(m.image, p)
+    np.testing.assert_array_equal(r.measure_confidence, conf)
+    np.testing.assert_array_equal(r.sparse_sigma, estimate_defocus_map(m.image, DefocusParams()).sparse_sigma)
+    rgb = np.asarray(m.image, dtype=np.float64)
+    rgb = rgb if rgb.ndim == 3 else np.repeat(rgb[..., None], 3, axis=2)
+    np.testing.assert_array_equal(r.refined_sigma, refine_stage(sparse, rgb, params=p, confidence=conf))
+    assert not np.array_equal(r.refined_sigma, refine_stage(sparse, rgb, params=p))  # it did weigh

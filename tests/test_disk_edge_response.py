@@ -177,3 +177,25 @@ def test_gaussian_model_is_the_paper_fit_bit_for_bit():
     np.testing.assert_array_equal(g["window"], d["window"])
     np.testing.assert_array_equal(g["energy"], d["energy"])
     assert np.nanmax(np.abs(g["width"] - d["width"])) > 0.05
+
+
+@pytest.mark.parametrize("s_prime, sig_p, t0", [(1.5, 1.0, 0.0), (4.0, 0.6, 0.3), (9.0, 2.0, -0.45), (2.05, 2.0, 0.1)])
+def test_fit_kernel_disk_score_matches_the_public_response(s_prime, sig_p, t0):
+    """The fit's fast template scoring (blur_model_fit._score_disk) against templates from
+    disk_step_response: (r·m)²/(m·m) over the window, m(k) = r_disk(k − t0; R', σ')."""
+    from method.blur_model_fit import _score_disk
+    from method.disk_edge_response import _response_table
+
+    K = 20
+    rng = np.random.default_rng(3)
+    r = rng.standard_normal(2 * K + 1)
+    a, b = -12, 15
+    radius = 2.0 * math.sqrt(s_prime ** 2 - sig_p ** 2)
+    k = np.arange(a, b + 1, dtype=np.float64)
+    m = disk_step_response(k - t0, radius=radius, sigma2=sig_p)
+    dot = float(np.dot(r[k.astype(int) + K], m))
+    want = dot * dot / float(np.dot(m, m)) if dot > 0 else 0.0
+    got = _score_disk(r, a, b, K, s_prime, t0, sig_p, *_response_table())
+    assert got == pytest.approx(want, rel=1e-9, abs=1e-12)
+    got_neg = _score_disk(-r, a, b, K, s_prime, t0, sig_p, *_response_table())  # A > 0 constraint
+    assert (got_neg == 0.0) == (dot > 0)

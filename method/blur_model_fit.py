@@ -8,6 +8,10 @@ Across a step of amplitude A blurred by σb, the response to the 2nd-derivative 
 with t the signed distance from the edge along the gradient direction; d is the distance between
 its two extrema. The paper fits this model by brute force over d to the responses in a window
 around the edge pixel, along the gradient direction, using both the bright and the dark side.
+
+Beyond the paper, ``DefocusParams.fit_psf`` (:data:`FIT_PSF_MODELS`) can also fit, on the same
+window and with the same search, the response of a step blurred by a uniform disk — a thin lens's
+defocus, :mod:`method.disk_edge_response` — whose second moment gives σb through the same Eq. (2d).
 """
 
 from __future__ import annotations
@@ -405,6 +409,11 @@ def estimate_blur_model_fit(gray, edge_map, *, params):
        says is unreliable; for a clean edge both give the same A.
     5. Parabolic refinement of the error over log s'; s = s'·proj; σb = √(s² − σ2²) (Eq. 2d),
        clipped to [0, max_sigma].
+    6. Beyond the paper, ``params.fit_psf`` ≠ "gaussian": steps 4–5 again with the disk-blurred
+       templates at filter scale σ' = σ2/proj, the coarse pass limited to s' within [s'_G/2,
+       1.25 s'_G] of the Gaussian optimum s'_G; "disk" keeps those fits, "best" the smaller
+       residual per edge, "auto" one model per image (:func:`select_psf_model`, decided on a sample
+       of at most :data:`PSF_SELECT_SAMPLE` resolved edges; the disk is then fitted on the rest).
     """
     if _paper_rules(params):
         return _model_fit_with_residual(gray, edge_map, params=params)[0]

@@ -546,8 +546,8 @@ def _model_fit_diagnostics(gray, edge_map, *, params):
     if psf not in FIT_PSF_MODELS:
         raise ValueError(f"fit_psf={psf!r} is invalid; allowed: {list(FIT_PSF_MODELS)}")
     disk_table = _response_table() if psf != "gaussian" else _EMPTY_DISK_TABLE
-    disk_width = np.full(img.shape, np.nan)
-    disk_res = np.full(img.shape, np.nan)
+    disk_width = np.full(img.shape, np.nan) if psf != "gaussian" else None
+    disk_res = np.full(img.shape, np.nan) if psf != "gaussian" else None
     edge_map = fit_scales(edge_map, params=params)
     groups = edge_pixels_by_scale(edge_map)
     if not groups:
@@ -558,7 +558,8 @@ def _model_fit_diagnostics(gray, edge_map, *, params):
     bank = None
     theta = np.asarray(edge_map.theta, dtype=np.float64)
     # "disk" and "best" fit the disk model on every edge in the same pass; "auto" fits it first on a
-    # sample of the edges that can decide (select_psf_model), and on all edges only if it chose it
+    # sample of the edges that can decide (select_psf_model), and on all edges only if it chose it;
+    # "gaussian" (the paper) keeps no disk state
     first_min_width = 0.0 if psf in ("disk", "best") else -1.0
     fitted = []
     for sigma2, rows, cols in groups:
@@ -581,9 +582,11 @@ def _model_fit_diagnostics(gray, edge_map, *, params):
         width[rows, cols] = s_est
         energy[rows, cols] = e_est
         s2_map[rows, cols] = sigma2
-        disk_width[rows, cols] = sd_est
-        disk_res[rows, cols] = rd_est
-        fitted.append((sigma2, rows, cols, th, (ixx, ixy, iyy)))
+        if psf != "gaussian":
+            disk_width[rows, cols] = sd_est
+            disk_res[rows, cols] = rd_est
+        if psf == "auto":
+            fitted.append((sigma2, rows, cols, th, (ixx, ixy, iyy)))
 
     def fit_disk(select):  # disk fits on the edge pixels where select(group's rows, cols) is True
         for sigma2, rows, cols, th, hessian in fitted:
@@ -596,7 +599,8 @@ def _model_fit_diagnostics(gray, edge_map, *, params):
                 disk_res[rr, cc] = rd_est
 
     if psf == "auto":
-        fit_disk(lambda rr, cc: _psf_selection_sample(width, s2_map)[rr, cc])
+        sample = _psf_selection_sample(width, s2_map)
+        fit_disk(lambda rr, cc: sample[rr, cc])
         if select_psf_model(diag, disk_width, disk_res) == "disk":
             fit_disk(lambda rr, cc: np.isfinite(width[rr, cc]) & ~np.isfinite(disk_width[rr, cc]))
             _choose_psf(diag, disk_width, disk_res, psf="disk", max_sigma=float(params.max_sigma))

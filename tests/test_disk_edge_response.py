@@ -160,7 +160,7 @@ def test_best_takes_the_smaller_residual_per_edge():
     b = _model_fit_diagnostics(img, em, params=robust.replace(fit_psf="best"))
     ok = np.isfinite(g["residual"]) & np.isfinite(d["residual"])
     np.testing.assert_array_equal(b["residual"][ok], np.minimum(g["residual"], d["residual"])[ok])
-    assert b["disk"][ok].any() and not b["disk"][ok].all() or b["disk"][ok].all()
+    assert b["disk"][ok].any()  # on a disk-blurred step the disk fits some edges better
     np.testing.assert_array_equal(b["width"][ok & b["disk"]], d["width"][ok & b["disk"]])
 
 

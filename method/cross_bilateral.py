@@ -14,6 +14,7 @@ into one 3-D (x, y, C_i) bilateral problem per channel whose numerators and deno
 from __future__ import annotations
 
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
@@ -25,6 +26,19 @@ __all__ = ["BILATERAL_METHODS", "biased_cross_bilateral", "sharpness_bias"]
 
 #: Bilateral-grid cell size as a fraction of the corresponding σ (spatial and range axes).
 GRID_CELL_PER_SIGMA = 1.0 / 3.0
+#: Threads that blur / slice the grids (scipy.ndimage releases the GIL). Each grid is processed by
+#: one thread with the same calls as serially, and the results are combined in a fixed order, so
+#: the output does not depend on this number (tested). 2 = this project's reference machine.
+GRID_THREADS = 2
+
+
+def _map_in_threads(fn, items):
+    """``[fn(x) for x in items]`` on :data:`GRID_THREADS` threads, results in item order."""
+    items = list(items)
+    if GRID_THREADS <= 1 or len(items) <= 1:
+        return [fn(x) for x in items]
+    with ThreadPoolExecutor(max_workers=min(GRID_THREADS, len(items))) as pool:
+        return list(pool.map(fn, items))
 
 
 def sharpness_bias(blur_measure, *, scale=2.0) -> np.ndarray:
@@ -78,8 +92,6 @@ def _grid(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, cell=GRID_CELL_
     Splat and slice are both trilinear, which widens the effective kernel by a tent ⊛ tent of
     variance h²/3 per axis (h = cell size); the grid blur uses √(σ² − h²/3) to compensate.
     """
-    num = np.zeros(len(values))
-    den = np.zeros(len(values))
     hs, hr = cell * sigma_s, cell * sigma_r
     blur_s = np.sqrt(max(sigma_s**2 - hs**2 / 3, 0.0)) / hs
     blur_r = np.sqrt(max(sigma_r**2 - hr**2 / 3, 0.0)) / hr
@@ -87,7 +99,8 @@ def _grid(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, cell=GRID_CELL_
     gx = xs / hs
     ny = int(np.floor(gy.max())) + 2
     nx = int(np.floor(gx.max())) + 2
-    for i in range(colors.shape[1]):
+
+    def channel(i):  # (numerator, denominator) sliced at the points, for channel i
         c0 = colors[:, i].min()
         gc = (colors[:, i] - c0) / hr
         nc = int(np.floor(gc.max())) + 2
@@ -105,8 +118,14 @@ def _grid(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, cell=GRID_CELL_
         sig = (blur_s, blur_s, blur_r)
         grid_n = ndimage.gaussian_filter(grid_n.reshape(ny, nx, nc), sig, mode="constant", truncate=4.0)
         grid_d = ndimage.gaussian_filter(grid_d.reshape(ny, nx, nc), sig, mode="constant", truncate=4.0)
-        num += ndimage.map_coordinates(grid_n, coords, order=1, mode="nearest")
-        den += ndimage.map_coordinates(grid_d, coords, order=1, mode="nearest")
+        return (ndimage.map_coordinates(grid_n, coords, order=1, mode="nearest"),
+                ndimage.map_coordinates(grid_d, coords, order=1, mode="nearest"))
+
+    num = np.zeros(len(values))
+    den = np.zeros(len(values))
+    for n_i, d_i in _map_in_threads(channel, range(colors.shape[1])):  # summed in channel order
+        num += n_i
+        den += d_i
     return num / den
 
 
@@ -150,11 +169,146 @@ def _splat_multilinear(base, frac, dims, wv, bias, grid_n, grid_d):
             grid_d[idx] += wgt * bias[j]
 
 
+#: Columns per parallel work item of :func:`_blur_axis_pair` (the trailing axes of one block).
+_BLUR_CHUNK = 256
+
+
+def gaussian_taps(sigma, truncate):
+    """Normalised sampled Gaussian exp(−x²/2σ²), x = −r … r, r = int(truncate·σ + ½) (scipy's rule)."""
+    r = int(float(truncate) * float(sigma) + 0.5)
+    x = np.arange(-r, r + 1, dtype=np.float64)
+    taps = np.exp(-0.5 * (x / float(sigma)) ** 2)
+    return taps / taps.sum()
+
+
+@numba.njit(cache=True, parallel=True)
+def _blur_axis_pair(src_n, src_d, dst_n, dst_d, outer, n, inner, taps):
+    """One separable pass along the middle axis of two (outer, n, inner) arrays, zero outside.
+
+    Work items are (outer block, chunk of ≤ :data:`_BLUR_CHUNK` inner columns) and run in parallel;
+    an item whose input is all zero (most of a sparsely splatted grid) writes zeros and is skipped.
+    Every output is Σ_j taps[j − i + r]·src[j] summed in ascending j, so the result does not
+    depend on the number of threads.
+    """
+    r = (len(taps) - 1) // 2
+    nch = (inner + _BLUR_CHUNK - 1) // _BLUR_CHUNK
+    for q in numba.prange(outer * nch):
+        a = q // nch
+        b0 = (q % nch) * _BLUR_CHUNK
+        b1 = min(inner, b0 + _BLUR_CHUNK)
+        base = a * n * inner
+        empty = True
+        for i in range(n):
+            row = base + i * inner
+            for b in range(b0, b1):
+                if src_n[row + b] != 0.0 or src_d[row + b] != 0.0:
+                    empty = False
+                    break
+            if not empty:
+                break
+        for i in range(n):
+            row = base + i * inner
+            for b in range(b0, b1):
+                dst_n[row + b] = 0.0
+                dst_d[row + b] = 0.0
+        if empty:
+            continue
+        if inner == 1:  # a contiguous line: scalar accumulators
+            for i in range(n):
+                acc_n = 0.0
+                acc_d = 0.0
+                for j in range(max(0, i - r), min(n - 1, i + r) + 1):
+                    wgt = taps[j - i + r]
+                    acc_n += wgt * src_n[base + j]
+                    acc_d += wgt * src_d[base + j]
+                dst_n[base + i] = acc_n
+                dst_d[base + i] = acc_d
+            continue
+        for i in range(n):
+            row = base + i * inner
+            for j in range(max(0, i - r), min(n - 1, i + r) + 1):
+                wgt = taps[j - i + r]
+                src_row = base + j * inner
+                for b in range(b0, b1):
+                    dst_n[row + b] += wgt * src_n[src_row + b]
+                    dst_d[row + b] += wgt * src_d[src_row + b]
+
+
+def _gaussian_blur_pair(grid_n, grid_d, dims, sigmas, truncate):
+    """Separable Gaussian blur (zero outside) of two flat grids of shape ``dims``; returns both.
+
+    The same kernel as ``scipy.ndimage.gaussian_filter(…, mode="constant", truncate=truncate)``
+    (equal to ~1e-15 relative; tested), last axis first, so the first passes over a sparsely
+    splatted grid skip its empty blocks; a σ of 0 skips that axis. Measured on robust's 5-D product
+    grid of the 512² bench image (2.6·10⁶ cells, 2 % occupied after the splat), four passes for
+    both grids: 0.17 s on 2 cores, against 0.145 s *per grid* for scipy's single-threaded
+    ``gaussian_filter``. (float32 would save another 0.03 s but leaves ~1e-6 px of round-off on a
+    constant field, which the tests hold to 1e-9.)
+    """
+    src_n = np.array(grid_n, dtype=np.float64).ravel()  # copies: the inputs are left as they are
+    src_d = np.array(grid_d, dtype=np.float64).ravel()
+    dst_n = np.empty_like(src_n)
+    dst_d = np.empty_like(src_d)
+    for axis in range(len(dims) - 1, -1, -1):
+        if sigmas[axis] == 0:  # no blur along this axis (e.g. already applied while splatting)
+            continue
+        outer = int(np.prod(dims[:axis], dtype=np.int64))
+        inner = int(np.prod(dims[axis + 1:], dtype=np.int64))
+        _blur_axis_pair(src_n, src_d, dst_n, dst_d, outer, int(dims[axis]), inner,
+                        gaussian_taps(sigmas[axis], truncate))
+        src_n, dst_n = dst_n, src_n
+        src_d, dst_d = dst_d, src_d
+    return src_n.reshape(dims), src_d.reshape(dims)
+
+
+@numba.njit(cache=True)
+def _splat_blurred_last(base, frac, dims, wv, bias, taps, grid_n, grid_d):
+    """:func:`_splat_multilinear` followed by the Gaussian pass along the last axis, in one scatter.
+
+    Each point adds its multilinear corner weights over the first d − 1 axes times, along the last
+    axis, its two tent weights spread by ``taps`` (zero outside the grid, as ``mode="constant"``):
+    2^(d−1)·2·len(taps) cells per point instead of a pass over every cell of a mostly empty grid.
+    One serial pass in point order, so the sums do not depend on the machine.
+    """
+    nd, m = base.shape
+    r = (len(taps) - 1) // 2
+    nlast = dims[nd - 1]
+    strides = np.empty(nd, dtype=np.int64)
+    acc = 1
+    for k in range(nd - 1, -1, -1):
+        strides[k] = acc
+        acc *= dims[k]
+    for j in range(m):
+        f_last = frac[nd - 1, j]
+        c_last = base[nd - 1, j]
+        for corner in range(1 << (nd - 1)):
+            wgt = 1.0
+            idx = 0
+            for k in range(nd - 1):
+                bit = (corner >> (nd - 2 - k)) & 1
+                f = frac[k, j]
+                wgt *= f if bit == 1 else 1.0 - f
+                idx += (base[k, j] + bit) * strides[k]
+            for t in range(-r, r + 2):  # cells c_last + t, fed by the tent corner c_last (t ≤ r) and c_last + 1 (t ≥ 1 − r)
+                c = c_last + t
+                if c < 0 or c >= nlast:
+                    continue
+                lw = 0.0
+                if t <= r:
+                    lw += (1.0 - f_last) * taps[t + r]
+                if t >= 1 - r:
+                    lw += f_last * taps[t - 1 + r]
+                grid_n[idx + c] += wgt * lw * wv[j]
+                grid_d[idx + c] += wgt * lw * bias[j]
+
+
 def _grid_product(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, cell=GRID_CELL_PER_SIGMA_PRODUCT):
     """Bilateral grid over (y, x, C_1, …, C_n) for the product kernel: multilinear splat/slice.
 
-    The splat is one numba pass (:func:`_splat_multilinear`); with 2⁵ corners per point into a
-    grid of ~3·10⁶ cells, per-corner ``np.bincount`` calls cost ~0.5 s at any image size.
+    The splat is one numba pass that also applies the blur along the last axis
+    (:func:`_splat_blurred_last`; per-corner ``np.bincount`` calls into a grid of ~3·10⁶ cells cost
+    ~0.5 s at any image size); the other axes are blurred by :func:`_gaussian_blur_pair`. At 512²
+    (bench image, robust preset) this is 0.28 s → 0.18 s for the whole Eq. (3) stage.
     """
     hs, hr = cell * sigma_s, cell * sigma_r
     blur_s = np.sqrt(max(sigma_s**2 - hs**2 / 3, 0.0)) / hs
@@ -168,14 +322,13 @@ def _grid_product(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, cell=GR
     grid_n = np.zeros(size)
     grid_d = np.zeros(size)
     nd = coords.shape[0]
-    _splat_multilinear(base, np.ascontiguousarray(frac), np.asarray(dims, dtype=np.int64),
-                       np.ascontiguousarray(bias * values, dtype=np.float64),
-                       np.ascontiguousarray(bias, dtype=np.float64), grid_n, grid_d)
     sig = (blur_s, blur_s) + (blur_r,) * (nd - 2)
-    grid_n = ndimage.gaussian_filter(grid_n.reshape(dims), sig, mode="constant", truncate=3.0)
-    grid_d = ndimage.gaussian_filter(grid_d.reshape(dims), sig, mode="constant", truncate=3.0)
-    num = ndimage.map_coordinates(grid_n, coords, order=1, mode="nearest")
-    den = ndimage.map_coordinates(grid_d, coords, order=1, mode="nearest")
+    _splat_blurred_last(base, np.ascontiguousarray(frac), np.asarray(dims, dtype=np.int64),
+                        np.ascontiguousarray(bias * values, dtype=np.float64),
+                        np.ascontiguousarray(bias, dtype=np.float64), gaussian_taps(sig[-1], 3.0), grid_n, grid_d)
+    grid_n, grid_d = _gaussian_blur_pair(grid_n, grid_d, dims, sig[:-1] + (0.0,), truncate=3.0)
+    num, den = _map_in_threads(lambda g: ndimage.map_coordinates(g, coords, order=1, mode="nearest"),
+                               (grid_n, grid_d))
     return num / den
 
 

@@ -226,3 +226,81 @@ def test_bad_robust_and_kernel_options_raise(rng, bad):
     bm, ref = _case(rng, 20, 20)
     with pytest.raises(ValueError, match=next(iter(bad))):
         biased_cross_bilateral(bm, ref, **bad)
+
+
+# --- the product grid's fast kernels against scipy (their oracle) ---------------------------------
+from scipy import ndimage  # noqa: E402
+
+import method.cross_bilateral as cbf  # noqa: E402
+
+
+def _sparse_grid(rng, dims, fill=0.03):
+    g = np.zeros(int(np.prod(dims)))
+    idx = rng.choice(g.size, max(1, int(fill * g.size)), replace=False)
+    g[idx] = rng.random(len(idx))
+    return g
+
+
+@pytest.mark.parametrize("dims, sigmas", [((9, 11, 7), (1.2, 0.8, 1.5)), ((6, 7, 5, 6, 5), (1.2,) * 5),
+                                          ((300,), (2.0,)), ((5, 600), (1.0, 1.3))])
+def test_blur_pair_is_scipy_gaussian_filter(rng, dims, sigmas):
+    gn, gd = _sparse_grid(rng, dims), _sparse_grid(rng, dims)
+    keep_n, keep_d = gn.copy(), gd.copy()
+    got_n, got_d = cbf._gaussian_blur_pair(gn, gd, dims, sigmas, truncate=3.0)
+    for got, src in ((got_n, gn), (got_d, gd)):
+        want = ndimage.gaussian_filter(src.reshape(dims), sigmas, mode="constant", truncate=3.0)
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * want.max())
+    assert np.array_equal(gn, keep_n) and np.array_equal(gd, keep_d)  # inputs untouched
+
+
+def test_blur_pair_sigma_zero_skips_that_axis(rng):
+    dims, sig = (8, 9, 10), (1.1, 0.0, 1.4)
+    g = _sparse_grid(rng, dims)
+    got, _ = cbf._gaussian_blur_pair(g, g, dims, sig, truncate=3.0)
+    want = ndimage.gaussian_filter1d(ndimage.gaussian_filter1d(g.reshape(dims), 1.4, axis=2, mode="constant",
+                                                               truncate=3.0), 1.1, axis=0, mode="constant", truncate=3.0)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-13 * want.max())
+
+
+def test_splat_blurred_last_is_splat_then_blur(rng):
+    """One scatter = the multilinear splat followed by the last axis's Gaussian pass (zero outside)."""
+    m, dims = 300, np.array([7, 8, 6, 12], dtype=np.int64)
+    coords = rng.random((4, m)) * (dims[:, None] - 1.0001)
+    coords[3, :5] = [0.0, 0.2, 10.9, 10.99, 5.5]  # points at both ends of the blurred axis
+    base = np.floor(coords).astype(np.int64)
+    frac = np.ascontiguousarray(coords - base)
+    wv, bias = rng.random(m), rng.random(m) + 0.1
+    size = int(np.prod(dims))
+    n0, d0 = np.zeros(size), np.zeros(size)
+    cbf._splat_multilinear(base, frac, dims, wv, bias, n0, d0)
+    taps = cbf.gaussian_taps(1.3, 3.0)
+    n1, d1 = np.zeros(size), np.zeros(size)
+    cbf._splat_blurred_last(base, frac, dims, wv, bias, taps, n1, d1)
+    for got, plain in ((n1, n0), (d1, d0)):
+        want = ndimage.gaussian_filter1d(plain.reshape(tuple(dims)), 1.3, axis=-1, mode="constant", truncate=3.0)
+        np.testing.assert_allclose(got.reshape(tuple(dims)), want, rtol=0, atol=1e-13 * want.max())
+
+
+def test_gaussian_taps_are_scipys():
+    for sigma in (0.6, 1.2, 2.7):
+        impulse = np.zeros(41)
+        impulse[20] = 1.0
+        want = ndimage.gaussian_filter1d(impulse, sigma, mode="constant", truncate=3.0)
+        taps = cbf.gaussian_taps(sigma, 3.0)
+        r = (len(taps) - 1) // 2
+        np.testing.assert_allclose(want[20 - r:21 + r], taps, rtol=1e-12)
+        assert np.all(want[:20 - r] == 0) and np.all(want[21 + r:] == 0)
+
+
+@pytest.mark.parametrize("kernel", ["sum", "product"])
+def test_grid_threads_do_not_change_the_result(rng, kernel, monkeypatch):
+    """The grids are blurred on GRID_THREADS threads; the result is bit-identical to one thread."""
+    img = rng.random((48, 40, 3))
+    bm = np.full((48, 40), np.nan)
+    mask = rng.random((48, 40)) < 0.2
+    bm[mask] = rng.random(mask.sum()) * 4
+    monkeypatch.setattr(cbf, "GRID_THREADS", 1)
+    one = biased_cross_bilateral(bm, img, range_kernel=kernel)
+    monkeypatch.setattr(cbf, "GRID_THREADS", 2)
+    two = biased_cross_bilateral(bm, img, range_kernel=kernel)
+    assert np.array_equal(one, two, equal_nan=True)

@@ -178,7 +178,7 @@ def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageO
     gray = luminance(rgb)
     timings = {}
     t0 = time.perf_counter()
-    sparse, confidence, edge_map = blur_stage(gray, edges_stage(gray, params=params), params=params)
+    sparse, confidence, edge_map, _ = blur_stage(gray, edges_stage(gray, params=params), params=params)
     if not np.any(np.isfinite(sparse)):
         raise ValueError("no edge pixel found in the image; the α sweep needs edge measures")
     refined = refine_stage(sparse, rgb, params=params, confidence=confidence)

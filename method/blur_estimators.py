@@ -24,7 +24,11 @@ Two optional capabilities, each one more registry line:
 - an estimator that can weigh its own measures registers ``(fn_with_confidence, asks)`` in
   :data:`MEASURE_CONFIDENCE`: ``fn_with_confidence(gray, edge_map, *, params) -> (σ, c)`` with c in
   (0, 1] per measure, and ``asks(params) -> bool`` whether these ``params`` use it; the confidence
-  multiplies each measure's weight in Eq. (3) and its α_p in Eq. (4) (:mod:`method.pipeline`).
+  multiplies each measure's weight in Eq. (3) and its α_p in Eq. (4) (:mod:`method.pipeline`);
+- an estimator whose fit chooses the edge-response (PSF) model of ``DefocusParams.fit_psf`` registers
+  ``fn_with_psf(gray, edge_map, *, params) -> (σ, c or None, psf_disk)`` in :data:`FITS_PSF_MODEL`,
+  so :func:`estimate_blur_measures` (and ``DefocusResult.psf_disk``) can say which model measured
+  each edge.
 """
 
 from __future__ import annotations
@@ -34,14 +38,14 @@ from collections.abc import Callable
 import numpy as np
 
 from .blur_gradient_ratio import estimate_blur_gradient_ratio
-from .blur_model_fit import estimate_blur_model_fit
+from .blur_model_fit import estimate_blur_model_fit, estimate_blur_model_fit_psf
 from .blur_model_fit_checked import (estimate_blur_model_fit_checked, estimate_blur_model_fit_checked_confidence,
-                                     relaxed_confidence_used)
+                                     estimate_blur_model_fit_checked_psf, relaxed_confidence_used)
 from .blur_zero_crossing import estimate_blur_zero_crossing
 from .elder_zucker_edges import check_edge_inputs
 
-__all__ = ["BLUR_ESTIMATORS", "MEASURE_CONFIDENCE", "USES_DETECTOR_HESSIANS", "estimate_blur",
-           "estimate_blur_with_confidence", "uses_measure_confidence"]
+__all__ = ["BLUR_ESTIMATORS", "FITS_PSF_MODEL", "MEASURE_CONFIDENCE", "USES_DETECTOR_HESSIANS", "estimate_blur",
+           "estimate_blur_measures", "estimate_blur_with_confidence", "uses_measure_confidence"]
 
 #: name -> estimator fn(gray, edge_map, *, params) -> (H, W) float64 σ in px, NaN off edges.
 BLUR_ESTIMATORS: dict[str, Callable[..., np.ndarray]] = {
@@ -59,6 +63,21 @@ USES_DETECTOR_HESSIANS: frozenset[str] = frozenset({"model_fit", "model_fit_chec
 #: ``asks`` says whether ``params`` use that confidence. Every other estimator's measures weigh 1.
 MEASURE_CONFIDENCE: dict[str, tuple[Callable[..., tuple[np.ndarray, np.ndarray]], Callable[..., bool]]] = {
     "model_fit_checked": (estimate_blur_model_fit_checked_confidence, relaxed_confidence_used),
+}
+
+
+#: name -> fn(gray, edge_map, *, params) -> (σ, confidence or None, psf_disk): estimators of
+#: :data:`BLUR_ESTIMATORS` whose fit chooses its PSF model by ``params.fit_psf`` (Eq. 2c's Gaussian or
+#: the disk of :mod:`method.disk_edge_response`); ``psf_disk`` (bool, H x W) marks the measures fitted
+#: with the disk. σ (and the confidence, when :data:`MEASURE_CONFIDENCE` has one) equal the plain entries'.
+def _model_fit_with_psf(gray, edge_map, *, params):
+    sigma, psf_disk = estimate_blur_model_fit_psf(gray, edge_map, params=params)
+    return sigma, None, psf_disk  # the paper's fit weighs every measure 1
+
+
+FITS_PSF_MODEL: dict[str, Callable[..., tuple]] = {
+    "model_fit": _model_fit_with_psf,
+    "model_fit_checked": estimate_blur_model_fit_checked_psf,
 }
 
 
@@ -144,3 +163,46 @@ def estimate_blur_with_confidence(gray, edge_map, *, params):
     sigma[off] = np.nan
     conf = np.where(np.isfinite(sigma), conf, np.nan)
     return sigma, conf
+
+
+def estimate_blur_measures(gray, edge_map, *, params):
+    """σ at the edges, its confidence and which PSF model measured each edge, from one fit.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (H, W), float
+        Luminance in [0, 1].
+    edge_map : EdgeMap
+        Output of :func:`method.elder_zucker_edges.detect_edges` for ``gray``.
+    params : DefocusParams, keyword-only
+
+    Returns
+    -------
+    sigma, confidence
+        As :func:`estimate_blur_with_confidence` (bit-identical).
+    psf_disk : ndarray, shape (H, W), bool, or None
+        For estimators of :data:`FITS_PSF_MODEL`: True at the measures fitted with the disk-blurred
+        step (``params.fit_psf`` "disk", "best" or "auto"), False elsewhere (all False for
+        ``fit_psf="gaussian"``, the paper's Eq. 2c). None for estimators that fit no PSF model.
+
+    Notes
+    -----
+    With ``fit_psf="gaussian"`` or an estimator outside :data:`FITS_PSF_MODEL` this is
+    :func:`estimate_blur_with_confidence` (the paper's path is untouched); otherwise the registered
+    ``fn_with_psf`` runs once and its confidence is kept only when :func:`uses_measure_confidence`.
+    """
+    fn = FITS_PSF_MODEL.get(params.estimator)
+    if fn is None or params.fit_psf == "gaussian":
+        sigma, conf = estimate_blur_with_confidence(gray, edge_map, params=params)
+        return sigma, conf, None if fn is None else np.zeros(np.shape(sigma), dtype=bool)
+    img = check_edge_inputs(gray, edge_map)
+    sigma, conf, disk = fn(img, edge_map, params=params)
+    off = ~np.asarray(edge_map.edges, dtype=bool)
+    sigma = np.asarray(sigma, dtype=np.float64).copy()
+    sigma[off] = np.nan
+    finite = np.isfinite(sigma)
+    if conf is not None and uses_measure_confidence(params):
+        conf = np.where(finite, conf, np.nan)
+    else:
+        conf = None
+    return sigma, conf, np.asarray(disk, dtype=bool) & finite

@@ -34,6 +34,7 @@ __all__ = [
     "T0_GRID_STEP",
     "blur_from_extrema_distance",
     "estimate_blur_model_fit",
+    "estimate_blur_model_fit_psf",
     "response_model",
 ]
 
@@ -418,6 +419,22 @@ def estimate_blur_model_fit(gray, edge_map, *, params):
     if _paper_rules(params):
         return _model_fit_with_residual(gray, edge_map, params=params)[0]
     return apply_fit_rules(_model_fit_diagnostics(gray, edge_map, params=params), params=params)
+
+
+def estimate_blur_model_fit_psf(gray, edge_map, *, params):
+    """:func:`estimate_blur_model_fit` plus, from the same fit, which measures used the disk model.
+
+    Returns
+    -------
+    sigma_b : ndarray, shape (H, W), float64
+        Identical to :func:`estimate_blur_model_fit`.
+    psf_disk : ndarray, shape (H, W), bool
+        True at the measures (finite ``sigma_b``) fitted with the disk-blurred step
+        (``params.fit_psf``); False elsewhere (all False for ``fit_psf="gaussian"``, the paper).
+    """
+    diagnostics = _model_fit_diagnostics(gray, edge_map, params=params)
+    sigma_b = apply_fit_rules(diagnostics, params=params)
+    return sigma_b, diagnostics["disk"] & np.isfinite(sigma_b)
 
 
 def _paper_rules(params) -> bool:

@@ -17,8 +17,9 @@ import numpy as np
 
 from .blur_model_fit import _model_fit_diagnostics, _paper_rules, apply_fit_rules
 
-__all__ = ["estimate_blur_model_fit_checked", "estimate_blur_model_fit_checked_confidence", "noise_residual_share",
-           "relaxed_confidence_used", "steered_second_noise_variance"]
+__all__ = ["estimate_blur_model_fit_checked", "estimate_blur_model_fit_checked_confidence",
+           "estimate_blur_model_fit_checked_psf", "noise_residual_share", "relaxed_confidence_used",
+           "steered_second_noise_variance"]
 
 
 @functools.lru_cache(maxsize=32)
@@ -170,7 +171,27 @@ def estimate_blur_model_fit_checked_confidence(gray, edge_map, *, params):
     so the relaxed measures (fits of blurry edges, but also of in-focus low-contrast edges fitted
     too wide) decide the map only where no strict measure is near. The fit runs once.
     """
+    return _checked(_model_fit_diagnostics(gray, edge_map, params=params), params)
+
+
+def estimate_blur_model_fit_checked_psf(gray, edge_map, *, params):
+    """:func:`estimate_blur_model_fit_checked_confidence` plus, from the same fit, which measures used the disk.
+
+    Returns
+    -------
+    sigma_b, confidence : ndarray, shape (H, W), float64
+        As :func:`estimate_blur_model_fit_checked_confidence`.
+    psf_disk : ndarray, shape (H, W), bool
+        True at the measures (finite ``sigma_b``) whose edge response was fitted with the disk model
+        (``params.fit_psf``: :func:`method.blur_model_fit.select_psf_model`); False elsewhere.
+    """
     diagnostics = _model_fit_diagnostics(gray, edge_map, params=params)
+    sigma_b, confidence = _checked(diagnostics, params)
+    return sigma_b, confidence, diagnostics["disk"] & np.isfinite(sigma_b)
+
+
+def _checked(diagnostics, params):
+    """(σb, confidence) of the checked fit from the model fit's diagnostics (Notes of the estimator)."""
     sigma_b, residual = diagnostics["sigma_b"], diagnostics["residual"]
     if not _paper_rules(params):  # the beyond-the-paper plausibility rules (robust preset) first
         sigma_b = apply_fit_rules(diagnostics, params=params)

@@ -19,7 +19,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .blur_estimators import USES_DETECTOR_HESSIANS, estimate_blur_with_confidence
+from .blur_estimators import USES_DETECTOR_HESSIANS, estimate_blur_measures
 from .cross_bilateral import biased_cross_bilateral
 from .elder_zucker_edges import EdgeMap, detect_edges
 from .luma import LUMA_WEIGHTS, luminance  # noqa: F401 (LUMA_WEIGHTS re-exported)
@@ -54,6 +54,23 @@ class DefocusResult:
     measure_confidence: np.ndarray | None = None
     # float64 HxW per-measure confidence c_q in (0, 1] (params.relaxed_fit_weight for measures admitted
     # by the fit's noise allowance only, 1 otherwise; NaN off measures), or None when every c_q = 1.
+    psf_disk: np.ndarray | None = None
+    # bool HxW: True at the measures whose edge response was fitted with the disk PSF model of a thin
+    # lens (params.fit_psf "disk", "best", or "auto" when it chose the disk), False at the other
+    # pixels; None when params.estimator fits no PSF model (method.blur_estimators.FITS_PSF_MODEL).
+
+    @property
+    def psf_model(self) -> str | None:
+        """Which edge-response model measured the blur: "gaussian" (Eq. 2c), "disk", "mixed" or None.
+
+        "mixed" when some measures used each model (``fit_psf="best"``); "gaussian" also when there
+        are no measures; None when the estimator fits no PSF model.
+        """
+        if self.psf_disk is None:
+            return None
+        n_disk = int(np.count_nonzero(self.psf_disk))
+        n = int(np.count_nonzero(np.isfinite(self.sparse_sigma)))
+        return "gaussian" if n_disk == 0 else "disk" if n_disk == n else "mixed"
 
 
 def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] | None = None) -> DefocusResult:
@@ -123,7 +140,7 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
     done("edges", t)
 
     t = stage("blur_at_edges")
-    sparse, confidence, edge_map = blur_stage(gray, edge_map, params=params)
+    sparse, confidence, edge_map, psf_disk = blur_stage(gray, edge_map, params=params)
     done("blur_at_edges", t)
 
     shape = gray.shape
@@ -140,7 +157,7 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
         return DefocusResult(
             edges=edge_map.edges.copy(), sparse_sigma=sparse, refined_sigma=np.full(shape, np.nan),
             defocus_map=np.zeros(shape), edge_map=edge_map, timings=timings, params=params,
-            cpu_timings=cpu, measure_confidence=confidence,
+            cpu_timings=cpu, measure_confidence=confidence, psf_disk=psf_disk,
         )
 
     t = stage("cross_bilateral")
@@ -155,7 +172,7 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
     return DefocusResult(
         edges=edge_map.edges.copy(), sparse_sigma=sparse, refined_sigma=refined,
         defocus_map=dense, edge_map=edge_map, timings=timings, params=params, cpu_timings=cpu,
-        measure_confidence=confidence,
+        measure_confidence=confidence, psf_disk=psf_disk,
     )
 
 
@@ -199,10 +216,13 @@ def blur_stage(gray, edge_map, *, params):
         Per-measure confidence (:func:`method.blur_estimators.estimate_blur_with_confidence`).
     edge_map : EdgeMap
         ``edge_map`` without its 2nd-derivative responses (~12 MB per σ2 at 1 MP, not kept).
+    psf_disk : ndarray, shape (H, W), bool, or None
+        Measures fitted with the disk PSF model (``params.fit_psf``); None when the estimator fits
+        no PSF model (:func:`method.blur_estimators.estimate_blur_measures`).
     """
-    sparse, confidence = estimate_blur_with_confidence(gray, edge_map, params=params)
+    sparse, confidence, psf_disk = estimate_blur_measures(gray, edge_map, params=params)
     sparse = np.where(edge_map.edges, np.asarray(sparse, dtype=np.float64), np.nan)
-    return sparse, confidence, dataclasses.replace(edge_map, hessians=None)
+    return sparse, confidence, dataclasses.replace(edge_map, hessians=None), psf_disk
 
 
 def refine_stage(sparse_sigma, rgb, *, params, confidence=None) -> np.ndarray:

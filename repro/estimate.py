@@ -305,7 +305,10 @@ def _build_map(folder: Path, working, params, progress, preset=None) -> None:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     with open(folder / "map.npy", "wb") as fh:
         np.save(fh, np.ascontiguousarray(result.defocus_map, dtype=np.float64), allow_pickle=False)
-    meta = {"no_edges": no_edges, "edge_pixels": int(result.edges.sum()),
+    n_measures = int(np.count_nonzero(np.isfinite(result.sparse_sigma)))
+    meta = {"no_edges": no_edges, "edge_pixels": int(result.edges.sum()), "measures": n_measures,
+            "psf_model": result.psf_model,  # "gaussian" / "disk" / "mixed" / None (DefocusResult.psf_model)
+            "psf_disk_measures": None if result.psf_disk is None else int(np.count_nonzero(result.psf_disk)),
             "timings_s": {k: float(v) for k, v in result.timings.items()},
             "preset": preset}  # informational: the name it was built under (the key holds the params)
     (folder / "meta.json").write_text(json.dumps(meta, indent=1, sort_keys=True))
@@ -346,7 +349,9 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
         σ in px of the full-resolution photo.
     info : dict
         ``scale``, ``working_shape``, ``no_edges``, ``cached`` (reused an existing entry),
-        ``preset`` (as given).
+        ``preset`` (as given), ``measures`` (edge pixels with a blur measure), ``psf_model`` and
+        ``psf_disk_measures`` (:attr:`method.pipeline.DefocusResult.psf_model`; None when the
+        estimator fits no PSF model).
     """
     from method.upsampling import downscale_image, upsample_defocus_map, working_shape
     from scenes.backend import cache_root
@@ -395,7 +400,8 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
     else:
         sigma = m
     return sigma, {"scale": scale, "working_shape": (h, w), "no_edges": bool(meta["no_edges"]),
-                   "cached": not built, "preset": preset}
+                   "cached": not built, "preset": preset, "psf_model": meta.get("psf_model"),
+                   "measures": meta.get("measures"), "psf_disk_measures": meta.get("psf_disk_measures")}
 
 
 def write_map_preview(path, sigma) -> Path:
@@ -444,6 +450,24 @@ def write_map(path, sigma) -> Path:
     if path.suffix.lower() == ".png":
         return write_map_preview(path, sigma)
     return write_defocus_map(path, sigma)
+
+
+def psf_line(info, params) -> str | None:
+    """'blur model at the edges: …' for the terminal: which PSF model the fit used (None: no model fit).
+
+    ``params.fit_psf="auto"`` (the robust preset) chooses one model per image: the thin lens's
+    uniform disk, or the paper's Gaussian of Eq. (2c).
+    """
+    model = info.get("psf_model")
+    if model is None:
+        return None
+    how = {"auto": "chosen for this photo by fit_psf='auto'", "gaussian": "fit_psf='gaussian'",
+           "disk": "fit_psf='disk'", "best": "per edge, fit_psf='best'"}.get(params.fit_psf, f"fit_psf={params.fit_psf!r}")
+    if model == "mixed":
+        share = info["psf_disk_measures"] / max(info["measures"], 1)
+        return f"blur model at the edges: disk at {share:.0%} of the measures, Gaussian at the rest ({how})"
+    text = "uniform disk (a thin lens's defocus)" if model == "disk" else "Gaussian, Eq. (2c) of the paper"
+    return f"blur model at the edges: {text} ({how})"
 
 
 def map_summary(sigma) -> str:
@@ -506,6 +530,8 @@ def main(argv=None) -> int:
     if info["no_edges"]:
         print(f"{PROG}: warning: no edges found above the noise thresholds; the defocus map is all zeros",
               file=sys.stderr)
+    if (line := psf_line(info, params)) is not None:
+        note(PROG, line, quiet=args.quiet)
     note(PROG, f"{map_summary(sigma)}", quiet=args.quiet)
     print(out)
     return 0

@@ -45,6 +45,7 @@ from repro.estimate import (
     map_summary,
     note,
     preset_line,
+    psf_line,
     write_map,
 )
 
@@ -169,6 +170,8 @@ def main(argv=None) -> int:
     if info["no_edges"]:
         print(f"{PROG}: warning: no edges found above the noise thresholds; the defocus map is all zeros, "
               "so the photo is unchanged", file=sys.stderr)
+    if (line := psf_line(info, params)) is not None:
+        note(PROG, line, quiet=args.quiet)
     note(PROG, f"defocus map {map_summary(sigma)}; factor {factor:g}, {args.kernel} kernel, {floor} floor", quiet=args.quiet)
     print(out)
     return 0

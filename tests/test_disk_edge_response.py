@@ -199,3 +199,55 @@ def test_fit_kernel_disk_score_matches_the_public_response(s_prime, sig_p, t0):
     assert got == pytest.approx(want, rel=1e-9, abs=1e-12)
     got_neg = _score_disk(-r, a, b, K, s_prime, t0, sig_p, *_response_table())  # A > 0 constraint
     assert (got_neg == 0.0) == (dot > 0)
+
+
+# --- which model measured the edges: estimate_blur_measures and DefocusResult.psf_model ------------
+
+@pytest.mark.parametrize("fit_psf", sorted(FIT_PSF_MODELS))
+def test_blur_measures_equal_the_plain_estimator_and_mark_the_disk(fit_psf):
+    """σ and confidence of estimate_blur_measures are bit-identical to estimate_blur_with_confidence;
+    psf_disk marks exactly the measures whose fit used the disk (the fit's own diagnostics)."""
+    from method.blur_estimators import estimate_blur_measures
+
+    img = _blurred_step(3.0, "disk")
+    params = DefocusParams.preset("robust", fit_psf=fit_psf)
+    em = detect_edges(img, noise_std=params.noise_std, keep_hessians=True)
+    sigma, conf, disk = estimate_blur_measures(img, em, params=params)
+    want_s, want_c = estimate_blur_with_confidence(img, em, params=params)
+    np.testing.assert_array_equal(sigma, want_s)
+    np.testing.assert_array_equal(conf, want_c)
+    diag = _model_fit_diagnostics(img, em, params=params)
+    np.testing.assert_array_equal(disk, diag["disk"] & np.isfinite(sigma))
+    assert disk.dtype == bool and not disk[~np.isfinite(sigma)].any()
+    if fit_psf in ("disk", "auto"):  # "auto" chooses the disk on this disk-blurred step
+        assert disk[np.isfinite(sigma)].all()
+    if fit_psf == "gaussian":
+        assert not disk.any()
+
+
+@pytest.mark.parametrize("psf", ["disk", "gaussian"])
+def test_result_says_which_model_the_robust_preset_chose(psf):
+    from method.pipeline import estimate_defocus_map
+
+    img = _blurred_step(3.0, psf)
+    res = estimate_defocus_map(img, DefocusParams.preset("robust"))
+    assert res.psf_model == psf
+    assert res.psf_disk.shape == img.shape and res.psf_disk.sum() == (
+        np.isfinite(res.sparse_sigma).sum() if psf == "disk" else 0)
+    # the paper always fits Eq. (2c); an estimator that fits no PSF model says nothing
+    assert estimate_defocus_map(img, DefocusParams()).psf_model == "gaussian"
+    assert estimate_defocus_map(img, DefocusParams(estimator="gradient_ratio")).psf_model is None
+
+
+def test_result_psf_model_mixed():
+    """'best' picks per edge: a Gaussian-blurred step beside a disk-blurred one → 'mixed', the disk
+    on the disk's side."""
+    from method.pipeline import estimate_defocus_map
+
+    img = np.concatenate([_blurred_step(3.0, "gaussian"), _blurred_step(3.0, "disk")], axis=1)
+    res = estimate_defocus_map(img, DefocusParams.preset("robust", fit_psf="best"))
+    measured = np.isfinite(res.sparse_sigma)
+    assert res.psf_model == "mixed"
+    left, right = np.zeros_like(measured), np.zeros_like(measured)
+    left[:, 20:108], right[:, 148:236] = True, True  # away from the seam and the borders
+    assert res.psf_disk[measured & right].mean() > 0.9 and res.psf_disk[measured & left].mean() < 0.1

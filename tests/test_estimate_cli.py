@@ -413,3 +413,41 @@ def test_force_re_estimates_and_replaces_the_cached_map(tmp_path, photo, cache_d
     np.testing.assert_array_equal(np.load(tmp_path / "a.npy"), np.load(tmp_path / "b.npy"))
     status, _, err = run([photo, "-o", tmp_path / "c.npy"], capsys)
     assert status == 0 and any("reused from the cache" in line for line in err)
+
+
+def _disk_blurred_photo(h=96, w=128, radius=5.0):
+    """textured_photo's blocks, right half blurred by a uniform disk (a thin lens's defocus)."""
+    from scipy.signal import fftconvolve
+
+    from tests.photo_cli import textured_photo
+
+    img = textured_photo(h, w, blur_right=1e-3)
+    yy, xx = np.mgrid[-8:9, -8:9]
+    k = (xx ** 2 + yy ** 2 <= radius ** 2).astype(float)
+    k /= k.sum()
+    pad = np.pad(img, ((9, 9), (9, 9), (0, 0)), mode="edge")
+    blurred = np.stack([fftconvolve(pad[..., c], k, mode="same")[9:-9, 9:-9] for c in range(3)], axis=-1)
+    img[:, w // 2:] = blurred[:, w // 2:]
+    return np.clip(img, 0, 1)
+
+
+@pytest.mark.parametrize("preset, blur, want", [
+    ("robust", "disk", "blur model at the edges: uniform disk (a thin lens's defocus) (chosen for this photo by fit_psf='auto')"),
+    ("robust", "gaussian", "blur model at the edges: Gaussian, Eq. (2c) of the paper (chosen for this photo by fit_psf='auto')"),
+    ("paper", "disk", "blur model at the edges: Gaussian, Eq. (2c) of the paper (fit_psf='gaussian')"),
+])
+def test_the_blur_model_is_said(preset, blur, want, tmp_path, cache_dir, capsys):
+    """The photo tools say which edge-response model measured the blur (robust chooses per photo)."""
+    img = _disk_blurred_photo() if blur == "disk" else textured_photo()
+    src = write_photo(tmp_path / f"{blur}.png", img)
+    status, _, err = run([src, "-o", tmp_path / "m.npy", "--preset", preset], capsys)
+    assert status == 0, err
+    assert [line for line in err if "blur model" in line] == [f"{PROG}: {want}"]
+    status, _, err = run([src, "-o", tmp_path / "m2.npy", "--preset", preset], capsys)  # from the cache
+    assert status == 0 and [line for line in err if "blur model" in line] == [f"{PROG}: {want}"]
+
+
+def test_no_blur_model_line_without_a_model_fit(tmp_path, photo, cache_dir, capsys):
+    status, _, err = run([photo, "-o", tmp_path / "g.npy", "--estimator", "gradient_ratio"], capsys)
+    assert status == 0, err
+    assert not any("blur model" in line for line in err), err

@@ -148,6 +148,9 @@ def test_default_preset_is_robust_and_says_so(tmp_path, photo, capsys):
     assert status == 0, err
     assert [line for line in err if "preset:" in line] == [
         f"{PROG}: preset: robust (beyond the paper; --preset paper for the literal reproduction)"]
+    # and which edge-response model measured the blur (this photo is Gaussian-blurred)
+    assert [line for line in err if "blur model" in line] == [
+        f"{PROG}: blur model at the edges: Gaussian, Eq. (2c) of the paper (chosen for this photo by fit_psf='auto')"]
     status, _, err = run([photo, "-o", tmp_path / "r.png", "--preset", "robust"], capsys)
     assert status == 0 and any("reused from the cache" in line for line in err)
     np.testing.assert_array_equal(read_photo(tmp_path / "d.png").image, read_photo(tmp_path / "r.png").image)

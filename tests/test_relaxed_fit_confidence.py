@@ -192,7 +192,7 @@ def test_a_registered_confidence_estimator_drives_the_pipeline(monkeypatch, blur
     p = DefocusParams(estimator="halved")
     assert uses_measure_confidence(p) and not uses_measure_confidence(DefocusParams(estimator="model_fit"))
     gray = luminance(m.image)
-    sparse, conf, _ = blur_stage(gray, edges_stage(gray, params=p), params=p)
+    sparse, conf, _, _ = blur_stage(gray, edges_stage(gray, params=p), params=p)
     assert set(np.unique(conf[np.isfinite(conf)])) == {0.05, 1.0}
     r = estimate_defocus_map(m.image, p)
     np.testing.assert_array_equal(r.measure_confidence, conf)

@@ -223,11 +223,16 @@ DENSE_HURTS = ("bilateral_range_kernel", "bilateral_sigma_spatial", "sharpness_b
 #:   better on disk-blurred images, the thin lens's defocus: fit_psf (session 5;
 #:   tests/test_disk_edge_response.py shows both sides of the selection and the disk fit's accuracy).
 GAUSSIAN_IDENTICAL = ("fit_psf",)
+#: * identical on this σ ≤ 4 mosaic (no edge of it needs σ1 > 16 or σ2 > 8), and a faster detector
+#:   (no 64-px FFT padding level): the coarse-scale caps sigma1_scales ≤ 16, sigma2_scales ≤ 8
+#:   (session 6; their accuracy on σ 5–8 tiles and renders: method/params.py, the accuracy bench).
+SCALE_CAPS_IDENTICAL = ("sigma1_scales", "sigma2_scales")
 
 
 def test_every_robust_switch_has_a_measured_claim():
     """A switch added to ROBUST_CHANGES must be measured and put in one of the groups above."""
-    groups = DENSE_HELPS + DENSE_NEUTRAL_SPARSE_HELPS + DENSE_NEUTRAL_BLURRY_HELPS + DENSE_HURTS + GAUSSIAN_IDENTICAL
+    groups = (DENSE_HELPS + DENSE_NEUTRAL_SPARSE_HELPS + DENSE_NEUTRAL_BLURRY_HELPS + DENSE_HURTS + GAUSSIAN_IDENTICAL
+              + SCALE_CAPS_IDENTICAL)
     assert len(set(groups)) == len(groups)
     assert set(ROBUST_CHANGES) <= set(groups), sorted(set(ROBUST_CHANGES) - set(groups))
 
@@ -276,9 +281,10 @@ def test_robust_beats_paper_on_mosaic(mosaic_ablation):
     assert np.mean(ab["all"]["sparse"]) < np.mean(ab["paper"]["sparse"])
 
 
-@pytest.mark.parametrize("field", GAUSSIAN_IDENTICAL)
+@pytest.mark.parametrize("field", GAUSSIAN_IDENTICAL + SCALE_CAPS_IDENTICAL)
 def test_switch_identical_on_the_gaussian_mosaic(mosaic_ablation, field):
-    """The PSF model selection keeps Eq. (2c) on Gaussian-blurred texture: the same maps on every seed."""
+    """The PSF model selection keeps Eq. (2c) on Gaussian-blurred texture, and the coarse-scale caps
+    remove no edge of this σ ≤ 4 mosaic: the same maps on every seed."""
     _in_preset(field)
     ab = mosaic_ablation
     assert ab[f"no {field}"] == ab["all"]
@@ -475,3 +481,21 @@ def test_robust_model_fit_on_step_edges(sigma):
     assert np.all(np.concatenate(used_s2) <= ROBUST.fit_max_scale)
     if sigma == 6.0:  # here the detector's σ2 (4 px) is above fit_max_scale: the switch acts
         assert np.all(np.concatenate(detector_s2) > ROBUST.fit_max_scale)
+
+
+# --- the coarse-scale caps drop only the edges found at σ1 > 16 or σ2 > 8 ------------------------
+
+@pytest.mark.parametrize("sigma, contrast, dropped", [(3.0, 0.6, False), (8.0, 0.6, False), (8.0, 0.08, True)])
+def test_scale_caps_drop_only_the_coarse_scale_edges(sigma, contrast, dropped):
+    """Robust's detector (σ1 ≤ 16, σ2 ≤ 8 px) finds exactly the paper detector's edges whose minimum
+    reliable scales are within the caps, with the same θ and σ2 there, and none of the others."""
+    sc = step_edge((128, 128), sigma=sigma, angle=0.4, low=0.5 - contrast / 2, high=0.5 + contrast / 2,
+                   noise_std=2.0 / 255, quantize_bits=8, rng=7)
+    full = detect_edges(sc.image, sigma1_scales=PAPER.sigma1_scales, sigma2_scales=PAPER.sigma2_scales)
+    capped = detect_edges(sc.image, sigma1_scales=ROBUST.sigma1_scales, sigma2_scales=ROBUST.sigma2_scales)
+    within = full.edges & (full.sigma2 <= max(ROBUST.sigma2_scales)) & (full.sigma1 <= max(ROBUST.sigma1_scales))
+    np.testing.assert_array_equal(capped.edges, within)
+    np.testing.assert_array_equal(capped.sigma2[within], full.sigma2[within])
+    np.testing.assert_allclose(capped.theta[within], full.theta[within], rtol=0, atol=1e-6)
+    # a high-contrast σ 8 step is reliable by σ2 = 8 (kept whole); a faint one only at σ2 16–32 (all dropped)
+    assert (full.edges & ~within).sum() > 50 if dropped else (capped.edges.sum() > 100 and np.array_equal(capped.edges, full.edges))

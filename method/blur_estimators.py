@@ -66,15 +66,15 @@ MEASURE_CONFIDENCE: dict[str, tuple[Callable[..., tuple[np.ndarray, np.ndarray]]
 }
 
 
-#: name -> fn(gray, edge_map, *, params) -> (σ, confidence or None, psf_disk): estimators of
-#: :data:`BLUR_ESTIMATORS` whose fit chooses its PSF model by ``params.fit_psf`` (Eq. 2c's Gaussian or
-#: the disk of :mod:`method.disk_edge_response`); ``psf_disk`` (bool, H x W) marks the measures fitted
-#: with the disk. σ (and the confidence, when :data:`MEASURE_CONFIDENCE` has one) equal the plain entries'.
 def _model_fit_with_psf(gray, edge_map, *, params):
     sigma, psf_disk = estimate_blur_model_fit_psf(gray, edge_map, params=params)
     return sigma, None, psf_disk  # the paper's fit weighs every measure 1
 
 
+#: name -> fn(gray, edge_map, *, params) -> (σ, confidence or None, psf_disk): estimators of
+#: :data:`BLUR_ESTIMATORS` whose fit chooses its PSF model by ``params.fit_psf`` (Eq. 2c's Gaussian or
+#: the disk of :mod:`method.disk_edge_response`); ``psf_disk`` (bool, H x W) marks the measures fitted
+#: with the disk. σ (and the confidence, when :data:`MEASURE_CONFIDENCE` has one) equal the plain entries'.
 FITS_PSF_MODEL: dict[str, Callable[..., tuple]] = {
     "model_fit": _model_fit_with_psf,
     "model_fit_checked": estimate_blur_model_fit_checked_psf,

@@ -26,7 +26,8 @@ class DefocusParams:
     # σ2 ≥ 16 was fitted at a scale 8–16× narrower than its response; without them the accuracy
     # bench's mosaic fails 13 → 12 (dead-leaves σ 6 at 1/255 0.69 → 0.63 px), small renders' mean
     # textured dense MAE 0.370 / 0.209 → 0.369 / 0.209 px, full-preset renders 1.684 / 0.892 →
-    # 1.687 / 0.892 px (σ up to 4× larger there): neutral where it is not better. (0.5 … 4 loses
+    # 1.687 / 0.892 px (σ up to 4× larger there; their edge MAE: portrait f/4 2.43 → 0.32, clutter
+    # f/4 8.81 → 5.34 px): neutral where it is not better. (0.5 … 4 loses
     # the σ 8 tiles: 0.65 → 5.64 px.)
     noise_std: float = 2.5 / 255.0
     # sensor noise s_n in image units ([0, 1] scale): 2.5 grey levels of 8 bits (Sec. 3.1).

@@ -451,3 +451,18 @@ def test_no_blur_model_line_without_a_model_fit(tmp_path, photo, cache_dir, caps
     status, _, err = run([photo, "-o", tmp_path / "g.npy", "--estimator", "gradient_ratio"], capsys)
     assert status == 0, err
     assert not any("blur model" in line for line in err), err
+
+
+def test_psf_line_texts():
+    """Every branch of the 'blur model' line: none, one model, and the per-edge mix."""
+    from method import DefocusParams
+    from repro.estimate import psf_line
+
+    robust = DefocusParams.preset("robust")
+    assert psf_line({"psf_model": None}, robust) is None
+    assert psf_line({}, robust) is None  # a cache entry written before the line existed
+    assert psf_line({"psf_model": "disk"}, robust) == (
+        "blur model at the edges: uniform disk (a thin lens's defocus) (chosen for this photo by fit_psf='auto')")
+    best = robust.replace(fit_psf="best")
+    assert psf_line({"psf_model": "mixed", "measures": 200, "psf_disk_measures": 50}, best) == (
+        "blur model at the edges: disk at 25% of the measures, Gaussian at the rest (per edge, fit_psf='best')")

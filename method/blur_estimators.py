@@ -118,9 +118,7 @@ def estimate_blur(gray, edge_map, *, params, method=None):
     out = np.asarray(fn(img, edge_map, params=params), dtype=np.float64)
     if out.shape != img.shape:
         raise ValueError(f"estimator {name!r} returned shape {out.shape}; expected {img.shape}")
-    out = out.copy()
-    out[~np.asarray(edge_map.edges, dtype=bool)] = np.nan
-    return out
+    return _nan_off_edges(out, edge_map)
 
 
 def uses_measure_confidence(params) -> bool:
@@ -158,11 +156,15 @@ def estimate_blur_with_confidence(gray, edge_map, *, params):
         return estimate_blur(gray, edge_map, params=params), None
     img = check_edge_inputs(gray, edge_map)
     sigma, conf = MEASURE_CONFIDENCE[params.estimator][0](img, edge_map, params=params)
-    off = ~np.asarray(edge_map.edges, dtype=bool)
+    sigma = _nan_off_edges(sigma, edge_map)
+    return sigma, np.where(np.isfinite(sigma), conf, np.nan)
+
+
+def _nan_off_edges(sigma, edge_map):
+    """A float64 copy of an estimator's σ map with NaN off the edge pixels."""
     sigma = np.asarray(sigma, dtype=np.float64).copy()
-    sigma[off] = np.nan
-    conf = np.where(np.isfinite(sigma), conf, np.nan)
-    return sigma, conf
+    sigma[~np.asarray(edge_map.edges, dtype=bool)] = np.nan
+    return sigma
 
 
 def estimate_blur_measures(gray, edge_map, *, params):
@@ -197,12 +199,7 @@ def estimate_blur_measures(gray, edge_map, *, params):
         return sigma, conf, None if fn is None else np.zeros(np.shape(sigma), dtype=bool)
     img = check_edge_inputs(gray, edge_map)
     sigma, conf, disk = fn(img, edge_map, params=params)
-    off = ~np.asarray(edge_map.edges, dtype=bool)
-    sigma = np.asarray(sigma, dtype=np.float64).copy()
-    sigma[off] = np.nan
+    sigma = _nan_off_edges(sigma, edge_map)
     finite = np.isfinite(sigma)
-    if conf is not None and uses_measure_confidence(params):
-        conf = np.where(finite, conf, np.nan)
-    else:
-        conf = None
+    conf = np.where(finite, conf, np.nan) if conf is not None and uses_measure_confidence(params) else None
     return sigma, conf, np.asarray(disk, dtype=bool) & finite

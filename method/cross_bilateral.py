@@ -142,6 +142,18 @@ def _brute_force_product(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, 
 GRID_CELL_PER_SIGMA_PRODUCT = 0.75
 
 
+@numba.njit(cache=True, inline="always")
+def _row_major_strides(dims):
+    """Element strides of a C-order array of shape ``dims``."""
+    nd = len(dims)
+    strides = np.empty(nd, dtype=np.int64)
+    acc = 1
+    for k in range(nd - 1, -1, -1):
+        strides[k] = acc
+        acc *= dims[k]
+    return strides
+
+
 @numba.njit(cache=True)
 def _splat_multilinear(base, frac, dims, wv, bias, grid_n, grid_d):
     """Multilinear splat of M points into two flat grids of shape ``dims`` (row-major).
@@ -151,11 +163,7 @@ def _splat_multilinear(base, frac, dims, wv, bias, grid_n, grid_d):
     the sums do not depend on the machine.
     """
     nd, m = base.shape
-    strides = np.empty(nd, dtype=np.int64)
-    acc = 1
-    for k in range(nd - 1, -1, -1):
-        strides[k] = acc
-        acc *= dims[k]
+    strides = _row_major_strides(dims)
     for j in range(m):
         for corner in range(1 << nd):
             wgt = 1.0
@@ -273,11 +281,7 @@ def _splat_blurred_last(base, frac, dims, wv, bias, taps, grid_n, grid_d):
     nd, m = base.shape
     r = (len(taps) - 1) // 2
     nlast = dims[nd - 1]
-    strides = np.empty(nd, dtype=np.int64)
-    acc = 1
-    for k in range(nd - 1, -1, -1):
-        strides[k] = acc
-        acc *= dims[k]
+    strides = _row_major_strides(dims)
     for j in range(m):
         f_last = frac[nd - 1, j]
         c_last = base[nd - 1, j]

@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+import scipy.fft
 import scipy.ndimage as ndi
 from scipy.special import erfinv
 
@@ -131,6 +132,38 @@ def test_single_precision_bank_is_far_below_the_thresholds():
         c2 = second_derivative_threshold(s, noise_std=2.5 / 255, alpha_p=ap)
         diff = np.abs(sgl.response(s, 2, 0).astype(float) - dbl.response(s, 2, 0)).max()
         assert diff <= tol.SINGLE_PRECISION_VS_THRESHOLD * c2
+
+
+@pytest.mark.parametrize("precision", ["single", "double"])
+def test_fused_transfer_is_numpys_two_products_byte_for_byte(precision, rng):
+    """The numba transfer kernel gives the values of ``spectrum * hx[None]`` then ``*= hy[:, None]``.
+
+    Every order the bank serves (0 … 3, odd orders with their zeroed Nyquist bin), scales on every
+    padding level, even and odd FFT sizes; the inverse FFTs of both then agree byte for byte too.
+    """
+    from method.gaussian_derivatives import _apply_transfer
+
+    for shape in ((80, 84), (81, 77)):
+        img = np.clip(0.5 + 0.2 * rng.standard_normal(shape), 0, 1)
+        bank = GaussianDerivativeBank(img, 64.0, precision=precision)
+        for s in (0.5, 3.0, 12.0, 64.0):
+            _, (p, fft_shape, spectrum, wy, wx, nyq_y, nyq_x) = bank._level(s)
+            for a in range(4):
+                for b in range(4 - a):
+                    hy = bank._axis_transfer(wy, s, b, nyq_y)
+                    hx = bank._axis_transfer(wx, s, a, nyq_x)
+                    want = spectrum * hx[None, :]
+                    want *= hy[:, None]
+                    got = np.empty_like(spectrum)
+                    _apply_transfer(spectrum, hx, hy, got)
+                    # equal values (only the sign of a zero may differ, where the Gaussian
+                    # underflowed to 0) and the same bytes after the inverse FFT
+                    assert np.array_equal(got, want), (shape, s, a, b)
+                    inv_got = scipy.fft.irfft2(got, s=fft_shape)
+                    assert inv_got.tobytes() == scipy.fft.irfft2(want, s=fft_shape).tobytes(), (shape, s, a, b)
+        # a product that is not one rounded real product per component would differ: the kernel is
+        # not just returning its input
+        assert not np.array_equal(got, spectrum)
 
 
 def test_large_scale_is_cheap_and_matches_wrapper():

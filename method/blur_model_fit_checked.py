@@ -53,9 +53,12 @@ def steered_second_noise_variance(sigma2, noise_std):
     For σ2 ≳ 1 px this is the continuous value 3/(16π σ2⁶) (tested).
     """
     s2 = np.asarray(sigma2, dtype=np.float64)
-    values, inverse = np.unique(s2, return_inverse=True)
-    lut = np.array([_unit_noise_variance(float(v)) if np.isfinite(v) and v > 0 else np.nan for v in values])
-    return lut[inverse].reshape(s2.shape) * float(noise_std) ** 2
+    out = np.full(s2.shape, np.nan)
+    ok = np.isfinite(s2) & (s2 > 0)
+    if ok.any():  # the distinct scales of the valid entries only (edge pixels: a few % of an image)
+        values, inverse = np.unique(s2[ok], return_inverse=True)
+        out[ok] = np.array([_unit_noise_variance(float(v)) for v in values])[inverse.ravel()]
+    return out * float(noise_std) ** 2
 
 
 def noise_residual_share(diagnostics, *, noise_std):

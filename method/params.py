@@ -173,9 +173,9 @@ class DefocusParams:
     # "auto": exact solve up to 2¹⁵ px (≈ 181²; method.propagation.AUTO_MAX_EXACT_PIXELS), else solve
     # on a grid coarsened by the smallest power of two s ≥ 4 (AUTO_MIN_COARSENING) that brings it to
     # ≤ 2¹⁵ px (4× at 256² and 512², 8× at 1 MP and the photo tools' 1.5 MP) with the Galerkin coarse
-    # operator, interpolate and refine with max(3·s, 24) iterations of two-level-preconditioned CG
-    # (Jacobi + coarse-grid correction) on the exact full-resolution system: 0.0059 / 0.0115 px RMS,
-    # 0.030 / 0.050 px p99 from the exact solve on a photo at 512² / 1024² (docs/performance.md);
+    # operator, interpolate and refine with max(⌈2.5·s⌉, 20) iterations of two-level-preconditioned CG
+    # (Jacobi + coarse-grid correction) on the exact full-resolution system: 0.0082 / 0.019 px RMS,
+    # 0.045 / 0.082 px p99 from the exact solve on a photo at 512² / 1024² (docs/performance.md);
     # 1 = exact full-resolution solve; 2, 4, … = that coarsening factor.
     propagation_refinement: str = "galerkin"
     # refinement of the upsampled coarse solution (key of method.propagation.PROPAGATION_REFINEMENTS):

@@ -42,14 +42,15 @@ multigrid + CG). Larger ones are solved on a grid coarsened by a power of two, a
 and 512², 8× at 1 MP and at the photo tools' 1.5 MP), with the *Galerkin* coarse operator PᵀAP of the
 exact full-resolution system (:mod:`method.propagation_galerkin`); the interpolated coarse solution
 starts a CG on the exact full-resolution system, preconditioned by Jacobi plus a coarse-grid
-correction through the same coarse hierarchy (two-level, matrix-free fine level), max(3·s, 24)
-iterations. On the astronaut photo the default is 0.0059 px RMS / 0.030 px p99 (512²) and 0.0115 px
-RMS / 0.050 px p99 (1024²) from the exact solve (:func:`propagate_defocus`, Notes).
+correction through the same coarse hierarchy (two-level, matrix-free fine level), max(⌈2.5·s⌉, 20)
+iterations. On the astronaut photo the default is 0.0082 px RMS / 0.045 px p99 (512²) and 0.019 px
+RMS / 0.082 px p99 (1024²) from the exact solve (:func:`propagate_defocus`, Notes).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -105,20 +106,22 @@ AUTO_MIN_COARSENING = 4
 DEFAULT_COARSE_TOL = 1e-3
 
 #: Default number of full-resolution CG iterations after a coarse solve, per refinement (keys of
-#: :data:`PROPAGATION_REFINEMENTS`): max(k·s, floor) for the coarsening factor s. The two-level
+#: :data:`PROPAGATION_REFINEMENTS`): max(⌈k·s⌉, floor) for the coarsening factor s. The two-level
 #: preconditioner's condition number grows with s (the band of frequencies between the coarse grid
 #: and the Jacobi smoother widens), so CG needs ∝ s iterations for the same accuracy; the floor
-#: covers small s. Galerkin: max(3·s, 24) — 24 at 256² and 512² (s = 4) and at 1024² (s = 8); on the
-#: astronaut photo (paper preset's measures) 0.0004 / 0.0059 / 0.0115 px RMS and 0.002 / 0.030 / 0.050
-#: px p99 from the exact solve (32 iterations at 1024²: 0.0066 / 0.030, 25 % more refinement time) (``benchmarks/propagation_accuracy.py``). Re-discretised two-level:
-#: 20·s (the default before: 0.0024 / 0.0149 px RMS at 512² / 1024² with s = 4, 80 iterations).
-#: Jacobi: the earlier fixed 60 iterations (0.08 / 0.15 px RMS).
-DEFAULT_REFINE_ITERATIONS = {"galerkin": (3, 24), "two_level": (20, 0), "jacobi": (0, 60)}
+#: covers small s. Galerkin: max(⌈2.5·s⌉, 20) — 20 at 256² and 512² (s = 4) and at 1024² (s = 8), 40
+#: at s = 16. On the astronaut photo (paper preset's measures; ``benchmarks/propagation_accuracy.py``)
+#: 0.0082 / 0.019 px RMS and 0.045 / 0.082 px p99 from the exact solve at 512² / 1024² (the targets:
+#: ≤ 0.03 px RMS, ≤ 0.15 px p99); each iteration costs ≈ 26 ms at 1 MP, and 24 iterations (the
+#: default before, session 7) gave 0.0059 / 0.0115 px RMS, 0.030 / 0.050 px p99 for 0.1 s more at 1 MP.
+#: Re-discretised two-level: 20·s (the default before session 4: 0.0024 / 0.0149 px RMS at 512² /
+#: 1024² with s = 4, 80 iterations). Jacobi: the earlier fixed 60 iterations (0.08 / 0.15 px RMS).
+DEFAULT_REFINE_ITERATIONS = {"galerkin": (2.5, 20), "two_level": (20, 0), "jacobi": (0, 60)}
 
 
 def _default_refine_iterations(refinement: str, s: int) -> int:
     per_factor, floor = DEFAULT_REFINE_ITERATIONS[refinement]
-    return max(per_factor * s, floor)
+    return max(int(math.ceil(per_factor * s)), floor)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -263,7 +266,7 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
     refine_iterations : int or None, keyword-only
         Full-resolution CG iterations after a coarse solve (≥ 0; they stop earlier once the relative
         residual reaches ``tol``). None: :data:`DEFAULT_REFINE_ITERATIONS` of ``refinement``
-        (max(3·s, 24) for ``"galerkin"``, 20·s for ``"two_level"``, 60 for ``"jacobi"``).
+        (max(⌈2.5·s⌉, 20) for ``"galerkin"``, 20·s for ``"two_level"``, 60 for ``"jacobi"``).
     max_coarse_pixels : int, keyword-only
         Pixel budget of the ``"auto"`` coarse grid (default :data:`AUTO_MAX_COARSE_PIXELS`, 2¹⁵).
     coarse_tol : float or None, keyword-only
@@ -309,11 +312,12 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
        oscillatory error plus a coarse-grid correction (restriction Pᵀ, one V-cycle of the coarse
        hierarchy, prolongation P) for the smooth error (c = 1 for the Galerkin operator, s² for
        the re-discretised one; :func:`method.propagation_matrix_free.two_level_pcg`). Cost O(H·W) per
-       iteration plus one V-cycle on the coarse grid; max(3·s, 24) iterations by default. The 3×3
+       iteration plus one V-cycle on the coarse grid; max(⌈2.5·s⌉, 20) iterations by default. The 3×3
        neighbourhood has unrolled kernels (bit-identical to the generic ones, ~5–8× faster).
        Error of the default against the exact solve on the astronaut photo (paper preset's
-       measures; ``benchmarks/propagation_accuracy.py`` records it): 0.0059 px RMS / 0.030 px p99
-       at 512² (4×, 24 iterations) and 0.0115 / 0.050 px at 1024² (8×, 24 iterations). The
+       measures; ``benchmarks/propagation_accuracy.py`` records it): 0.0082 px RMS / 0.045 px p99
+       at 512² (4×, 20 iterations) and 0.019 / 0.082 px at 1024² (8×, 20 iterations); 24 iterations
+       (the default before) gave 0.0059 / 0.030 and 0.0115 / 0.050 px. The
        re-discretised default before it: 0.0024 / 0.012 and 0.0149 / 0.070 px with 80 iterations
        each (4×), at 2.4× the time at 1 MP; from the same 8× grid it needs ~160 iterations for
        0.028 px RMS. ``tests/test_propagation.py`` bounds the error on a 320² synthetic image.

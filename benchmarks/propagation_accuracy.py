@@ -3,9 +3,10 @@
 ``.venv/bin/python benchmarks/propagation_accuracy.py [--sizes 512 1024] [--cache DIR]``
 
 Inputs per size: skimage's astronaut resized as in ``repro.bench`` (its refined sparse measures from
-the pipeline), and a synthetic textured image (the mid-size test image of tests/test_propagation.py
+the pipeline at the paper preset, and at the robust preset with the per-edge confidence robust gives
+the data term), and a synthetic textured image (the mid-size test image of tests/test_propagation.py
 scaled up, 1 % of the pixels measured). Exact = ``propagate_defocus(..., downsample=1, tol=1e-9)``
-(cached in ``--cache`` as .npy: ~30 s at 512², ~2.5 min at 1024²). For every refinement variant:
+(cached in ``--cache`` as .npz: ~30 s at 512², ~2.5 min at 1024²). For every refinement variant:
 RMS / p99 / max |B − B_exact| in px and the propagation's wall / CPU seconds (best of 2).
 Results go to propagation_accuracy.json next to this file.
 """
@@ -45,19 +46,32 @@ def _textured(rng, h, w):
 
 
 def _inputs(kind, size):
-    if kind == "astronaut":
-        from method import estimate_defocus_map
+    """(guide image, refined measures, per-edge confidence or None) of one benchmark case."""
+    if kind in ("astronaut", "astronaut-robust"):
+        from method import DefocusParams, estimate_defocus_map
+        from method.pipeline import propagation_confidence
         from repro.bench import _test_image
 
         img = _test_image(size)
+        params = DefocusParams.preset("robust" if kind == "astronaut-robust" else "paper")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            return img, estimate_defocus_map(img).refined_sigma
+            res = estimate_defocus_map(img, params)
+        conf = propagation_confidence(res.refined_sigma, params=params, sparse_sigma=res.sparse_sigma,
+                                      confidence=res.measure_confidence)
+        return img, res.refined_sigma, conf
     rng = np.random.default_rng(20070101)
     img = _textured(rng, size, size)
     mask = rng.random((size, size)) < 0.01
     truth = 1.0 + 3.0 * img[..., 2] + np.linspace(0, 1, size)[None, :]
-    return img, np.where(mask, truth, np.nan)
+    return img, np.where(mask, truth, np.nan), None
+
+
+def _same(a, b):
+    """Equal arrays (NaN equal to NaN), or both None."""
+    if a is None or b is None:
+        return a is None and b is None
+    return np.array_equal(a, b, equal_nan=True)
 
 
 def main(argv=None):
@@ -65,25 +79,29 @@ def main(argv=None):
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[512, 1024])
-    ap.add_argument("--kinds", nargs="+", default=["astronaut", "textured"])
+    ap.add_argument("--kinds", nargs="+", default=["astronaut", "astronaut-robust", "textured"])
     ap.add_argument("--cache", type=Path, default=Path(os.environ.get("DEFOCUS_CACHE_DIR", Path(__file__).resolve().parents[1] / ".cache")) / "propagation_exact")
     args = ap.parse_args(argv)
     args.cache.mkdir(parents=True, exist_ok=True)
     rows = []
     for kind in args.kinds:
         for size in args.sizes:
-            img, bm = _inputs(kind, size)
+            img, bm, conf = _inputs(kind, size)
             path = args.cache / f"{kind}_{size}.npz"
-            if path.exists() and np.array_equal(np.load(path)["bm"], bm, equal_nan=True):
-                exact = np.load(path)["exact"]
+            cached = np.load(path) if path.exists() else None
+            if (cached is not None and _same(cached["bm"], bm)
+                    and _same(cached["conf"] if "conf" in cached.files else None, conf)):
+                exact = cached["exact"]
             else:
-                exact = propagate_defocus(bm, img, downsample=1, tol=1e-9)
-                np.savez(path, bm=bm, exact=exact)
+                exact = propagate_defocus(bm, img, downsample=1, tol=1e-9, confidence=conf)
+                tmp = path.with_suffix(".tmp.npz")
+                np.savez(tmp, bm=bm, exact=exact, **({} if conf is None else {"conf": conf}))
+                os.replace(tmp, path)
             for name, kw in VARIANTS.items():
                 best = None
                 for _ in range(2):
                     t, c = time.perf_counter(), time.process_time()
-                    out = propagate_defocus(bm, img, **kw)
+                    out = propagate_defocus(bm, img, confidence=conf, **kw)
                     wall, cpu = time.perf_counter() - t, time.process_time() - c
                     if best is None or wall < best[0]:
                         best = (wall, cpu)

@@ -171,11 +171,12 @@ class DefocusParams:
     # "amg_pcg" (multigrid-preconditioned CG) or "direct" (sparse LU; small images / tests only).
     propagation_downsample: int | str = "auto"
     # "auto": exact solve up to 2¹⁵ px (≈ 181²; method.propagation.AUTO_MAX_EXACT_PIXELS), else solve
-    # on a grid coarsened by the smallest power of two s ≥ 4 (AUTO_MIN_COARSENING) that brings it to
-    # ≤ 2¹⁵ px (4× at 256² and 512², 8× at 1 MP and the photo tools' 1.5 MP) with the Galerkin coarse
-    # operator, interpolate and refine with max(⌈2.5·s⌉, 20) iterations of two-level-preconditioned CG
-    # (Jacobi + coarse-grid correction) on the exact full-resolution system: 0.0082 / 0.019 px RMS,
-    # 0.045 / 0.082 px p99 from the exact solve on a photo at 512² / 1024² (docs/performance.md);
+    # on a grid coarsened 4× while that grid has ≤ 2¹³ px (up to ≈ 362²), else by the smallest power of
+    # two s ≥ 8 that brings it to ≤ 2¹⁵ px (8× at 512², 1 MP and the photo tools' 1.5 MP) with the
+    # Galerkin coarse operator, interpolate and refine with max(⌈2.5·s⌉, 20) iterations of two-level-
+    # preconditioned CG (Jacobi + coarse-grid correction) on the exact full-resolution system: paper
+    # 0.016 / 0.019 px RMS, 0.069 / 0.082 px p99, robust 0.032 / 0.026 px RMS, 0.15 / 0.092 px p99 from
+    # the exact solve on a photo at 512² / 1024² (method/propagation.py, docs/performance.md);
     # 1 = exact full-resolution solve; 2, 4, … = that coarsening factor.
     propagation_refinement: str = "galerkin"
     # refinement of the upsampled coarse solution (key of method.propagation.PROPAGATION_REFINEMENTS):

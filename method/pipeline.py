@@ -28,7 +28,7 @@ from .propagation_methods import propagate_blur_measures
 from .validation import validate_image
 
 __all__ = ["DefocusResult", "NoEdgesWarning", "blur_stage", "edge_confidence", "edges_stage", "estimate_defocus_map",
-           "luminance", "propagate_stage", "refine_stage"]
+           "luminance", "propagate_stage", "propagation_confidence", "refine_stage"]
 
 STAGES = ("edges", "blur_at_edges", "cross_bilateral", "propagation")
 
@@ -302,13 +302,37 @@ def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None, confidence
     ndarray, HxW, float64
         Dense σ, px, in [0, max_sigma].
     """
+    confidence = propagation_confidence(refined_sigma, params=params, sparse_sigma=sparse_sigma,
+                                        confidence=confidence)
+    dense = propagate_blur_measures(refined_sigma, rgb, params=params, confidence=confidence)
+    return np.clip(dense, 0.0, params.max_sigma)
+
+
+def propagation_confidence(refined_sigma, *, params, sparse_sigma=None, confidence=None):
+    """The per-edge weight c_p of the propagation's data term (α_p = α·c_p), or None for the paper's α.
+
+    Parameters
+    ----------
+    refined_sigma : ndarray, HxW, float
+        Blur σ, px, at edge pixels (after Eq. 3); NaN elsewhere.
+    params : DefocusParams, keyword-only
+        Reads ``alpha_confidence``.
+    sparse_sigma : ndarray, HxW, float, or None, keyword-only
+        The raw measures (``alpha_confidence="agreement"``; None: refined used as raw).
+    confidence : ndarray, HxW, float in (0, 1], or None, keyword-only
+        The estimator's per-measure confidence (``DefocusResult.measure_confidence``).
+
+    Returns
+    -------
+    ndarray, HxW, float64 in [0, 1] (NaN off the refined measures), or None
+        The measure confidence times the agreement factor (:func:`edge_confidence`) when
+        ``alpha_confidence="agreement"``, else the measure confidence; None when neither applies.
+    """
     measure = None if confidence is None else np.asarray(confidence, dtype=np.float64)
-    confidence = None
     if params.alpha_confidence == "agreement":
         raw = refined_sigma if sparse_sigma is None else sparse_sigma
         agreement = np.where(np.isfinite(refined_sigma), edge_confidence(raw, refined_sigma), np.nan)
-        confidence = agreement if measure is None else agreement * measure
-    elif measure is not None:
-        confidence = np.where(np.isfinite(refined_sigma), measure, np.nan)
-    dense = propagate_blur_measures(refined_sigma, rgb, params=params, confidence=confidence)
-    return np.clip(dense, 0.0, params.max_sigma)
+        return agreement if measure is None else agreement * measure
+    if measure is not None:
+        return np.where(np.isfinite(refined_sigma), measure, np.nan)
+    return None

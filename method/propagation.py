@@ -38,8 +38,8 @@ Where each part lives (as pymatting splits laplacian / solver / preconditioner)
 Solving (see :func:`propagate_defocus`, Notes)
 ----------------------------------------------
 Images up to 2¹⁵ px (≈ 181²; the small renders) are solved exactly (pyamg smoothed-aggregation
-multigrid + CG). Larger ones are solved on a grid coarsened by a power of two, at least 4× (4× at 256²
-and 512², 8× at 1 MP and at the photo tools' 1.5 MP), with the *Galerkin* coarse operator PᵀAP of the
+multigrid + CG). Larger ones are solved on a grid coarsened by a power of two, at least 4× (4× up to
+≈ 362², 8× at 512², 1 MP and the photo tools' 1.5 MP, 16× at 4 MP), with the *Galerkin* coarse operator PᵀAP of the
 exact full-resolution system (:mod:`method.propagation_galerkin`); the interpolated coarse solution
 starts a CG on the exact full-resolution system, preconditioned by Jacobi plus a coarse-grid
 correction through the same coarse hierarchy (two-level, matrix-free fine level), max(⌈2.5·s⌉, 20)
@@ -86,11 +86,23 @@ __all__ = [
 AUTO_MAX_EXACT_PIXELS = 2 ** 15
 
 #: Largest coarse grid of ``downsample="auto"``'s coarse mode, px: the smallest power of two
-#: ≥ :data:`AUTO_MIN_COARSENING` bringing the grid under it (4× up to 724², 8× at 1 MP and at the photo
-#: tools' 1.5 MP). Measured with the Galerkin refinement on the astronaut photo at 1024² (RMS px from
-#: the exact solve after 30 iterations): 8× (128², V-cycle 8.5 ms) 0.0075; 4× (256², V-cycle 19 ms)
-#: slower per iteration and no closer; 16× (64²) 0.072 — the Jacobi part cannot cover the wider band.
+#: ≥ 8 bringing the grid under it once 4× is too big (:data:`AUTO_MAX_COARSE_PIXELS_AT_4X`): 8× from
+#: ≈ 362² to 1448² (512², 1 MP and the photo tools' 1.5 MP), 16× at 4 MP. Measured with the Galerkin
+#: refinement on the astronaut photo at 1024² (RMS px from the exact solve after 30 iterations): 8×
+#: (128², V-cycle 8.5 ms) 0.0075; 4× (256², V-cycle 19 ms) slower per iteration and no closer; 16×
+#: (64²) 0.072 — the Jacobi part cannot cover the wider band (20 / 24 / 32 iterations, session 7:
+#: paper preset 0.072 / 0.066 / 0.057 px, robust 0.092 / 0.083 / 0.069 px against 8×'s 0.019 / 0.012 /
+#: 0.0066 and 0.026 / 0.017 / 0.0098).
 AUTO_MAX_COARSE_PIXELS = 2 ** 15
+
+#: Largest coarse grid at the smallest factor, 4×, px (2¹³: up to ≈ 362²); beyond it "auto" starts at
+#: 8×. At 4× the coarse grid grows with the image, and so do its V-cycle's cost (4–6 ms per iteration
+#: at 128², against ≈ 1 ms at 64²) and its weakness as the coarse inverse. On the astronaut at 512²,
+#: 20 iterations (session 7; RMS / p99 px from the exact solve, propagation wall s): 4× paper 0.0082 /
+#: 0.045 (0.44 s), robust 0.052 / 0.27 (0.45 s); 8× paper 0.016 / 0.069 (0.27 s), robust 0.032 / 0.15
+#: (0.27 s) — robust's sparser, confidence-weighted data term needs the stronger coarse inverse. At
+#: 256² 4× stays: paper 0.0008 vs 0.011 px, robust 0.0027 vs 0.015 px, both ≈ 0.1 s.
+AUTO_MAX_COARSE_PIXELS_AT_4X = 2 ** 13
 
 #: Smallest coarsening factor of ``downsample="auto"``'s coarse mode. Galerkin two-level PCG on the
 #: astronaut photo, RMS px from the exact solve after 20 iterations: at 512², 4× 0.0082 (0.24 s),
@@ -109,11 +121,13 @@ DEFAULT_COARSE_TOL = 1e-3
 #: :data:`PROPAGATION_REFINEMENTS`): max(⌈k·s⌉, floor) for the coarsening factor s. The two-level
 #: preconditioner's condition number grows with s (the band of frequencies between the coarse grid
 #: and the Jacobi smoother widens), so CG needs ∝ s iterations for the same accuracy; the floor
-#: covers small s. Galerkin: max(⌈2.5·s⌉, 20) — 20 at 256² and 512² (s = 4) and at 1024² (s = 8), 40
-#: at s = 16. On the astronaut photo (paper preset's measures; ``benchmarks/propagation_accuracy.py``)
-#: 0.0082 / 0.019 px RMS and 0.045 / 0.082 px p99 from the exact solve at 512² / 1024² (the targets:
-#: ≤ 0.03 px RMS, ≤ 0.15 px p99); each iteration costs ≈ 26 ms at 1 MP, and 24 iterations (the
-#: default before, session 7) gave 0.0059 / 0.0115 px RMS, 0.030 / 0.050 px p99 for 0.1 s more at 1 MP.
+#: covers small s. Galerkin: max(⌈2.5·s⌉, 20) — 20 at 4× and 8× (256² to 1.5 MP), 40 at 16×. On the
+#: astronaut photo (``benchmarks/propagation_accuracy.py``; RMS / p99 px from the exact solve) at 512²
+#: (8×) paper 0.016 / 0.069, robust 0.032 / 0.15; at 1024² (8×) paper 0.019 / 0.082, robust 0.026 /
+#: 0.092 (the targets: ≤ 0.03 px RMS, ≤ 0.15 px p99). Each iteration costs ≈ 26 ms at 1 MP. The
+#: default before session 7 (4× at 512², 24 iterations): 512² paper 0.0059 / 0.030, robust 0.041 /
+#: 0.21 (its coarse inverse too weak for robust's sparser data term); 1024² paper 0.0115 / 0.050,
+#: robust 0.017 / 0.062, for ≈ 0.1 s more per size.
 #: Re-discretised two-level: 20·s (the default before session 4: 0.0024 / 0.0149 px RMS at 512² /
 #: 1024² with s = 4, 80 iterations). Jacobi: the earlier fixed 60 iterations (0.08 / 0.15 px RMS).
 DEFAULT_REFINE_ITERATIONS = {"galerkin": (2.5, 20), "two_level": (20, 0), "jacobi": (0, 60)}
@@ -208,13 +222,21 @@ PROPAGATION_REFINEMENTS: dict[str, tuple[Callable, Callable]] = {
 # --------------------------------------------------------------------------------------------
 # public entry point
 # --------------------------------------------------------------------------------------------
-def _auto_downsample(h, w, max_pixels, min_factor=AUTO_MIN_COARSENING, max_exact=AUTO_MAX_EXACT_PIXELS):
-    """1 when H·W ≤ ``max_exact``, else the smallest power of two ≥ ``min_factor`` bringing the coarse
-    grid under ``max_pixels`` (at most min(H, W)/2, so the coarse grid keeps ≥ 2 px per side)."""
+def _auto_downsample(h, w, max_pixels, min_factor=AUTO_MIN_COARSENING, max_exact=AUTO_MAX_EXACT_PIXELS,
+                     max_at_min=AUTO_MAX_COARSE_PIXELS_AT_4X):
+    """1 when H·W ≤ ``max_exact``; else ``min_factor`` while that coarse grid has ≤ ``max_at_min`` px,
+    else the smallest power of two ≥ 2·``min_factor`` bringing the coarse grid under ``max_pixels``
+    (at most min(H, W)/2, so the coarse grid keeps ≥ 2 px per side)."""
     if h * w <= max_exact or min(h, w) < 4:
         return 1
+
+    def cells(f):
+        return (-(-h // f)) * (-(-w // f))
+
     s = min_factor
-    while (-(-h // s)) * (-(-w // s)) > max_pixels:
+    if cells(s) > max_at_min:
+        s *= 2
+    while cells(s) > max_pixels:
         s *= 2
     while s > min(h, w) // 2:
         s //= 2
@@ -256,9 +278,10 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
         any integer): solve the problem on an s-times coarser grid with ``solver``, interpolate
         bilinearly and refine with ``refine_iterations`` iterations of preconditioned CG on the exact
         full-resolution system (approximate; see Notes). ``"auto"`` (default): 1 when
-        H·W ≤ :data:`AUTO_MAX_EXACT_PIXELS` (2¹⁵), else the smallest power of two
-        ≥ :data:`AUTO_MIN_COARSENING` (4) that brings the coarse grid under ``max_coarse_pixels``
-        (4× at 256² and 512², 8× at 1024² and at the photo tools' 1.5 MP).
+        H·W ≤ :data:`AUTO_MAX_EXACT_PIXELS` (2¹⁵), else :data:`AUTO_MIN_COARSENING` (4) while
+        that coarse grid has ≤ :data:`AUTO_MAX_COARSE_PIXELS_AT_4X` (2¹³) px, else the smallest power
+        of two ≥ 8 that brings the coarse grid under ``max_coarse_pixels`` (4× at 256², 8× at 512²,
+        1024² and the photo tools' 1.5 MP, 16× at 2048²).
     refinement : str, keyword-only
         Key of :data:`PROPAGATION_REFINEMENTS` (used when s > 1): ``"galerkin"`` (default; CG
         preconditioned by Jacobi + the Galerkin coarse-grid correction), ``"two_level"`` (the same

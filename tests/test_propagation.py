@@ -162,8 +162,8 @@ def mid_size_case():
 def test_default_refinement_close_to_exact_mid_size(mid_size_case, downsample):
     """The default (coarse solve + two-level PCG refinement) is within named bounds of the exact solve.
 
-    320² > 2¹⁵ px, so ``"auto"`` takes the coarse path (4×, :data:`AUTO_MIN_COARSENING`), the factor
-    also used at 512²; 2× was the auto factor at 512² before issue 11. The Jacobi-only refinement
+    320² > 2¹⁵ px, so ``"auto"`` takes the coarse path (4×, :data:`AUTO_MIN_COARSENING`: its 80²
+    coarse grid is under 2¹³ px); 2× was the auto factor at 512² before issue 11. The Jacobi-only refinement
     (an earlier default) is ~60× outside these bounds.
     """
     ref, bm, exact = mid_size_case
@@ -182,9 +182,13 @@ def test_auto_downsample_factors():
     assert _auto_downsample(181, 181, AUTO_MAX_COARSE_PIXELS) == 1  # up to 2^15 px: exact
     assert _auto_downsample(182, 181, AUTO_MAX_COARSE_PIXELS) == 4  # never 2×: at least 4× coarser
     assert _auto_downsample(256, 256, AUTO_MAX_COARSE_PIXELS) == 4
-    assert _auto_downsample(512, 512, AUTO_MAX_COARSE_PIXELS) == 4
-    assert _auto_downsample(724, 724, AUTO_MAX_COARSE_PIXELS) == 4
+    assert _auto_downsample(360, 360, AUTO_MAX_COARSE_PIXELS) == 4  # 90² = 8100 ≤ 2^13: still 4×
+    assert _auto_downsample(362, 362, AUTO_MAX_COARSE_PIXELS) == 8  # 91² = 8281 > 2^13: 8×
+    assert _auto_downsample(512, 512, AUTO_MAX_COARSE_PIXELS) == 8  # 4× would be 128² > 2^13
+    assert _auto_downsample(724, 724, AUTO_MAX_COARSE_PIXELS) == 8
     assert _auto_downsample(1024, 1024, AUTO_MAX_COARSE_PIXELS) == 8
+    assert _auto_downsample(1448, 1448, AUTO_MAX_COARSE_PIXELS) == 8  # 181² ≤ 2^15
+    assert _auto_downsample(2048, 2048, AUTO_MAX_COARSE_PIXELS) == 16
     assert _auto_downsample(6, 20000, AUTO_MAX_COARSE_PIXELS) == 2  # the coarse grid keeps >= 2 px a side
 
 

@@ -12,8 +12,8 @@ from method.upsampling import DEFAULT_MAX_WORKING_PIXELS, working_shape
 def test_photo_tools_working_size_is_solved_8x_coarser(photo_shape):
     (h, w), _scale = working_shape(photo_shape, max_working_pixels=DEFAULT_MAX_WORKING_PIXELS)
     assert 1.2e6 < h * w <= DEFAULT_MAX_WORKING_PIXELS
-    assert _auto_downsample(h, w, AUTO_MAX_COARSE_PIXELS) == 8  # the README's stated factors: 4, 8
-    assert _auto_downsample(512, 512, AUTO_MAX_COARSE_PIXELS) == 4  # at least 4× (AUTO_MIN_COARSENING)
+    assert _auto_downsample(h, w, AUTO_MAX_COARSE_PIXELS) == 8  # the README's stated factors: 4, 8, 16
+    assert _auto_downsample(512, 512, AUTO_MAX_COARSE_PIXELS) == 8  # 4× only up to a 2^13 px coarse grid
     assert _auto_downsample(1024, 1024, AUTO_MAX_COARSE_PIXELS) == 8  # 1 MP too (the 2^15 px coarse budget)
 
 

@@ -10,7 +10,7 @@ from experiments.stage_attribution import INPUTS, SIGMA_BINS, ablation_params, s
 from method import DefocusParams, estimate_defocus_map
 from method.cross_bilateral import biased_cross_bilateral
 from method.params import ROBUST_CHANGES
-from method.pipeline import edge_confidence, propagate_stage, refine_stage
+from method.pipeline import edge_confidence, propagate_stage, propagation_confidence, refine_stage
 from method.propagation import propagate_defocus
 from method.propagation_methods import propagate_blur_measures
 from scenes.analytic import texture_mosaic
@@ -190,6 +190,24 @@ def test_edge_confidence_formula():
                                rtol=1e-15)
     assert c[0, 0] == 1.0 and np.isnan(c[0, 2])
     assert 0 < c[0, 3] < c[0, 1] < 1  # |BM − bCBF| = 4 px is less credible than 1 px
+
+
+def test_propagation_confidence_branches():
+    bm = np.array([[1.0, 3.0, np.nan, 0.0]])
+    refined = np.array([[1.0, 2.0, np.nan, np.nan]])  # Eq. (3) left no value at the last pixel
+    measure = np.array([[0.5, 1.0, np.nan, 0.8]])
+    agree = PAPER.replace(alpha_confidence="agreement")
+    # the paper: no per-edge weight at all
+    assert propagation_confidence(refined, params=PAPER, sparse_sigma=bm) is None
+    # the estimator's confidence alone, NaN where no refined measure is left
+    got = propagation_confidence(refined, params=PAPER, sparse_sigma=bm, confidence=measure)
+    np.testing.assert_array_equal(got, [[0.5, 1.0, np.nan, np.nan]])
+    # agreement, alone and times the estimator's confidence
+    a = propagation_confidence(refined, params=agree, sparse_sigma=bm)
+    np.testing.assert_array_equal(a, np.where(np.isfinite(refined), edge_confidence(bm, refined), np.nan))
+    assert a[0, 0] == 1.0 and 0 < a[0, 1] < 1 and np.isnan(a[0, 3])
+    np.testing.assert_array_equal(propagation_confidence(refined, params=agree, sparse_sigma=bm, confidence=measure),
+                                  a * measure)
 
 
 def test_propagate_stage_confidence_and_clip(rng):

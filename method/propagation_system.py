@@ -60,43 +60,54 @@ def _local_variance(ref: np.ndarray, window: int) -> np.ndarray:
     return out
 
 
+#: Image rows per parallel block of :func:`_box_variance_kernel`.
+_VARIANCE_ROW_BLOCK = 32
+
+
 @numba.njit(cache=True, parallel=True)
 def _box_variance_kernel(ref, r, out):
-    """Separable box sums of C and C² over the clipped (2r+1)² window → variance (rows in parallel).
+    """Separable box sums of C and C² over the clipped (2r+1)² window → variance (row blocks in parallel).
 
-    Every output pixel is computed by one thread from the same operations in the same order, so the
-    result does not depend on the number of threads.
+    Per image row: the column sums of its 2r + 1 rows (one contiguous pass per row over W·C values,
+    which LLVM vectorises), then the row sums of those, from a W·C buffer that stays in cache — no
+    image-sized intermediates (0.065–0.097 → 0.031 s at 1 MP, the same bytes as the two-pass version
+    it replaced). Every output pixel is computed by one thread from the same operations in the same
+    order (sums from 0 in ascending row, then column order), so the result does not depend on the
+    number of threads.
     """
     h, w, c = ref.shape
-    vs = np.empty((h, w, c))
-    vs2 = np.empty((h, w, c))
-    for y in numba.prange(h):
-        y0 = max(0, y - r)
-        y1 = min(h - 1, y + r)
-        for x in range(w):
-            for ch in range(c):
-                s = 0.0
-                s2 = 0.0
-                for yy in range(y0, y1 + 1):
-                    v = ref[yy, x, ch]
-                    s += v
-                    s2 += v * v
-                vs[y, x, ch] = s
-                vs2[y, x, ch] = s2
-    for y in numba.prange(h):
-        ny = min(h - 1, y + r) - max(0, y - r) + 1
-        for x in range(w):
-            x0 = max(0, x - r)
-            x1 = min(w - 1, x + r)
-            cnt = float(ny * (x1 - x0 + 1))
-            for ch in range(c):
-                s = 0.0
-                s2 = 0.0
-                for xx in range(x0, x1 + 1):
-                    s += vs[y, xx, ch]
-                    s2 += vs2[y, xx, ch]
-                mean = s / cnt
-                out[y, x, ch] = max(s2 / cnt - mean * mean, 0.0)
+    n = w * c
+    flat = ref.reshape(h, n)
+    nblk = (h + _VARIANCE_ROW_BLOCK - 1) // _VARIANCE_ROW_BLOCK
+    for b in numba.prange(nblk):
+        vs = np.empty(n)
+        vs2 = np.empty(n)
+        for y in range(b * _VARIANCE_ROW_BLOCK, min(h, (b + 1) * _VARIANCE_ROW_BLOCK)):
+            y0 = max(0, y - r)
+            y1 = min(h - 1, y + r)
+            for k in range(n):
+                vs[k] = 0.0
+                vs2[k] = 0.0
+            for yy in range(y0, y1 + 1):
+                row = flat[yy]
+                for k in range(n):
+                    v = row[k]
+                    vs[k] += v
+                    vs2[k] += v * v
+            ny = y1 - y0 + 1
+            orow = out[y]
+            for x in range(w):
+                x0 = max(0, x - r)
+                x1 = min(w - 1, x + r)
+                cnt = float(ny * (x1 - x0 + 1))
+                for ch in range(c):
+                    s = 0.0
+                    s2 = 0.0
+                    for xx in range(x0, x1 + 1):
+                        s += vs[xx * c + ch]
+                        s2 += vs2[xx * c + ch]
+                    mean = s / cnt
+                    orow[x, ch] = max(s2 / cnt - mean * mean, 0.0)
 
 
 def colorization_weights(reference, *, window=7, neighborhood=3, eps=1e-6):

@@ -224,3 +224,30 @@ def test_unrolled_rgb_weights_kernel_bit_identical_to_the_generic_one():
     E._weights_kernel_3x3_rgb(ref, inv, offs, unrolled)
     assert np.array_equal(generic, unrolled)
     np.testing.assert_allclose(generic.sum(axis=0), 1.0, rtol=1e-12)
+
+
+@pytest.mark.parametrize("shape,window", [((5, 4), 7), ((70, 41), 7), ((33, 90), 5), ((40, 3), 3)])
+def test_box_variance_equals_the_clipped_window_variance(shape, window):
+    """σ_ip² of Eq. (4c) against a slow loop over each pixel's clipped window (population variance);
+    more rows than one parallel block, windows wider than the image, and any thread count give the
+    same bytes."""
+    import numba
+
+    rng = np.random.default_rng(5)
+    ref = rng.random(shape + (3,))
+    r = window // 2
+    h, w = shape
+    want = np.empty(ref.shape)
+    for y in range(h):
+        for x in range(w):
+            patch = ref[max(0, y - r):y + r + 1, max(0, x - r):x + r + 1].reshape(-1, 3)
+            want[y, x] = patch.var(axis=0)
+    got = E._local_variance(ref, window)
+    np.testing.assert_allclose(got, want, rtol=1e-10, atol=1e-13)
+    n = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = E._local_variance(ref, window)
+    finally:
+        numba.set_num_threads(n)
+    assert one.tobytes() == got.tobytes()

@@ -337,11 +337,11 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
        the re-discretised one; :func:`method.propagation_matrix_free.two_level_pcg`). Cost O(H·W) per
        iteration plus one V-cycle on the coarse grid; max(⌈2.5·s⌉, 20) iterations by default. The 3×3
        neighbourhood has unrolled kernels (bit-identical to the generic ones, ~5–8× faster).
-       Error of the default against the exact solve on the astronaut photo (paper preset's
-       measures; ``benchmarks/propagation_accuracy.py`` records it): 0.0082 px RMS / 0.045 px p99
-       at 512² (4×, 20 iterations) and 0.019 / 0.082 px at 1024² (8×, 20 iterations); 24 iterations
-       (the default before) gave 0.0059 / 0.030 and 0.0115 / 0.050 px. The
-       re-discretised default before it: 0.0024 / 0.012 and 0.0149 / 0.070 px with 80 iterations
+       Error of the default against the exact solve on the astronaut photo
+       (``benchmarks/propagation_accuracy.py`` records it; RMS / p99 px, 8× and 20 iterations at
+       both sizes): paper's measures 0.016 / 0.069 at 512², 0.019 / 0.082 at 1024²; robust's
+       (with their confidence) 0.032 / 0.15 and 0.026 / 0.092 (:data:`DEFAULT_REFINE_ITERATIONS`,
+       :data:`AUTO_MAX_COARSE_PIXELS_AT_4X`). The re-discretised default before session 4: 0.0024 / 0.012 and 0.0149 / 0.070 px with 80 iterations
        each (4×), at 2.4× the time at 1 MP; from the same 8× grid it needs ~160 iterations for
        0.028 px RMS. ``tests/test_propagation.py`` bounds the error on a 320² synthetic image.
     6. Determinism: the AMG setup draws no random numbers (:data:`AMG_PROLONGATION_SMOOTHER`) and

@@ -87,6 +87,12 @@ def sweep(env, out, *extra, grid=GRID):
     return proc.returncode, stdout, stderr
 
 
+def _finished_cells(folder):
+    """The finished cell files of a sweep folder: ``*.json`` without the hidden temporary files
+    (``.<name>.tmp.*.json``) of an atomic write in progress, which pathlib's glob also matches."""
+    return [p for p in folder.glob("*.json") if not p.name.startswith(".")] if folder.is_dir() else []
+
+
 def _table(out):
     from repro.sweep import read_table
 
@@ -132,7 +138,7 @@ def test_serial_sweep_table_summary_plot_and_deduplicated_renders(serial, env):
     assert f"{N_CELLS}/{N_CELLS}" in stderr and "dashboard: http" in stderr
     assert "paper/zero_crossing alpha=0.5" in stdout and "mean dense_textured_mae" in stdout
     assert (out / "dense_textured_mae.png").stat().st_size > 5000
-    assert len(list((out / "cells").glob("*.json"))) == N_CELLS
+    assert len(_finished_cells(out / "cells")) == N_CELLS
     assert not list(out.rglob("*.tmp*"))
 
 
@@ -147,11 +153,11 @@ def test_two_local_workers_give_the_serial_table(serial, env, tmp_path):
 @pytest.mark.slow
 def test_same_command_again_reads_every_cell_back(serial, env):
     out = serial[0]
-    before = {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")}
+    before = {p.name: p.stat().st_mtime_ns for p in _finished_cells(out / "cells")}
     rc, stdout, stderr = sweep(env, out, "--workers", "1")
     _ok(rc, stdout, stderr)
     assert f"{N_CELLS} of {N_CELLS} cells read back" in stderr and "engine:" not in stderr
-    assert {p.name: p.stat().st_mtime_ns for p in (out / "cells").glob("*.json")} == before
+    assert {p.name: p.stat().st_mtime_ns for p in _finished_cells(out / "cells")} == before
     assert _table(out) == serial[1]
 
 
@@ -163,7 +169,7 @@ def test_changed_key_is_not_read_back(serial, tmp_path):
 
     out = tmp_path / "copy"
     shutil.copytree(serial[0] / "cells", out / "cells")
-    for f in sorted((out / "cells").glob("*.json")):
+    for f in sorted(_finished_cells(out / "cells")):
         key = json.loads(f.read_text())["key"]
         assert read_cell(out, f.stem, key) is not None
         for change in ({"code": "0" * 16}, {"variant_requested": "scalar_rgb"},
@@ -257,7 +263,7 @@ def test_ctrl_c_then_resume_reads_finished_cells_back(serial, env, tmp_path):
     proc = _popen(["repro.sweep", *grid, "--out", str(out), "--workers", "1"], env)
     try:
         deadline = time.monotonic() + TIMEOUT_S
-        while proc.poll() is None and not (cells.is_dir() and list(cells.glob("*.json"))):
+        while proc.poll() is None and not _finished_cells(cells):
             assert time.monotonic() < deadline, "no cell finished"
             time.sleep(0.05)
         proc.send_signal(signal.SIGINT)
@@ -269,13 +275,13 @@ def test_ctrl_c_then_resume_reads_finished_cells_back(serial, env, tmp_path):
     assert proc.returncode == 130, f"exit {proc.returncode}: {stderr[-2000:]}"
     assert "interrupted" in stderr
     assert left == [], f"processes left running after Ctrl-C: {left}"
-    done = {p.name: p.stat().st_mtime_ns for p in cells.glob("*.json")}
+    done = {p.name: p.stat().st_mtime_ns for p in _finished_cells(cells)}
     assert 1 <= len(done) < 3
     assert not (out / "results.parquet").exists()
     rc, stdout, stderr = sweep(env, out, "--workers", "1", grid=grid)
     _ok(rc, stdout, stderr)
     assert f"resuming: {len(done)} of 3 cells read back" in stderr
-    assert {n: m for n, m in ((p.name, p.stat().st_mtime_ns) for p in cells.glob("*.json")) if n in done} == done
+    assert {n: m for n, m in ((p.name, p.stat().st_mtime_ns) for p in _finished_cells(cells)) if n in done} == done
     rows = _table(out)
     assert len(rows) == 3 and sum(t["resumed"] for t in read_table(out / "timings.parquet")) == len(done)
     ref = {(r["f_number"], r["alpha"]): r for r in serial[1]}

@@ -309,7 +309,7 @@ def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None, confidence
 
 
 def propagation_confidence(refined_sigma, *, params, sparse_sigma=None, confidence=None):
-    """The per-edge weight c_p of the propagation's data term (α_p = α·c_p), or None for the paper's α.
+    """The per-edge weight c_p of Eq. (4)'s data term (α_p = α·c_p), or None for the paper's constant α.
 
     Parameters
     ----------

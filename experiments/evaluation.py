@@ -82,14 +82,14 @@ def validate_estimators(names) -> tuple[str, ...]:
 
 
 def estimator_fingerprint(name: str) -> str:
-    """:func:`storage.source_fingerprint` of a registered estimator function (its module,
+    """:func:`defocus_cache.source_fingerprint` of a registered estimator function (its module,
     qualified name and source).
 
     Part of the cache key, so an estimator registered at run time from outside ``method/`` (not
     covered by :func:`experiments.registry.code_fingerprint`) still invalidates stale entries.
     """
     from method import BLUR_ESTIMATORS
-    from storage import source_fingerprint
+    from defocus_cache import source_fingerprint
 
     return source_fingerprint(BLUR_ESTIMATORS[name])
 
@@ -328,7 +328,7 @@ def evaluate_case(estimator: str | None, scene: str, *, f_number: float = 8.0, p
     from scenes import render_scene
     from scenes.backend import cache_root, select_variant
     from scenes.render import validate_render_options
-    from storage import Cache
+    from defocus_cache import Cache
 
     from .registry import code_fingerprint, to_jsonable
     from .stage_attribution import stage_errors
@@ -368,7 +368,7 @@ def evaluate_case(estimator: str | None, scene: str, *, f_number: float = 8.0, p
         metrics, arrays = compute()
         return EvaluationCase(key=key_fields, metrics=metrics, arrays=arrays, cached=False)
 
-    from storage import library_versions
+    from defocus_cache import library_versions
 
     key = {**key_fields, "eval_version": EVAL_VERSION, "code": code_fingerprint(),
            "estimator_code": estimator_fingerprint(estimator), "params": to_jsonable(params),

@@ -6,7 +6,7 @@ function returning a dict of numpy arrays plus a ``"metrics"`` dict, a ``plot`` 
 frozen config dataclass per mode (``"quick"`` and ``"full"``). Every parameter of an experiment is
 a field of that one dataclass, with a comment giving its meaning and unit.
 
-Compute results are cached in ``<cache>/figures`` through :class:`storage.Cache`, keyed by
+Compute results are cached in ``<cache>/figures`` through :class:`defocus_cache.Cache`, keyed by
 the figure name, the figure's code ``version`` (bump it whenever compute's output changes) and the
 config's fields, as ``arrays.npz`` + ``metrics.json``.
 
@@ -175,13 +175,13 @@ _FINGERPRINT_EXCLUDED = ("experiments/plotting", "experiments/claims.py")
 
 @functools.lru_cache(maxsize=1)
 def code_fingerprint() -> str:
-    """:func:`storage.source_fingerprint` (16 hex digits) of ``method``, ``scenes`` and ``experiments``.
+    """:func:`defocus_cache.source_fingerprint` (16 hex digits) of ``method``, ``scenes`` and ``experiments``.
 
     Part of every figure's cache key, so an edit of the estimator, the scenes or an experiment
     invalidates cached figure data without anyone remembering to bump a version number
     (renders keep their own, finer cache keyed by each scene's content).
     """
-    from storage import source_fingerprint
+    from defocus_cache import source_fingerprint
 
     return source_fingerprint(*(importlib.import_module(p) for p in _FINGERPRINT_PACKAGES),
                               exclude=_FINGERPRINT_EXCLUDED)
@@ -189,9 +189,9 @@ def code_fingerprint() -> str:
 
 def cache_key(figure: Figure, config) -> dict:
     """JSON-able key of a compute result: figure name, code version and source fingerprint, config type and
-    fields, the versions of the numerical and rendering libraries (:data:`storage.KEY_LIBRARIES`)
+    fields, the versions of the numerical and rendering libraries (:data:`defocus_cache.KEY_LIBRARIES`)
     and, for figures that render, the Mitsuba variant."""
-    from storage import library_versions
+    from defocus_cache import library_versions
 
     key = {
         "figure": figure.name,
@@ -226,7 +226,7 @@ def compute_cached(figure: Figure, config, *, force=False, cache_dir=None) -> Fi
     FigureResult
     """
     from scenes.backend import cache_root
-    from storage import Cache
+    from defocus_cache import Cache
 
     if not dataclasses.is_dataclass(config) or not type(config).__dataclass_params__.frozen:
         raise ValueError(f"config {config!r} is invalid; allowed: a frozen dataclass instance")
@@ -259,8 +259,8 @@ def compute_cached(figure: Figure, config, *, force=False, cache_dir=None) -> Fi
 
 def library_versions() -> dict:
     """Versions of Python and the libraries a figure depends on (for the metrics files): those of the
-    cache keys (:data:`storage.KEY_LIBRARIES`) plus matplotlib."""
-    from storage import KEY_LIBRARIES
-    from storage import library_versions as versions
+    cache keys (:data:`defocus_cache.KEY_LIBRARIES`) plus matplotlib."""
+    from defocus_cache import KEY_LIBRARIES
+    from defocus_cache import library_versions as versions
 
     return dict(versions((*KEY_LIBRARIES, "matplotlib")))

@@ -697,7 +697,7 @@ def run_accuracy(config: dict | None = None, *, out: Path, progress: bool = True
     4. Verdicts (:func:`judge_accuracy`) from the numbers and the TARGET_* constants.
     """
     from scenes.analytic import SKIMAGE_INTRINSIC_SIGMA_PX
-    from storage import atomic_write_text
+    from defocus_cache import atomic_write_text
 
     from method import PRESETS
 
@@ -773,7 +773,7 @@ def main(argv=None) -> int:
         return 0
     from tqdm import tqdm
 
-    from storage import atomic_write_text
+    from defocus_cache import atomic_write_text
 
     from method import PRESETS
 

@@ -256,14 +256,14 @@ def load_photo(args, *, prog):
 
 
 def _code_version(params) -> str:
-    """:func:`storage.source_fingerprint` of what determines a map: the ``method`` package,
+    """:func:`defocus_cache.source_fingerprint` of what determines a map: the ``method`` package,
     the photo decoder and display encoding, and the chosen estimator (which may be registered at
     run time from outside ``method``)."""
     import method
     import scenes.display
     import repro.photo_io
     from method import BLUR_ESTIMATORS
-    from storage import source_fingerprint
+    from defocus_cache import source_fingerprint
 
     extra = [BLUR_ESTIMATORS[params.estimator]] if params.estimator in BLUR_ESTIMATORS else []
     return source_fingerprint(method, repro.photo_io, scenes.display, *extra)
@@ -278,7 +278,7 @@ def map_cache_key(photo, params, working_shape_) -> dict:
     """
     import dataclasses
 
-    from storage import library_versions, sha256_file
+    from defocus_cache import library_versions, sha256_file
 
     return {
         "kind": "defocus_map",
@@ -332,7 +332,7 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
     params : DefocusParams
     max_working_pixels : int, keyword-only
     use_cache : bool, keyword-only
-        Read/write ``cache_root()/"maps"`` (:class:`storage.Cache`, checksummed, locked).
+        Read/write ``cache_root()/"maps"`` (:class:`defocus_cache.Cache`, checksummed, locked).
     force : bool, keyword-only
         Re-estimate even when the map is cached (the new map replaces the entry).
     progress : callable, optional, keyword-only
@@ -355,7 +355,7 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
     """
     from method.upsampling import downscale_image, upsample_defocus_map, working_shape
     from scenes.backend import cache_root
-    from storage import Cache
+    from defocus_cache import Cache
 
     image = photo.image
     H, W = image.shape[:2]
@@ -419,7 +419,7 @@ def write_map_preview(path, sigma) -> Path:
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
 
-    from storage import atomic_write
+    from defocus_cache import atomic_write
 
     sigma = np.asarray(sigma, dtype=np.float64)
     h, w = sigma.shape

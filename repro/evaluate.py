@@ -153,7 +153,7 @@ def format_table(rows) -> str:
 def write_outputs(rows, out_dir: Path, info: dict) -> list[Path]:
     """Write ``evaluate.csv`` and ``evaluate.json`` atomically; returns the paths."""
     from experiments.registry import to_jsonable
-    from storage import atomic_write_text
+    from defocus_cache import atomic_write_text
 
     out_dir.mkdir(parents=True, exist_ok=True)
     buf = io.StringIO()
@@ -205,7 +205,7 @@ def format_stage_table(rows) -> str:
 def write_stage_outputs(rows, out_dir: Path, info: dict) -> list[Path]:
     """Write ``stages.csv`` and ``stages.json`` atomically; returns the paths."""
     from experiments.registry import to_jsonable
-    from storage import atomic_write_text
+    from defocus_cache import atomic_write_text
 
     out_dir.mkdir(parents=True, exist_ok=True)
     fields = list(rows[0]) if rows else list(STAGE_ID_COLUMNS)

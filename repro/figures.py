@@ -84,7 +84,7 @@ def make_figure(name: str, mode: str, out_dir: str, force: bool, presets=None) -
     (see :func:`figure_config`). Top-level so that worker processes can run it.
     """
     from experiments.registry import FIGURES, compute_cached, library_versions, to_jsonable
-    from storage import atomic_write_text
+    from defocus_cache import atomic_write_text
 
     t0 = time.perf_counter()
     fig = FIGURES[name]

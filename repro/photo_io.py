@@ -6,7 +6,7 @@ expects kept: orientation (EXIF), bit depth (16-bit PNG/TIFF in → 16-bit out),
 EXIF and ICC metadata pass through where the format allows.
 
 Every bad file is refused with :class:`PhotoError` (a ``ValueError``) carrying one line that names
-the file and what is wrong; nothing is ever half-written (:func:`storage.atomic_write`).
+the file and what is wrong; nothing is ever half-written (:func:`defocus_cache.atomic_write`).
 
 Decoders
 --------
@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from storage import atomic_write
+from defocus_cache import atomic_write
 
 __all__ = [
     "DEFAULT_MAX_PIXELS",

@@ -368,7 +368,7 @@ def claims_block(verdicts, *, report_link: str) -> str:
 
 def update_readme_block(readme: Path, block: str) -> bool:
     """Replace the marked block in ``readme`` (atomically); False when the file has no markers."""
-    from storage import atomic_write_text
+    from defocus_cache import atomic_write_text
 
     text = readme.read_text(encoding="utf-8")
     start, end = text.find(README_START), text.find(README_END)
@@ -390,7 +390,7 @@ def main(argv=None) -> int:
                              "README.md, and only when --out is the project's report/ folder)")
     args = parser.parse_args(argv)
     from experiments.claims import claim_matrix, evaluate_claims
-    from storage import atomic_write_text
+    from defocus_cache import atomic_write_text
 
     if not args.figures.is_dir():
         raise ValueError(f"figures folder {args.figures} does not exist; run python -m repro.figures first")

@@ -69,7 +69,7 @@ class Render:
 
     @property
     def render_id(self) -> str:
-        from storage import hash_key
+        from defocus_cache import hash_key
 
         return hash_key(dataclasses.asdict(self))
 
@@ -355,7 +355,7 @@ def read_cell(out: Path, cell_id: str, key: dict) -> dict | None:
 
 def write_cell(out: Path, cell_id: str, key: dict, result: dict) -> None:
     """Store one finished cell atomically (temporary file + rename)."""
-    from storage import atomic_write_text
+    from defocus_cache import atomic_write_text
 
     (out / "cells").mkdir(parents=True, exist_ok=True)
     atomic_write_text(_cell_path(out, cell_id), json.dumps({"key": key, "result": result}, sort_keys=True))
@@ -433,7 +433,7 @@ def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | N
     3. Rows in grid order from the cell files; ``results.parquet`` and ``timings.parquet`` written
        atomically; the plot.
     """
-    from storage import hash_key
+    from defocus_cache import hash_key
 
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     out = Path(out)
@@ -546,7 +546,7 @@ def write_table(path: Path, rows: list[dict], meta: dict) -> Path:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from storage import atomic_write
+    from defocus_cache import atomic_write
 
     names = list(rows[0]) if rows else []
     table = pa.table({n: _column([r.get(n) for r in rows]) for n in names})
@@ -616,7 +616,7 @@ def plot_metric(rows: list[dict], metric: str, path: Path) -> Path:
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from storage import atomic_write
+    from defocus_cache import atomic_write
 
     labels = list(dict.fromkeys(r["method_variant"] for r in rows))
     scenes = list(dict.fromkeys(r["scene"] for r in rows))
@@ -692,7 +692,7 @@ def run_sweep_bench(out, *, scenes=("planes", "portrait"), f_numbers=(8.0, 4.0),
     from dask.distributed import Client, LocalCluster
 
     from experiments.sweep_cells import render_task
-    from storage import atomic_write_text
+    from defocus_cache import atomic_write_text
 
     out = Path(out)
     grid = build_grid(scenes=scenes, f_numbers=f_numbers, estimators=estimators, presets=("paper",))

@@ -21,7 +21,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from storage import CACHE_ENV, default_cache_root
+from defocus_cache import CACHE_ENV, default_cache_root
 
 __all__ = [
     "CACHE_ENV",
@@ -45,7 +45,7 @@ class BackendError(RuntimeError):
 
 
 def cache_root() -> Path:
-    """The project's cache folder (:func:`storage.default_cache_root`: ``$DEFOCUS_CACHE_DIR``, else
+    """The project's cache folder (:func:`defocus_cache.default_cache_root`: ``$DEFOCUS_CACHE_DIR``, else
     ``<checkout>/.cache`` in a source checkout, else the platformdirs user cache), created if missing."""
     root = default_cache_root()
     root.mkdir(parents=True, exist_ok=True)

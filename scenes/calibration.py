@@ -666,7 +666,7 @@ def write_calibration_log(rows, ratios=(), *, folder=None, extra=None):
     from pathlib import Path
 
     from .backend import cache_root
-    from storage import atomic_write_text
+    from defocus_cache import atomic_write_text
 
     folder = Path(folder) if folder is not None else cache_root() / "calibration"
     folder.mkdir(parents=True, exist_ok=True)

@@ -4,7 +4,7 @@ One file holds everything a render produced: linear ``RGB`` radiance, camera-spa
 (metres, ``inf`` where the pixel-centre ray missed), the circle-of-confusion diameter ``coc`` (px)
 and the blur ``sigma`` (px), plus boolean masks (stored as float32 0/1). Every channel is float32,
 ZIP-compressed (lossless), so a value read back is bit-identical to the one written, ``inf`` and
-``nan`` included. Files are written atomically (:func:`storage.atomic_write`).
+``nan`` included. Files are written atomically (:func:`defocus_cache.atomic_write`).
 
 Uses the ``OpenEXR`` 3.x Python API: ``OpenEXR.File(header, channels).write(path)``.
 """
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from storage import atomic_write
+from defocus_cache import atomic_write
 
 __all__ = ["read_exr", "write_exr"]
 

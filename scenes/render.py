@@ -5,11 +5,11 @@
 depth from lens-centre rays, CoC by Eq. (5), σ_gt, occlusion-boundary mask), writes everything to one
 float32 EXR (:mod:`scenes.exr`) plus a JSON sidecar, and returns a :class:`Render`.
 
-Renders are cached under ``scenes.backend.cache_root() / "renders"`` (:class:`storage.Cache`)
+Renders are cached under ``scenes.backend.cache_root() / "renders"`` (:class:`defocus_cache.Cache`)
 keyed by everything that changes the output: the scene's *content* (:func:`scene_content_hash`, a hash
 of its Mitsuba shapes and integrator, textures and transforms included, so editing a scene re-renders
 it and only it), camera (incl. resolution), spp, seed, Mitsuba variant, the library versions of
-:data:`storage.KEY_LIBRARIES`, the source of the ground-truth code, σ convention and filter σ, and
+:data:`defocus_cache.KEY_LIBRARIES`, the source of the ground-truth code, σ convention and filter σ, and
 :data:`RENDER_FORMAT`. Entries are checksummed; a truncated entry is rebuilt; concurrent processes build
 an entry once.
 """
@@ -32,7 +32,7 @@ from .exr import read_exr, write_exr
 from .ground_truth import camera_space_depth, ground_truth_from_depth
 from .library import SceneDefinition, get_scene
 from .library.base import SAMPLER
-from storage import Cache, atomic_write_text, hash_key, library_versions, source_fingerprint
+from defocus_cache import Cache, atomic_write_text, hash_key, library_versions, source_fingerprint
 from .thin_lens import BOX_FILTER_SIGMA_PX, SIGMA_CONVENTIONS
 
 __all__ = [
@@ -338,7 +338,7 @@ def render_key(sdef: SceneDefinition, camera: ThinLensCamera, *, spp, seed, vari
     """The cache key: everything that changes a render's pixels or ground truth.
 
     ``scene_content`` (default :func:`scene_content_hash`) and ``libraries`` (default
-    :func:`storage.library_versions`) can be given to build keys without Mitsuba.
+    :func:`defocus_cache.library_versions`) can be given to build keys without Mitsuba.
     """
     return {
         "kind": "render",

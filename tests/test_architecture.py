@@ -2,7 +2,7 @@
 
 repro may import everything; experiments imports method and scenes; method and scenes never import
 each other, experiments or repro; nothing imports repro; method imports no renderer, plotting or
-file-I/O library. storage (atomic writes, caches, cache keys) imports no project package and is used by
+file-I/O library. defocus_cache (atomic writes, caches, cache keys) imports no project package and is used by
 every layer but method.
 """
 
@@ -15,8 +15,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: Project packages each package must not import.
 FORBIDDEN_PROJECT = {
-    "storage": {"method", "scenes", "experiments", "repro"},
-    "method": {"scenes", "experiments", "repro", "storage"},
+    "defocus_cache": {"method", "scenes", "experiments", "repro"},
+    "method": {"scenes", "experiments", "repro", "defocus_cache"},
     "scenes": {"method", "experiments", "repro"},
     "experiments": {"repro"},
 }
@@ -54,12 +54,12 @@ def test_matplotlib_only_in_plotting_modules():
     assert not offenders, offenders
 
 
-def test_photo_io_and_storage_live_where_they_say():
+def test_photo_io_and_cache_live_where_they_say():
     """Photo files are read/written only by the photo tools (repro.estimate, repro.magnify): repro/photo_io.py;
-    the cache layer is its own package, storage/."""
+    the cache layer is its own package, defocus_cache/."""
     assert (ROOT / "repro" / "photo_io.py").is_file() and not (ROOT / "scenes" / "photo_io.py").exists()
-    assert (ROOT / "storage" / "__init__.py").is_file() and not (ROOT / "scenes" / "storage.py").exists()
-    users = sorted(str(p.relative_to(ROOT)) for pkg in ("method", "scenes", "experiments", "repro", "storage")
+    assert (ROOT / "defocus_cache" / "__init__.py").is_file() and not (ROOT / "scenes" / "storage.py").exists()
+    users = sorted(str(p.relative_to(ROOT)) for pkg in ("method", "scenes", "experiments", "repro", "defocus_cache")
                    for p in (ROOT / pkg).rglob("*.py") if "photo_io" in p.read_text(encoding="utf-8")
                    and p.name != "photo_io.py")
     assert users == ["repro/estimate.py", "repro/magnify.py"], users

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-import storage as storage
-from storage import KEY_LIBRARIES, default_cache_root, hash_key, library_versions, source_fingerprint
+import defocus_cache
+from defocus_cache import KEY_LIBRARIES, default_cache_root, hash_key, library_versions, source_fingerprint
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -55,7 +55,7 @@ def test_source_fingerprint_of_functions():
 
 
 def test_code_fingerprints_are_one_function():
-    """The figure, photo-map and estimator fingerprints all come from storage.source_fingerprint."""
+    """The figure, photo-map and estimator fingerprints all come from defocus_cache.source_fingerprint."""
     import experiments
     import method
     import scenes
@@ -73,7 +73,7 @@ def test_code_fingerprints_are_one_function():
 def _version_changed(monkeypatch, pkg):
     real = library_versions()
     fake = {**real, pkg: "0.0.0-test"}
-    monkeypatch.setattr(storage, "library_versions", lambda *a, **k: fake)
+    monkeypatch.setattr(defocus_cache, "library_versions", lambda *a, **k: fake)
     return real, fake
 
 
@@ -160,7 +160,7 @@ def test_scene_content_hash_is_stable_across_processes(tmp_path):
 
 
 def test_cache_root_in_source_checkout_and_installed(tmp_path, monkeypatch):
-    monkeypatch.delenv(storage.CACHE_ENV, raising=False)
+    monkeypatch.delenv(defocus_cache.CACHE_ENV, raising=False)
     # this checkout
     assert default_cache_root() == ROOT / ".cache"
     checkout = tmp_path / "src"
@@ -177,7 +177,7 @@ def test_cache_root_in_source_checkout_and_installed(tmp_path, monkeypatch):
     assert "site-packages" not in got.parts
     (site / "pyproject.toml").write_text("")  # even a stray pyproject in site-packages is not a checkout
     assert "site-packages" not in default_cache_root(project_root=site).parts
-    monkeypatch.setenv(storage.CACHE_ENV, str(tmp_path / "mine"))
+    monkeypatch.setenv(defocus_cache.CACHE_ENV, str(tmp_path / "mine"))
     assert default_cache_root(project_root=site) == tmp_path / "mine"
 
 
@@ -187,11 +187,11 @@ def test_cache_root_of_an_installed_copy(tmp_path):
     import shutil
 
     site = tmp_path / "site-packages"
-    shutil.copytree(ROOT / "storage", site / "storage", ignore=shutil.ignore_patterns("__pycache__"))
-    env = {k: v for k, v in os.environ.items() if k != storage.CACHE_ENV}
+    shutil.copytree(ROOT / "defocus_cache", site / "defocus_cache", ignore=shutil.ignore_patterns("__pycache__"))
+    env = {k: v for k, v in os.environ.items() if k != defocus_cache.CACHE_ENV}
     env["PYTHONPATH"] = str(site)
     env["XDG_CACHE_HOME"] = str(tmp_path / "xdg")
-    out = subprocess.run([sys.executable, "-c", "import storage as s; print(s.__file__); print(s.default_cache_root())"],
+    out = subprocess.run([sys.executable, "-c", "import defocus_cache as s; print(s.__file__); print(s.default_cache_root())"],
                          env=env, cwd=tmp_path, capture_output=True, text=True, check=True).stdout.split("\n")
     assert out[0].startswith(str(site))
     assert Path(out[1]) == tmp_path / "xdg" / "defocus-repro"
@@ -199,7 +199,7 @@ def test_cache_root_of_an_installed_copy(tmp_path):
 
 @pytest.mark.render
 def test_render_force_rebuilds_the_entry(tmp_path, monkeypatch):
-    monkeypatch.setenv(storage.CACHE_ENV, str(tmp_path / "cache"))
+    monkeypatch.setenv(defocus_cache.CACHE_ENV, str(tmp_path / "cache"))
     from scenes.library import SCENES
     from scenes.render import render_scene
 

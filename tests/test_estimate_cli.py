@@ -377,7 +377,7 @@ def test_two_processes_share_one_cache_entry(tmp_path):
     np.testing.assert_array_equal(np.load(tmp_path / "m0.npy"), np.load(tmp_path / "m1.npy"))
     entries = _entries(cache)
     assert len(entries) == 1
-    from storage import Cache
+    from defocus_cache import Cache
 
     manifest = json.loads((entries[0] / "manifest.json").read_text())
     assert Cache(cache / "maps").is_valid(manifest["key"])

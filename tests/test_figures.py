@@ -171,7 +171,7 @@ def test_code_fingerprint_ignores_plots_and_claims_but_not_compute_code(tmp_path
     # the fingerprint of a fake checkout: packages resolved to its folders, paths relative to its root
     import types
 
-    import storage
+    import defocus_cache as storage
 
     monkeypatch.setattr(reg, "importlib", types.SimpleNamespace(import_module=lambda name: tmp_path / name))
     monkeypatch.setattr(storage, "_PROJECT_ROOT", tmp_path)

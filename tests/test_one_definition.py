@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("method", "scenes", "experiments", "repro", "storage")
+PACKAGES = ("method", "scenes", "experiments", "repro", "defocus_cache")
 
 
 def _sources():
@@ -30,10 +30,10 @@ def test_luminance_is_the_weighted_sum():
 
 
 def test_cache_fingerprints_only_in_the_cache_layer():
-    """hashlib-based code fingerprints (getsource, hashing .py files) live in storage/__init__.py only."""
+    """hashlib-based code fingerprints (getsource, hashing .py files) live in defocus_cache/__init__.py only."""
     where = [p.relative_to(ROOT).as_posix() for p in _sources()
              if "getsource" in p.read_text() or 'glob("*.py")' in p.read_text() or "rglob(\"*.py\")" in p.read_text()]
-    assert where == ["storage/__init__.py"]
+    assert where == ["defocus_cache/__init__.py"]
 
 
 def test_image_checks_only_in_method_validation():

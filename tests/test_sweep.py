@@ -113,7 +113,7 @@ def serial(env, tmp_path_factory):
 
 @pytest.mark.slow
 def test_serial_sweep_table_summary_plot_and_deduplicated_renders(serial, env):
-    from storage import Cache
+    from defocus_cache import Cache
 
     out, rows, stdout, stderr = serial
     assert len(rows) == N_CELLS
@@ -220,7 +220,7 @@ def test_external_scheduler_two_workers_one_sigkilled_mid_cell_table_complete(se
     cache entry is still valid."""
     from dask.distributed import Client
 
-    from storage import Cache
+    from defocus_cache import Cache
 
     out = tmp_path / "killed"
     proc = _popen(["repro.sweep", *GRID, "--out", str(out), "--scheduler", external], env)

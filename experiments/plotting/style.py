@@ -53,7 +53,7 @@ def add_colorbar(fig, ax, mappable, label):
 
 def save_figure(fig, out_stem) -> list[Path]:
     """Write ``out_stem.png`` and ``out_stem.pdf`` atomically, close the figure, return the paths."""
-    from storage import atomic_write
+    from defocus_cache import atomic_write
 
     out_stem = Path(out_stem)
     out_stem.parent.mkdir(parents=True, exist_ok=True)

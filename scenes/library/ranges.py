@@ -74,7 +74,7 @@ def sigma_gt_ranges(scene, *, presets=tuple(PRESETS), f_numbers=DEFAULT_F_NUMBER
     """
     from ..backend import cache_root, import_mitsuba
     from ..render import scene_content_hash
-    from storage import Cache, library_versions, source_fingerprint
+    from defocus_cache import Cache, library_versions, source_fingerprint
     from .. import camera as camera_module, ground_truth, thin_lens
     from . import get_scene
 

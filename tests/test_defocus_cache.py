@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from storage import Cache, atomic_write, atomic_write_text, hash_key
+from defocus_cache import Cache, atomic_write, atomic_write_text, hash_key
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -92,7 +92,7 @@ _WORKER = textwrap.dedent(
     """
     import sys, time, os
     sys.path.insert(0, sys.argv[1])
-    from storage import Cache
+    from defocus_cache import Cache
     cache = Cache(sys.argv[2])
     log = sys.argv[3]
 
@@ -132,7 +132,7 @@ def test_atomic_write_gives_ordinary_file_permissions(tmp_path):
     import os
     import stat
 
-    from storage import atomic_write_text
+    from defocus_cache import atomic_write_text
 
     umask = os.umask(0o022)
     try:

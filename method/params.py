@@ -183,6 +183,45 @@ class DefocusParams:
     # "galerkin" (default, above), "two_level" (the same CG with the re-discretised coarse system, the
     # default before: 20·s iterations) or "jacobi" (Jacobi-preconditioned CG, ~0.15 px RMS at 1 MP).
 
+    # --- beyond the paper: edge isolation and cue fusion in Eq. (4) -------------------------------
+    edge_isolation: str | None = None
+    # how much an edge measure is trusted given its neighbours (key of
+    # method.edge_isolation.EDGE_ISOLATION_METHODS, or None: every measure weighs fully, paper):
+    # "normal" — weight 1 when no other edge pixel lies within isolation_radius·max(σ̂, 1 px) along the
+    # edge's gradient normal (both sides; its own segment runs along the tangent), less when one does
+    # (a bar's two edges widen each other's response and bias the fit); "persistence" — weight 1 when
+    # the edge is still detected at a detector scale ≈ its own σ̂ (Karaali & Jung 2018: edges that
+    # vanish at coarse scales have close neighbours). The weight multiplies the measure's confidence
+    # c_q (Eq. 3 and α_p of Eq. 4).
+    isolation_radius: float = 3.0
+    # distance, in units of the measure's max(σ̂, 1 px), within which another edge down-weights it.
+    isolation_floor: float = 0.1
+    # weight in (0, 1] of a measure whose neighbour edge touches it; rises as (d / radius)² to 1.
+    fusion_edge_error_rel: float = 0.5
+    # relative error ε_e (dimensionless) of an edge measure σ_e in the fusion's error model:
+    # variance (ε_e·σ_e + 0.1 px)² / c_e. Used only when region measures are fused (region_estimator).
+    fusion_region_error_rel: float = 0.3
+    # relative model error ε_r (dimensionless) of a region measure σ_r, added to its Fisher variance:
+    # variance 1/I + (ε_r·σ_r)² + (0.1 px)².
+    fusion_region_weight: float = 1.0
+    # scale W_r (dimensionless, > 0) of the region measures' data weight in Eq. (4) against an edge
+    # measure of the same σ: α_r = α·W_r·v_e(σ_r)/v_r (a region term stands for a whole window of
+    # pixels, an edge term for one).
+    fusion_region_placement: str = "centres"
+    # where a region measure enters Eq. (4) (method.cue_fusion.REGION_PLACEMENTS): "centres" — at the
+    # pixels the region estimator gave it (its window centres); "blocks" — spread to the pixels nearest
+    # to it (its block of the grid), its weight shared among them.
+    fusion_island_weight: float = 1.0
+    # factor in [0, 1] on the weight of a region measure in a "blur island" (method.cue_fusion.blur_islands):
+    # a block without high-frequency texture (fine-scale detail energy ≤ 4× the noise's) that has such
+    # texture within fusion_island_radius px, or no texture at its own blur scale either (a smooth
+    # in-focus ramp beside sharp edges of the same surface). 1: off; 0: such measures are dropped.
+    # Far from an edge the smoothness of Eq. (4) is very soft, so even a weak data term decides
+    # there: on a ramp crossed by sharp lines (tests/test_cue_fusion.py) a factor 1e-3 still lets
+    # σ 6 region terms lift the ramp between the lines to ≈ 4–6 px, 1e-5 to ≈ 1.2, 0 keeps ≈ 0.6.
+    fusion_island_radius: float = 24.0
+    # radius, px, of the neighbourhood searched for high-frequency texture by the island test.
+
     # --- 5 magnification ------------------------------------------------------------------
     map_clip_percent: float = 5.0
     # clip the lower and upper percentile of the defocus map before blurring, % (Sec. 5).
@@ -288,6 +327,28 @@ class DefocusParams:
         if not self.map_smoothing >= 0:
             bad("map_smoothing", ">= 0")
         check_name("map_floor", MAP_FLOOR_MODES)
+        from .cue_fusion import REGION_PLACEMENTS
+        from .edge_isolation import EDGE_ISOLATION_METHODS
+
+        if self.edge_isolation is not None:
+            check_name("edge_isolation", EDGE_ISOLATION_METHODS)
+        if not (0 < self.isolation_radius < float("inf")):
+            bad("isolation_radius", "finite and > 0 (units of σ̂)")
+        if not (0 < self.isolation_floor <= 1):
+            bad("isolation_floor", "0 < weight <= 1")
+        for name in ("fusion_edge_error_rel", "fusion_region_error_rel"):
+            if not (0 <= getattr(self, name) < float("inf")):
+                bad(name, "finite and >= 0 (dimensionless relative error)")
+        if not (0 < self.fusion_region_weight < float("inf")):
+            bad("fusion_region_weight", "finite and > 0 (dimensionless)")
+        check_name("fusion_region_placement", REGION_PLACEMENTS)
+        if not (0 <= self.fusion_island_weight <= 1):
+            bad("fusion_island_weight", "0 <= factor <= 1 (1: off; 0: island measures dropped)")
+        if not (0 < self.fusion_island_radius < float("inf")):
+            bad("fusion_island_radius", "finite and > 0 (px)")
+        if getattr(self, "region_estimator", None) is not None and self.propagation != "colorization":
+            bad("propagation", "'colorization' when region_estimator is set (the fusion needs per-pixel "
+                "data weights in Eq. 4)")
 
     def replace(self, **changes) -> "DefocusParams":
         """A validated copy with some fields changed."""

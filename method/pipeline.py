@@ -8,6 +8,11 @@ Stages, each in its own module:
    (``"model_fit"``, Eq. (2); ``"zero_crossing"``; ``"gradient_ratio"``) (Sec. 3.2);
 3. :mod:`method.cross_bilateral` — biased cross-bilateral refinement, Eq. (3) (Sec. 3.3);
 4. :mod:`method.propagation` — propagation to every pixel, Eq. (4) (Sec. 4).
+
+Beyond the paper, both off in the ``paper`` preset: isolation weights of the edge measures
+(:mod:`method.edge_isolation`, ``params.edge_isolation``) and a region (spectral) blur estimator
+(``params.region_estimator``, :func:`region_stage`) whose measures are fused with the edge measures
+as data terms of Eq. (4) (:mod:`method.cue_fusion`). Eq. (3) stays edge-only.
 """
 
 from __future__ import annotations
@@ -21,6 +26,8 @@ import numpy as np
 
 from .blur_estimators import USES_DETECTOR_HESSIANS, estimate_blur_measures
 from .cross_bilateral import biased_cross_bilateral
+from .cue_fusion import fuse_cues
+from .edge_isolation import isolation_weights
 from .elder_zucker_edges import EdgeMap, detect_edges
 from .luma import LUMA_WEIGHTS, luminance  # noqa: F401 (LUMA_WEIGHTS re-exported)
 from .params import DefocusParams
@@ -28,9 +35,10 @@ from .propagation_methods import propagate_blur_measures
 from .validation import validate_image
 
 __all__ = ["DefocusResult", "NoEdgesWarning", "blur_stage", "edge_confidence", "edges_stage", "estimate_defocus_map",
-           "luminance", "propagate_stage", "propagation_confidence", "refine_stage"]
+           "isolation_stage", "luminance", "propagate_stage", "propagation_confidence", "refine_stage",
+           "region_stage"]
 
-STAGES = ("edges", "blur_at_edges", "cross_bilateral", "propagation")
+STAGES = ("edges", "blur_at_edges", "region_blur", "cross_bilateral", "propagation")
 
 
 class NoEdgesWarning(UserWarning):
@@ -58,6 +66,11 @@ class DefocusResult:
     # bool HxW: True at the measures whose edge response was fitted with the disk PSF model of a thin
     # lens (params.fit_psf "disk", "best", or "auto" when it chose the disk), False at the other
     # pixels; None when params.estimator fits no PSF model (method.blur_estimators.FITS_PSF_MODEL).
+    region_sigma: np.ndarray | None = None
+    # float64 HxW: blur σ, px, of the region estimator (params.region_estimator; NaN where it has no
+    # measure), fused with the edge measures in Eq. (4); None when params.region_estimator is None.
+    region_information: np.ndarray | None = None
+    # float64 HxW: Fisher information of region_sigma, px⁻² (1 / variance); None with region_sigma.
 
     @property
     def psf_model(self) -> str | None:
@@ -112,6 +125,12 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
        those responses; they are dropped from the returned EdgeMap.
     4. Biased cross-bilateral refinement of the sparse measures, Eq. (3) (Sec. 3.3).
     5. Propagation by minimising Eq. (4): (LᵀL + diag α) B = α·BM (Sec. 4).
+
+    Beyond the paper (both off in ``paper``): with ``params.edge_isolation`` the measures'
+    confidence is multiplied by their isolation weight (:func:`isolation_stage`) after step 3; with
+    ``params.region_estimator`` the region estimator runs on the luminance (stage "region_blur",
+    :func:`region_stage`) and its measures join the refined edge measures as data terms of Eq. (4)
+    by inverse variance (:func:`method.cue_fusion.fuse_cues`). Eq. (3) stays edge-only.
     """
     params = DefocusParams() if params is None else params
     if not isinstance(params, DefocusParams):
@@ -141,10 +160,22 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
 
     t = stage("blur_at_edges")
     sparse, confidence, edge_map, psf_disk = blur_stage(gray, edge_map, params=params)
+    if params.edge_isolation is not None:
+        confidence = isolation_stage(gray, edge_map, sparse, params=params, confidence=confidence)
     done("blur_at_edges", t)
 
+    if getattr(params, "region_estimator", None) is not None:
+        t = stage("region_blur")
+        region_sigma, region_info = region_stage(gray, params=params)
+        done("region_blur", t)
+    else:
+        region_sigma = region_info = None
+        timings["region_blur"] = 0.0
+        cpu["region_blur"] = 0.0
+    has_region = region_sigma is not None and bool(np.any(np.isfinite(region_sigma)))
+
     shape = gray.shape
-    if not np.any(np.isfinite(sparse)):
+    if not np.any(np.isfinite(sparse)) and not has_region:
         warnings.warn(
             "no edges found above the noise thresholds; returning an all-zero defocus map",
             NoEdgesWarning, stacklevel=2,
@@ -158,21 +189,27 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
             edges=edge_map.edges.copy(), sparse_sigma=sparse, refined_sigma=np.full(shape, np.nan),
             defocus_map=np.zeros(shape), edge_map=edge_map, timings=timings, params=params,
             cpu_timings=cpu, measure_confidence=confidence, psf_disk=psf_disk,
+            region_sigma=region_sigma, region_information=region_info,
         )
 
     t = stage("cross_bilateral")
-    refined = refine_stage(sparse, rgb, params=params, confidence=confidence)
+    if np.any(np.isfinite(sparse)):
+        refined = refine_stage(sparse, rgb, params=params, confidence=confidence)
+    else:  # region measures only
+        refined = np.full(shape, np.nan)
     done("cross_bilateral", t)
 
     t = stage("propagation")
-    dense = propagate_stage(refined, rgb, params=params, sparse_sigma=sparse, confidence=confidence)
+    dense = propagate_stage(refined, rgb, params=params, sparse_sigma=sparse, confidence=confidence,
+                            region_sigma=region_sigma, region_information=region_info, gray=gray)
     done("propagation", t)
     timings["total"] = time.perf_counter() - t_start
     cpu["total"] = time.process_time() - c_start
     return DefocusResult(
         edges=edge_map.edges.copy(), sparse_sigma=sparse, refined_sigma=refined,
         defocus_map=dense, edge_map=edge_map, timings=timings, params=params, cpu_timings=cpu,
-        measure_confidence=confidence, psf_disk=psf_disk,
+        measure_confidence=confidence, psf_disk=psf_disk, region_sigma=region_sigma,
+        region_information=region_info,
     )
 
 
@@ -223,6 +260,58 @@ def blur_stage(gray, edge_map, *, params):
     sparse, confidence, psf_disk = estimate_blur_measures(gray, edge_map, params=params)
     sparse = np.where(edge_map.edges, np.asarray(sparse, dtype=np.float64), np.nan)
     return sparse, confidence, dataclasses.replace(edge_map, hessians=None), psf_disk
+
+
+def isolation_stage(gray, edge_map, sparse_sigma, *, params, confidence=None) -> np.ndarray:
+    """The measures' confidence times their isolation weight (beyond the paper; ``params.edge_isolation``).
+
+    Parameters
+    ----------
+    gray : ndarray, shape (H, W), float
+        Luminance in [0, 1].
+    edge_map : EdgeMap
+        The detector's output (edges and gradient direction θ).
+    sparse_sigma : ndarray, shape (H, W), float
+        Blur measures, px, NaN off edges (:func:`blur_stage`).
+    params : DefocusParams, keyword-only
+        ``edge_isolation`` (not None), ``isolation_radius``, ``isolation_floor``.
+    confidence : ndarray, shape (H, W), float in (0, 1], or None, keyword-only
+        The estimator's confidence (None: 1).
+
+    Returns
+    -------
+    ndarray, shape (H, W), float64
+        c_q · w_q in (0, 1] at the measures, NaN elsewhere
+        (:func:`method.edge_isolation.isolation_weights`).
+    """
+    w = isolation_weights(gray, edge_map.edges, edge_map.theta, sparse_sigma, method=params.edge_isolation,
+                          radius=params.isolation_radius, floor=params.isolation_floor)
+    return w if confidence is None else np.where(np.isfinite(w), w * confidence, np.nan)
+
+
+def region_stage(gray, *, params):
+    """Region (spectral) blur measures and their Fisher information (beyond the paper).
+
+    Parameters
+    ----------
+    gray : ndarray, shape (H, W), float
+        Luminance in [0, 1] (:func:`luminance` of the sRGB input, as the edge fit sees it).
+    params : DefocusParams, keyword-only
+        ``region_estimator`` (None: no measures) and its options.
+
+    Returns
+    -------
+    sigma : ndarray, shape (H, W), float64, or None
+        σ, px, NaN where the estimator has no measure; None when ``params.region_estimator`` is None.
+    information : ndarray, shape (H, W), float64, or None
+        Fisher information of σ, px⁻²; None with ``sigma``.
+    """
+    if getattr(params, "region_estimator", None) is None:
+        return None, None
+    from .region_estimators import estimate_region_blur
+
+    sigma, information = estimate_region_blur(gray, params=params)
+    return np.asarray(sigma, dtype=np.float64), np.asarray(information, dtype=np.float64)
 
 
 def refine_stage(sparse_sigma, rgb, *, params, confidence=None) -> np.ndarray:
@@ -281,7 +370,8 @@ def edge_confidence(sparse_sigma, refined_sigma) -> np.ndarray:
         return np.exp(-0.5 * ((sparse_sigma - refined_sigma) / tau) ** 2)
 
 
-def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None, confidence=None) -> np.ndarray:
+def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None, confidence=None, region_sigma=None,
+                    region_information=None, gray=None) -> np.ndarray:
     """Stage 4: propagation (Eq. 4, or the registered ``params.propagation``), clipped to [0, max_sigma].
 
     Parameters
@@ -296,6 +386,12 @@ def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None, confidence
     confidence : ndarray, HxW, float in (0, 1], or None, keyword-only
         Beyond the paper: per-measure confidence c_p (the estimator's ``measure_confidence``), so
         α_p = α·c_p (times the agreement factor when ``alpha_confidence="agreement"``); None: 1.
+    region_sigma, region_information : ndarray, HxW, float, or None, keyword-only
+        Beyond the paper: region measures σ_r (px, NaN where none) and their Fisher information
+        (px⁻²), fused with the edge measures as data terms of Eq. (4) by inverse variance
+        (:func:`method.cue_fusion.fuse_cues`, ``params.fusion_*``); None: edge measures only.
+    gray : ndarray, HxW, float, or None, keyword-only
+        Luminance for the fusion's island test (None: :func:`luminance` of ``rgb``).
 
     Returns
     -------
@@ -304,6 +400,14 @@ def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None, confidence
     """
     confidence = propagation_confidence(refined_sigma, params=params, sparse_sigma=sparse_sigma,
                                         confidence=confidence)
+    if region_sigma is not None:
+        if region_information is None:
+            raise ValueError("region_information is needed with region_sigma")
+        gray = luminance(rgb) if gray is None else gray
+        refined_sigma, confidence = fuse_cues(refined_sigma, confidence, region_sigma, region_information,
+                                              gray=gray, params=params)
+        if not np.any(np.isfinite(refined_sigma)):
+            return np.zeros(refined_sigma.shape)
     dense = propagate_blur_measures(refined_sigma, rgb, params=params, confidence=confidence)
     return np.clip(dense, 0.0, params.max_sigma)
 

@@ -136,11 +136,18 @@ def _band_noise_gain(s: float) -> float:
     return float(np.sum(k * k))
 
 
-def _place_centres(sigma, weight):
-    return sigma, weight
+def _place_centres(sigma, weight, stride):
+    """One term per stride block at its centre pixel, with the block's weight (density × stride²)."""
+    finite = np.isfinite(sigma)
+    if finite.mean() < 0.5:  # already sparse (measures at their centres): as given
+        return sigma, weight
+    centre = np.zeros(sigma.shape, dtype=bool)
+    centre[stride // 2::stride, stride // 2::stride] = True
+    keep = centre & finite
+    return np.where(keep, sigma, np.nan), np.where(keep, weight * float(stride * stride), 0.0)
 
 
-def _place_blocks(sigma, weight):
+def _place_blocks(sigma, weight, stride):
     """Each measure's value to the pixels nearest to it (within one grid spacing), weight shared."""
     from scipy import ndimage
 
@@ -158,16 +165,18 @@ def _place_blocks(sigma, weight):
     return out_s, out_w
 
 
-#: name -> fn(sigma, weight) -> (sigma, weight): where the region measures enter Eq. (4).
+#: name -> fn(sigma, weight, stride) -> (sigma, weight): where the region measures enter Eq. (4). A
+#: dense region map (every pixel of a block carries its window's measure, information a per-pixel
+#: density) is already "blocks"; a sparse one (measures at window centres only) already "centres".
 REGION_PLACEMENTS: dict[str, Callable] = {
-    "centres": _place_centres,  # at the pixels the estimator gave (its window centres)
+    "centres": _place_centres,  # one term per block, at its window centre
     "blocks": _place_blocks,    # spread over the block of pixels nearest to each centre
 }
 
 
 def region_data_term(region_sigma, region_information, *, gray=None, edge_error_rel=0.5,
                      region_error_rel=0.3, region_weight=1.0, placement="centres", island_weight=1.0,
-                     island_radius=24.0, noise_std=2.5 / 255):
+                     island_radius=24.0, noise_std=2.5 / 255, stride=16):
     """Values and relative weights w_r of the region measures as data terms of Eq. (4).
 
     Parameters
@@ -191,6 +200,8 @@ def region_data_term(region_sigma, region_information, *, gray=None, edge_error_
         Neighbourhood radius of the island test, px.
     noise_std : float, keyword-only
         Image noise std of the island test, image units.
+    stride : int, keyword-only
+        Spacing of the region estimator's window centres, px (``DefocusParams.region_stride``).
 
     Returns
     -------
@@ -208,7 +219,9 @@ def region_data_term(region_sigma, region_information, *, gray=None, edge_error_
     -----
     1. v_r = 1/I + (ε_r σ_r)² + δ², v_e(σ_r) = (ε_e σ_r + δ)², δ = :data:`ERROR_FLOOR_PX`.
     2. w_r = W_r · v_e(σ_r) / v_r, times ``island_weight`` where :func:`blur_islands` holds.
-    3. Placement: as given (``"centres"``) or spread over each measure's block (``"blocks"``).
+    3. Placement (:data:`REGION_PLACEMENTS`): one term per block at its centre with the block's
+       weight (``"centres"``), or a term at every pixel of the block with the per-pixel density
+       (``"blocks"``); the block's total weight is the same.
     """
     s = np.asarray(region_sigma, dtype=np.float64)
     info = np.asarray(region_information, dtype=np.float64)
@@ -240,7 +253,7 @@ def region_data_term(region_sigma, region_information, *, gray=None, edge_error_
             raise ValueError(f"gray has shape {gray.shape}; expected {s.shape}")
         islands = blur_islands(gray, noise_std=noise_std, radius=island_radius, sigma=np.where(ok, sig, np.nan))
         w = np.where(islands, w * island_weight, w)
-    return REGION_PLACEMENTS[placement](sig, w)
+    return REGION_PLACEMENTS[placement](sig, w, int(stride))
 
 
 def fuse_measures(edge_sigma, edge_weight, region_sigma, region_weight):
@@ -313,5 +326,6 @@ def fuse_cues(edge_sigma, edge_weight, region_sigma, region_information, *, gray
         region_sigma, region_information, gray=gray, edge_error_rel=params.fusion_edge_error_rel,
         region_error_rel=params.fusion_region_error_rel, region_weight=params.fusion_region_weight,
         placement=params.fusion_region_placement, island_weight=params.fusion_island_weight,
-        island_radius=params.fusion_island_radius, noise_std=params.noise_std)
+        island_radius=params.fusion_island_radius, noise_std=params.noise_std,
+        stride=getattr(params, "region_stride", 16))
     return fuse_measures(edge_sigma, edge_weight, rs, rw)

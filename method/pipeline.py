@@ -166,7 +166,11 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
 
     if getattr(params, "region_estimator", None) is not None:
         t = stage("region_blur")
-        region_sigma, region_info = region_stage(gray, params=params)
+        edge_psf = None
+        if psf_disk is not None:
+            n = int(np.count_nonzero(np.isfinite(sparse)))
+            edge_psf = "disk" if n and 2 * int(np.count_nonzero(psf_disk)) > n else "gaussian"
+        region_sigma, region_info = region_stage(gray, params=params, edge_psf=edge_psf)
         done("region_blur", t)
     else:
         region_sigma = region_info = None
@@ -289,7 +293,7 @@ def isolation_stage(gray, edge_map, sparse_sigma, *, params, confidence=None) ->
     return w if confidence is None else np.where(np.isfinite(w), w * confidence, np.nan)
 
 
-def region_stage(gray, *, params):
+def region_stage(gray, *, params, edge_psf=None):
     """Region (spectral) blur measures and their Fisher information (beyond the paper).
 
     Parameters
@@ -298,6 +302,8 @@ def region_stage(gray, *, params):
         Luminance in [0, 1] (:func:`luminance` of the sRGB input, as the edge fit sees it).
     params : DefocusParams, keyword-only
         ``region_estimator`` (None: no measures) and its options.
+    edge_psf : {"gaussian", "disk"} or None, keyword-only
+        The PSF family most edge measures were fitted with (``params.region_psf == "edges"``).
 
     Returns
     -------
@@ -310,7 +316,7 @@ def region_stage(gray, *, params):
         return None, None
     from .region_estimators import estimate_region_blur
 
-    sigma, information = estimate_region_blur(gray, params=params)
+    sigma, information = estimate_region_blur(gray, params=params, edge_psf=edge_psf)
     return np.asarray(sigma, dtype=np.float64), np.asarray(information, dtype=np.float64)
 
 

@@ -52,16 +52,17 @@ def test_no_term_stays_nan_and_edge_only_pixels_are_unchanged():
 def test_region_weight_is_relative_inverse_variance():
     sig = np.array([[2.0, 4.0]])
     info = np.array([[1.0 / 0.04, np.inf]])  # variance 0.04 px², then exact
-    s, w = region_data_term(sig, info, edge_error_rel=0.5, region_error_rel=0.25, region_weight=2.0)
+    s, w = region_data_term(sig, info, edge_error_rel=0.5, region_error_rel=0.25, region_weight=2.0, placement="blocks")
     d2 = ERROR_FLOOR_PX ** 2
     v_r = np.array([0.04 + (0.25 * 2) ** 2 + d2, (0.25 * 4) ** 2 + d2])
     v_e = (0.5 * sig[0] + ERROR_FLOOR_PX) ** 2
     np.testing.assert_allclose(w[0], 2.0 * v_e / v_r)
     np.testing.assert_array_equal(s, sig)
     # more information → more weight; no information → no term
-    _, w_lo = region_data_term(sig, info / 100, edge_error_rel=0.5, region_error_rel=0.25, region_weight=2.0)
+    _, w_lo = region_data_term(sig, info / 100, edge_error_rel=0.5, region_error_rel=0.25, region_weight=2.0,
+                               placement="blocks")
     assert w_lo[0, 0] < w[0, 0] / 2.0 and w_lo[0, 1] == w[0, 1]
-    s0, w0 = region_data_term(sig, np.zeros_like(sig))
+    s0, w0 = region_data_term(sig, np.zeros_like(sig), placement="blocks")
     assert np.all(np.isnan(s0)) and np.all(w0 == 0)
 
 
@@ -70,7 +71,7 @@ def test_block_placement_spreads_a_measure_and_shares_its_weight():
     info = np.zeros((16, 16))
     sig[4::8, 4::8] = [[1.0, 2.0], [3.0, 4.0]]
     info[4::8, 4::8] = 1e6
-    s_c, w_c = region_data_term(sig, info, placement="centres")
+    s_c, w_c = region_data_term(sig, info, placement="centres")  # sparse input: as given
     s_b, w_b = region_data_term(sig, info, placement="blocks")
     assert np.isfinite(s_c).sum() == 4 and np.all(np.isfinite(s_b))
     assert s_b[0, 0] == 1.0 and s_b[15, 15] == 4.0 and s_b[2, 13] == 2.0

@@ -244,6 +244,10 @@ class DefocusParams:
     # σ 6 region terms lift the ramp between the lines to ≈ 4–6 px, 1e-5 to ≈ 1.2, 0 keeps ≈ 0.6.
     fusion_island_radius: float = 24.0
     # radius, px, of the neighbourhood searched for high-frequency texture by the island test.
+    fusion_straddle_weight: float = 1.0
+    # factor in [0, 1] on the weight of a region measure whose window holds an isolated edge (≥ half
+    # its side of edge measures with no other edge within isolation_radius·σ̂ along their normal;
+    # method.cue_fusion.straddled_windows): the edge fit measures such a window's blur better. 1: off.
 
     # --- 5 magnification ------------------------------------------------------------------
     map_clip_percent: float = 5.0
@@ -386,6 +390,8 @@ class DefocusParams:
         check_name("fusion_region_placement", REGION_PLACEMENTS)
         if not (0 <= self.fusion_island_weight <= 1):
             bad("fusion_island_weight", "0 <= factor <= 1 (1: off; 0: island measures dropped)")
+        if not (0 <= self.fusion_straddle_weight <= 1):
+            bad("fusion_straddle_weight", "0 <= factor <= 1 (1: off)")
         if not (0 < self.fusion_island_radius < float("inf")):
             bad("fusion_island_radius", "finite and > 0 (px)")
         if getattr(self, "region_estimator", None) is not None and self.propagation != "colorization":
@@ -439,6 +445,12 @@ ROBUST_CHANGES: dict = {
     "bilateral_range_kernel": "product",
     "bilateral_sigma_spatial": 0.05,
     "sharpness_bias": False,
+    # region (spectral) blur fused with the edge measures in Eq. (4); each value's ablation row is in
+    # docs/cue-fusion.md (region_psf="edges" and edge_isolation were measured and left out)
+    "region_estimator": "local_spectrum",
+    "fusion_edge_error_rel": 0.3,
+    "fusion_island_weight": 0.001,
+    "fusion_straddle_weight": 0.0,
 }
 
 #: Zhuo & Sim 2011 inside the harness: gradient-ratio blur at the (Elder–Zucker) edges, a plain

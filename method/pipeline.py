@@ -204,8 +204,14 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
     done("cross_bilateral", t)
 
     t = stage("propagation")
+    isolated = None
+    if has_region and params.fusion_straddle_weight < 1:
+        iso = isolation_weights(gray, edge_map.edges, edge_map.theta, sparse, method="normal",
+                                radius=params.isolation_radius, floor=params.isolation_floor)
+        isolated = np.isfinite(iso) & (iso >= 1.0)
     dense = propagate_stage(refined, rgb, params=params, sparse_sigma=sparse, confidence=confidence,
-                            region_sigma=region_sigma, region_information=region_info, gray=gray)
+                            region_sigma=region_sigma, region_information=region_info, gray=gray,
+                            isolated_edges=isolated)
     done("propagation", t)
     timings["total"] = time.perf_counter() - t_start
     cpu["total"] = time.process_time() - c_start
@@ -377,7 +383,7 @@ def edge_confidence(sparse_sigma, refined_sigma) -> np.ndarray:
 
 
 def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None, confidence=None, region_sigma=None,
-                    region_information=None, gray=None) -> np.ndarray:
+                    region_information=None, gray=None, isolated_edges=None) -> np.ndarray:
     """Stage 4: propagation (Eq. 4, or the registered ``params.propagation``), clipped to [0, max_sigma].
 
     Parameters
@@ -398,6 +404,8 @@ def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None, confidence
         (:func:`method.cue_fusion.fuse_cues`, ``params.fusion_*``); None: edge measures only.
     gray : ndarray, HxW, float, or None, keyword-only
         Luminance for the fusion's island test (None: :func:`luminance` of ``rgb``).
+    isolated_edges : ndarray, HxW, bool, or None, keyword-only
+        Isolated edge measures for the fusion's straddle test (``params.fusion_straddle_weight``).
 
     Returns
     -------
@@ -411,9 +419,15 @@ def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None, confidence
             raise ValueError("region_information is needed with region_sigma")
         gray = luminance(rgb) if gray is None else gray
         refined_sigma, confidence = fuse_cues(refined_sigma, confidence, region_sigma, region_information,
-                                              gray=gray, params=params)
+                                              gray=gray, params=params, isolated_edges=isolated_edges)
         if not np.any(np.isfinite(refined_sigma)):
             return np.zeros(refined_sigma.shape)
+        # fused weights may exceed 1 (a region term stands for a window): α·c = (α·c_max)·(c / c_max),
+        # so the propagation keeps its confidence contract c ∈ [0, 1]
+        c_max = float(np.nanmax(confidence))
+        if c_max > 1.0:
+            params = params.replace(alpha=params.alpha * c_max)
+            confidence = confidence / c_max
     dense = propagate_blur_measures(refined_sigma, rgb, params=params, confidence=confidence)
     return np.clip(dense, 0.0, params.max_sigma)
 

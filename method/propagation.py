@@ -296,10 +296,9 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
         Relative residual at which the coarse solve of the coarse mode (s > 1) stops; None:
         max(``tol``, :data:`DEFAULT_COARSE_TOL` = 1e-3). The refinement removes most of what the
         looser coarse solve leaves (see Notes).
-    confidence : ndarray, HxW, float ≥ 0, or None, keyword-only
-        Beyond the paper: per-measure weight c_p, so α_p = alpha·c_p at the measures (None: the
-        paper's α_p = alpha). The edge confidences are in [0, 1]; fused region measures
-        (:mod:`method.cue_fusion`) may weigh more than one edge pixel. Ignored off the measures.
+    confidence : ndarray, HxW, float in [0, 1], or None, keyword-only
+        Beyond the paper: per-edge confidence c_p, so α_p = alpha·c_p at edge pixels (None: the
+        paper's α_p = alpha). Ignored off edges.
 
     Returns
     -------
@@ -386,8 +385,8 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
         if confidence.shape != (h, w):
             raise ValueError(f"confidence has shape {confidence.shape}, expected {(h, w)}")
         cf = confidence[np.isfinite(sparse_sigma)]
-        if not np.all(np.isfinite(cf)) or (cf.size and cf.min() < 0):
-            raise ValueError("confidence must be finite and >= 0 at edge pixels")
+        if not np.all(np.isfinite(cf)) or (cf.size and (cf.min() < 0 or cf.max() > 1)):
+            raise ValueError("confidence must be finite and in [0, 1] at edge pixels")
     edge = np.isfinite(sparse_sigma)
     if not edge.any():
         return np.zeros((h, w))

@@ -14,7 +14,7 @@ import repro.bench as bench
 TINY = dict(bench.ACCURACY_CONFIG, datasets=("dead_leaves", "step_edges"), sigmas=(1.0, 5.0, 8.0), tile=48,
             mosaic_cols=3, noise_stds=(1.0 / 255,), seeds=(0,), presets=("robust",), scene_sets={}, f_numbers=(),
             estimators=(), speed_presets=(), speed_sizes=(), speed_single={})
-_TARGETS = ("TARGET_DENSE_MAE_PX", "TARGET_DENSE_REL_MAE", "TARGET_BIAS_PX", "TARGET_ABS_MAE_MAX_SIGMA",
+_TARGETS = ("TARGET_DENSE_MAE_PX", "TARGET_DENSE_REL_MAE", "TARGET_BIAS_PX", "TARGET_BIAS_REL", "TARGET_ABS_MAE_MAX_SIGMA",
             "TARGET_REL_MAE_MAX_SIGMA", "TARGET_BIAS_MAX_SIGMA", "TARGET_RENDER_DENSE_RATIO", "TARGET_SPEED_RATIO")
 
 
@@ -62,9 +62,11 @@ def test_accuracy_report_structure(tiny):
         b1, b5, b8 = a["bins"]
         assert b1["mae_limit"] == bench.TARGET_DENSE_MAE_PX
         assert b5["mae_limit"] == pytest.approx(bench.TARGET_DENSE_REL_MAE * 5.0)
-        assert b8["mae_limit"] is None and b8["bias_limit"] is None and b8["pass"] is None
+        # σ 8 = TARGET_REL_MAE_MAX_SIGMA = TARGET_BIAS_MAX_SIGMA: relative MAE and bias limits
+        assert b8["mae_limit"] == pytest.approx(bench.TARGET_DENSE_REL_MAE * 8.0)
+        assert b8["bias_limit"] == pytest.approx(max(bench.TARGET_BIAS_PX, bench.TARGET_BIAS_REL * 8.0))
         # the stored verdicts are the numbers against the limits
-        for vb, mb in zip(a["bins"][:2], g["dense_textured"]["bins"][:2]):
+        for vb, mb in zip(a["bins"], g["dense_textured"]["bins"]):
             assert vb["mae_ok"] == (mb["mae"] <= vb["mae_limit"])
             assert vb["bias_ok"] == (abs(mb["bias"]) <= vb["bias_limit"])
             assert vb["pass"] == (vb["mae_ok"] and vb["bias_ok"])
@@ -98,16 +100,35 @@ def test_analytic_verdict_flips_with_the_targets(tiny, monkeypatch):
     assert all(b["mae_ok"] is False and b["bias_ok"] is True for a in v["analytic"] for b in a["bins"][:2])
     assert "FAIL (MAE)" in bench.accuracy_markdown({**report, "verdict": v})
     # impossible bias target alone
-    v = _judge_with(monkeypatch, measured, TARGET_DENSE_MAE_PX=1e9, TARGET_DENSE_REL_MAE=1e9, TARGET_BIAS_PX=-1.0)
+    v = _judge_with(monkeypatch, measured, TARGET_DENSE_MAE_PX=1e9, TARGET_DENSE_REL_MAE=1e9, TARGET_BIAS_PX=-1.0,
+                    TARGET_BIAS_REL=-1.0)
     assert v["analytic_pass"] is False
     assert "FAIL (bias)" in bench.accuracy_markdown({**report, "verdict": v})
     # the relative-MAE bin alone decides when only it is impossible
     v = _judge_with(monkeypatch, measured, TARGET_DENSE_MAE_PX=1e9, TARGET_DENSE_REL_MAE=-1.0, TARGET_BIAS_PX=1e9)
+    assert [[b["pass"] for b in a["bins"]] for a in v["analytic"]] == [[True, False, False]] * 2  # σ 5, 8: relative
+    # and with the relative targets stopping at σ 6, the σ 8 bin has none
+    v = _judge_with(monkeypatch, measured, TARGET_DENSE_MAE_PX=1e9, TARGET_DENSE_REL_MAE=-1.0, TARGET_BIAS_PX=1e9,
+                    TARGET_REL_MAE_MAX_SIGMA=6.0, TARGET_BIAS_MAX_SIGMA=6.0)
     assert [[b["pass"] for b in a["bins"]] for a in v["analytic"]] == [[True, False, None]] * 2
     # no bin under any target → nothing to judge
     v = _judge_with(monkeypatch, measured, TARGET_ABS_MAE_MAX_SIGMA=0.0, TARGET_REL_MAE_MAX_SIGMA=0.0,
                     TARGET_BIAS_MAX_SIGMA=0.0)
     assert v["analytic_pass"] is None and v["overall"] is None
+
+
+def test_bias_limit_is_the_larger_of_the_absolute_and_the_relative_one(monkeypatch):
+    monkeypatch.setattr(bench, "TARGET_BIAS_PX", 0.3)
+    monkeypatch.setattr(bench, "TARGET_BIAS_REL", 0.05)
+    monkeypatch.setattr(bench, "TARGET_BIAS_MAX_SIGMA", 8.0)
+
+    def verdict(sigma, bias):
+        return bench._bin_verdict({"sigma": sigma, "sigma_gt": sigma, "n": 10, "mae": 0.0, "bias": bias})
+
+    assert verdict(8.0, 0.35)["bias_limit"] == pytest.approx(0.4) and verdict(8.0, -0.35)["bias_ok"] is True
+    assert verdict(8.0, 0.45)["bias_ok"] is False
+    assert verdict(2.0, 0.35)["bias_limit"] == pytest.approx(0.3) and verdict(2.0, 0.35)["bias_ok"] is False
+    assert verdict(2.0, 0.25)["bias_ok"] is True
 
 
 def test_targeted_bin_without_pixels_fails(tiny, monkeypatch):
@@ -220,13 +241,16 @@ def test_speed_summary_judges_each_preset_on_both_sides():
         return {"preset": preset, "size": size, "timings_s": {"total": total}, "peak_rss_gib": peak}
 
     rows = [row("paper", 512, 0.9), row("paper", 1024, 1.9), row("robust", 512, 1.1),
-            row("robust", 1024, 2.1, peak=1.6)]
+            row("robust", 1024, 2.6, peak=1.6)]
     s = bench._summary(rows)
     assert s["paper: meets_time_target_512"] and s["paper: meets_time_target_1mp"]
     assert s["paper: meets_memory_target"]
     assert not s["robust: meets_time_target_512"] and not s["robust: meets_time_target_1mp"]
     assert not s["robust: meets_memory_target"]
     assert s["paper: growth_512_to_1024"] == pytest.approx(1.9 / 0.9)
+    # robust's own 1-MP target (2.5 s) against paper's (2 s): 2.3 s passes robust's only
+    s = bench._summary([row("paper", 1024, 2.3), row("robust", 1024, 2.3)])
+    assert s["robust: meets_time_target_1mp"] and not s["paper: meets_time_target_1mp"]
 
 
 def test_accuracy_cli_rejects_an_unknown_preset(tmp_path, monkeypatch, capsys):

@@ -422,12 +422,11 @@ def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None, confidence
                                               gray=gray, params=params, isolated_edges=isolated_edges)
         if not np.any(np.isfinite(refined_sigma)):
             return np.zeros(refined_sigma.shape)
-        # fused weights may exceed 1 (a region term stands for a window): α·c = (α·c_max)·(c / c_max),
-        # so the propagation keeps its confidence contract c ∈ [0, 1]
-        c_max = float(np.nanmax(confidence))
-        if c_max > 1.0:
-            params = params.replace(alpha=params.alpha * c_max)
-            confidence = confidence / c_max
+        # fused weights may exceed 1 (a region term stands for a window of pixels)
+        c_max = max(1.0, float(np.nanmax(confidence)))
+        dense = propagate_blur_measures(refined_sigma, rgb, params=params, confidence=confidence,
+                                        max_confidence=c_max)
+        return np.clip(dense, 0.0, params.max_sigma)
     dense = propagate_blur_measures(refined_sigma, rgb, params=params, confidence=confidence)
     return np.clip(dense, 0.0, params.max_sigma)
 

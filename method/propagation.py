@@ -246,7 +246,8 @@ def _auto_downsample(h, w, max_pixels, min_factor=AUTO_MIN_COARSENING, max_exact
 def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborhood=3, eps=1e-6,
                       regularization=1e-6, tol=1e-6, solver="amg_pcg", downsample="auto",
                       refinement="galerkin", refine_iterations=None,
-                      max_coarse_pixels=AUTO_MAX_COARSE_PIXELS, confidence=None, coarse_tol=None) -> np.ndarray:
+                      max_coarse_pixels=AUTO_MAX_COARSE_PIXELS, confidence=None, coarse_tol=None,
+                      max_confidence=1.0) -> np.ndarray:
     """Dense defocus map B minimising Eq. (4), from sparse blur σ at edge pixels.
 
     Parameters
@@ -299,6 +300,9 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
     confidence : ndarray, HxW, float in [0, 1], or None, keyword-only
         Beyond the paper: per-edge confidence c_p, so α_p = alpha·c_p at edge pixels (None: the
         paper's α_p = alpha). Ignored off edges.
+    max_confidence : float, keyword-only
+        Largest accepted c_p (default 1). Fused region measures (:mod:`method.cue_fusion`) stand for a
+        window of pixels and may weigh more than one edge pixel; the pipeline raises it for them.
 
     Returns
     -------
@@ -385,8 +389,8 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
         if confidence.shape != (h, w):
             raise ValueError(f"confidence has shape {confidence.shape}, expected {(h, w)}")
         cf = confidence[np.isfinite(sparse_sigma)]
-        if not np.all(np.isfinite(cf)) or (cf.size and (cf.min() < 0 or cf.max() > 1)):
-            raise ValueError("confidence must be finite and in [0, 1] at edge pixels")
+        if not np.all(np.isfinite(cf)) or (cf.size and (cf.min() < 0 or cf.max() > max_confidence)):
+            raise ValueError(f"confidence must be finite and in [0, {max_confidence:g}] at edge pixels")
     edge = np.isfinite(sparse_sigma)
     if not edge.any():
         return np.zeros((h, w))

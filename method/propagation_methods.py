@@ -23,7 +23,7 @@ from .propagation import propagate_defocus
 __all__ = ["PROPAGATION_METHODS", "propagate_blur_measures"]
 
 
-def _colorization(sparse_sigma, reference, *, params, confidence=None):
+def _colorization(sparse_sigma, reference, *, params, confidence=None, max_confidence=1.0):
     return propagate_defocus(
         sparse_sigma, reference,
         alpha=params.alpha,
@@ -34,10 +34,11 @@ def _colorization(sparse_sigma, reference, *, params, confidence=None):
         downsample=params.propagation_downsample,
         refinement=params.propagation_refinement,
         confidence=confidence,
+        max_confidence=max_confidence,
     )
 
 
-def _matting_laplacian(sparse_sigma, reference, *, params, confidence=None):
+def _matting_laplacian(sparse_sigma, reference, *, params, confidence=None, max_confidence=1.0):
     if confidence is not None:  # D of Zhuo & Sim's data term becomes diag(c_p)
         raise ValueError("propagation='matting_laplacian' does not take a per-edge confidence; "
                          "use alpha_confidence='none'")
@@ -53,7 +54,7 @@ PROPAGATION_METHODS: dict[str, Callable[..., np.ndarray]] = {
 }
 
 
-def propagate_blur_measures(sparse_sigma, reference, *, params, confidence=None) -> np.ndarray:
+def propagate_blur_measures(sparse_sigma, reference, *, params, confidence=None, max_confidence=1.0) -> np.ndarray:
     """Dense blur map from sparse measures with the registered method ``params.propagation``.
 
     Parameters
@@ -65,6 +66,8 @@ def propagate_blur_measures(sparse_sigma, reference, *, params, confidence=None)
     params : DefocusParams, keyword-only
     confidence : ndarray, HxW, float in [0, 1], or None, keyword-only
         Per-edge confidence (α_p = α·c_p); None: the paper's constant α_p.
+    max_confidence : float, keyword-only
+        Largest accepted c_p (1; more for fused region terms, :mod:`method.cue_fusion`).
 
     Returns
     -------
@@ -79,4 +82,7 @@ def propagate_blur_measures(sparse_sigma, reference, *, params, confidence=None)
     fn = PROPAGATION_METHODS.get(params.propagation)
     if fn is None:
         raise ValueError(f"unknown propagation {params.propagation!r}; allowed: {sorted(PROPAGATION_METHODS)}")
-    return np.asarray(fn(sparse_sigma, reference, params=params, confidence=confidence), dtype=np.float64)
+    if max_confidence == 1.0:
+        return np.asarray(fn(sparse_sigma, reference, params=params, confidence=confidence), dtype=np.float64)
+    return np.asarray(fn(sparse_sigma, reference, params=params, confidence=confidence,
+                         max_confidence=max_confidence), dtype=np.float64)

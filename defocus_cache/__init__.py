@@ -20,6 +20,7 @@ Cache keys are built from three helpers defined here and nowhere else: :func:`so
 
 from __future__ import annotations
 
+import ast
 import contextlib
 import functools
 import hashlib
@@ -28,6 +29,7 @@ import json
 import os
 import shutil
 import tempfile
+import textwrap
 import types
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -155,18 +157,43 @@ def _source_files(item) -> list[Path]:
     return sorted(p.rglob("*.py")) if p.is_dir() else [p]
 
 
-def source_fingerprint(*items, exclude: tuple[str, ...] = ()) -> str:
-    """SHA-256 (16 hex digits) of the source code that computes a cache entry.
+def _strip_docstrings(tree: ast.AST) -> ast.AST:
+    """Drop every statement that is a bare string literal (docstrings, attribute docstrings): no-ops
+    at run time apart from ``__doc__``, which no computation of the project reads."""
+    for node in ast.walk(tree):
+        for field in ("body", "orelse", "finalbody"):
+            body = getattr(node, field, None)
+            if isinstance(body, list):
+                body[:] = [st for st in body
+                           if not (isinstance(st, ast.Expr) and isinstance(st.value, ast.Constant)
+                                   and isinstance(st.value.value, str))]
+    return tree
 
-    The one way the project fingerprints code for its caches: an edit of any listed source
-    invalidates the entries that depend on it, with no version number to remember to bump.
+
+def _code_meaning(text: str) -> bytes:
+    """What a piece of Python source *means*: its syntax tree without docstrings, dumped without line
+    numbers, so comments, docstrings, blank lines and layout do not count. Text that does not parse
+    counts by its bytes."""
+    try:
+        tree = ast.parse(textwrap.dedent(text))
+    except SyntaxError:
+        return text.encode()
+    return ast.dump(_strip_docstrings(tree), annotate_fields=True, include_attributes=False).encode()
+
+
+def source_fingerprint(*items, exclude: tuple[str, ...] = ()) -> str:
+    """SHA-256 (16 hex digits) of the meaning of the source code that computes a cache entry.
+
+    The one way the project fingerprints code for its caches: a change of any listed source's code
+    invalidates the entries that depend on it, with no version number to remember to bump, while an
+    edit of its comments, docstrings or layout keeps them.
 
     Parameters
     ----------
     *items : module, str, Path or callable
-        A package (every ``.py`` below it), a module or a file/folder path (its bytes), or a
-        function/class (its module, qualified name and source text; used for code registered at
-        run time, e.g. a blur estimator defined in a test).
+        A package (every ``.py`` below it), a module or a file/folder path, or a function/class (its
+        module, qualified name and source text; used for code registered at run time, e.g. a blur
+        estimator defined in a test).
     exclude : tuple of str, keyword-only
         Posix path prefixes, relative to the project root, left out (modules that only read
         results, such as plots).
@@ -174,7 +201,17 @@ def source_fingerprint(*items, exclude: tuple[str, ...] = ()) -> str:
     Returns
     -------
     str
-        16 hex digits; equal sources give equal fingerprints in any process.
+        16 hex digits; equal code gives equal fingerprints in any process and on any machine.
+
+    Notes
+    -----
+    1. Each source is parsed with :func:`ast.parse`; statements that are a bare string literal
+       (docstrings) are removed; comments never reach the tree.
+    2. The tree is dumped with :func:`ast.dump` without positions (line/column numbers), so moving
+       code by a blank line or re-wrapping a docstring does not change it.
+    3. The hash covers, per file, its path relative to the project root and that dump (a file that
+       does not parse counts by its bytes); per callable, its qualified name and the dump of its
+       source.
     """
     h = hashlib.sha256()
     for item in items:
@@ -182,7 +219,7 @@ def source_fingerprint(*items, exclude: tuple[str, ...] = ()) -> str:
             name = f"{getattr(item, '__module__', '')}.{getattr(item, '__qualname__', repr(item))}"
             h.update(name.encode())
             try:
-                h.update(inspect.getsource(item).encode())
+                h.update(_code_meaning(inspect.getsource(item)))
             except (OSError, TypeError):
                 h.update(repr(item).encode())
             continue
@@ -195,7 +232,9 @@ def source_fingerprint(*items, exclude: tuple[str, ...] = ()) -> str:
             if any(rel.startswith(ex) for ex in exclude):
                 continue
             h.update(rel.encode())
-            h.update(path.read_bytes())
+            h.update(b"\0")
+            h.update(_code_meaning(path.read_text(encoding="utf-8")) if path.suffix == ".py" else path.read_bytes())
+            h.update(b"\0")
     return h.hexdigest()[:16]
 
 

@@ -35,6 +35,7 @@ def tiny(tmp_path_factory):
     return out, _strict_json(out / "accuracy.json"), rc
 
 
+@pytest.mark.slow  # subprocesses or a benchmark run: in make test, not in make test-fast
 def test_accuracy_report_structure(tiny):
     out, report, rc = tiny
     assert rc == 0
@@ -83,6 +84,7 @@ def _judge_with(monkeypatch, measured, **targets):
     return bench.judge_accuracy(measured)
 
 
+@pytest.mark.slow  # subprocesses or a benchmark run: in make test, not in make test-fast
 def test_analytic_verdict_flips_with_the_targets(tiny, monkeypatch):
     _, report, _ = tiny
     measured = {k: report[k] for k in ("analytic", "rendered", "speed")}
@@ -110,6 +112,7 @@ def test_analytic_verdict_flips_with_the_targets(tiny, monkeypatch):
     assert v["analytic_pass"] is None and v["overall"] is None
 
 
+@pytest.mark.slow  # subprocesses or a benchmark run: in make test, not in make test-fast
 def test_targeted_bin_without_pixels_fails(tiny, monkeypatch):
     _, report, _ = tiny
     measured = copy.deepcopy({k: report[k] for k in ("analytic", "rendered", "speed")})

@@ -104,6 +104,7 @@ def pytest_fixture_setup(fixturedef, request):
         _current["fixtures"].pop()
 
 
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the marks (it appends "@group" to node ids)
 def pytest_collection_modifyitems(config, items):
     """Keep the tests of one module that share a module-scoped fixture on one pytest-xdist worker
     (``--dist loadgroup``): the fixture (a mosaic ablation, a quick figure, a render) is then built once

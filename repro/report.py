@@ -196,8 +196,8 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
     tables = preset_tables(metrics)
     if tables:
         lines += ["## Presets side by side", "",
-                  "`paper` is the reproduction (`DefocusParams()`), `robust` goes beyond the paper (README, "
-                  "*Presets*), `zhuo_sim` is the Zhuo & Sim 2011 baseline. Errors against σ_gt in px: sparse blur "
+                  "`paper` is the reproduction (`DefocusParams()`), `robust` goes beyond the paper ("
+                  "`docs/presets.md`), `zhuo_sim` is the Zhuo & Sim 2011 baseline. Errors against σ_gt in px: sparse blur "
                   "at the edge pixels, dense map over textured pixels (mean signed error in brackets); occlusion "
                   "boundaries and tile seams excluded. From the `stages` figure.", ""]
         for t in tables:

@@ -206,9 +206,11 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
             cells = [_md_verdict_cell(texts[(c, claim.id)]) for c in columns]
             lines.append(f"| {_md_cell(claim.text)} | {claim.section} ({claim.figure}) | " + " | ".join(cells) + " |")
         lines += ["", "Every cell is its own evaluation (its figure computed with that preset's parameters on that "
-                  "scene set); a claim that does not depend on the preset or the scene set (the optics of Eq. 5 and "
-                  "Eq. 6; the analytic edges of Fig. 4 have no scene set) is computed once, and its further cells "
-                  "say `=` (the same evaluation). The evaluation of every cell is named in `claims.json`.", ""]
+                  "scene set). A claim that does not depend on the preset or the scene set is computed once per value "
+                  "it does depend on, and its further cells say `=` (the same evaluation): Eq. (5) and Eq. (6) are "
+                  "optics (once in all); Fig. 4's analytic edges have no scene set (once per preset); Fig. 5 tests "
+                  "the paper's Eq. (3) filter with and without its bias (once per scene set). The evaluation of "
+                  "every cell is named in `claims.json`.", ""]
     lines += _md_scene_sets()
     sources = cell_sources_of(matrix)
     for col in columns:

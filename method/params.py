@@ -7,6 +7,7 @@ Images are floats in [0, 1]; every blur quantity is a Gaussian σ in pixels of t
 from __future__ import annotations
 
 import dataclasses
+import math
 
 __all__ = ["PRESETS", "ROBUST_CHANGES", "ZHUO_SIM_CHANGES", "DefocusParams"]
 
@@ -38,6 +39,29 @@ class DefocusParams:
     estimator: str = "model_fit"
     # key of method.BLUR_ESTIMATORS: "model_fit" (paper), "zero_crossing" (Elder–Zucker),
     # "gradient_ratio" (Zhuo & Sim 2011 baseline).
+    # --- edge set and gradient ratio of the Zhuo & Sim 2011 baseline (not in Bae & Durand) ----------
+    edge_detector: str = "elder_zucker"
+    # where the blur is measured: "elder_zucker" (Sec. 3.1, the paper) or "canny" (Canny 1986 via
+    # skimage.feature.canny, as Zhuo & Sim 2011 and their public code; method.canny_edges; only with
+    # estimator "gradient_ratio", the other estimators read the detector's σ2 scales). zhuo_sim: "canny".
+    canny_sigma: float = 1.0
+    # σ of Canny's Gaussian smoothing, px (edge_detector="canny"; Zhuo & Sim's public code: 1).
+    canny_low_threshold: float = 0.1
+    canny_high_threshold: float = 0.2
+    # Canny hysteresis thresholds on skimage's Sobel magnitude of the smoothed image (≈ 8·|∇I|, image
+    # units/px); 0.1, 0.2 = skimage's defaults for float images, as the public code uses them.
+    ratio_gradient_sigma: float = 0.5
+    # σ of the Gaussian-derivative gradient |∇I| of estimator "gradient_ratio", px (Eq. 7 kernels).
+    # 0.5: the harness's reading (the smallest Elder–Zucker scale). zhuo_sim: 1 (public code).
+    ratio_reblur_sigma: float = 1.0
+    # σ0 of Zhuo & Sim's re-blur, px: R = |∇I|_σg / |∇I|_√(σg² + σ0²), σ = √(σ0²/(R² − 1) − σg²).
+    # 1: their paper's σ0. zhuo_sim: √1.25 (the public code's gradients at 1 and 1.5 px).
+    ratio_max_sigma: float | None = None
+    # largest σ "gradient_ratio" reports, px; larger estimates are clipped to it. None: max_sigma.
+    # zhuo_sim: 5 (public code).
+    ratio_below_one: str = "nan"
+    # what R ≤ 1 (no measurable blur change: noise, or a very blurry edge) gives: "nan" (no measure)
+    # or "zero" (σ = 0 px, the public code, which also sets σ = 0 where the formula is undefined).
     fit_window_min: int = 3
     # smallest model-fit window, px (Sec. 3.2: "window sizes from 3×3 to 71×71").
     fit_window_max: int = 71
@@ -235,6 +259,22 @@ class DefocusParams:
         if not self.bias_scale > 0:
             bad("bias_scale", "> 0")
         check_name("estimator", BLUR_ESTIMATORS)
+        if self.edge_detector not in ("elder_zucker", "canny"):
+            bad("edge_detector", "'elder_zucker' or 'canny'")
+        if self.edge_detector == "canny" and self.estimator != "gradient_ratio":
+            bad("edge_detector", "'canny' only with estimator='gradient_ratio' (the other estimators read the "
+                                 "Elder–Zucker σ2 scales); else 'elder_zucker'")
+        if not (0 < self.canny_sigma < float("inf")):
+            bad("canny_sigma", "finite and > 0 (px)")
+        if not (0 <= self.canny_low_threshold <= self.canny_high_threshold < float("inf")):
+            bad("canny_low_threshold", "finite 0 <= canny_low_threshold <= canny_high_threshold")
+        for name in ("ratio_gradient_sigma", "ratio_reblur_sigma"):
+            if not (0 < getattr(self, name) < float("inf")):
+                bad(name, "finite and > 0 (px)")
+        if self.ratio_max_sigma is not None and not (0 < self.ratio_max_sigma < float("inf")):
+            bad("ratio_max_sigma", "None or finite and > 0 (px)")
+        if self.ratio_below_one not in ("nan", "zero"):
+            bad("ratio_below_one", "'nan' or 'zero'")
         check_name("bilateral_method", BILATERAL_METHODS)
         check_name("bilateral_range_kernel", RANGE_KERNELS)
         if self.bias_reference not in ("px", "image_fraction"):
@@ -338,11 +378,16 @@ ROBUST_CHANGES: dict = {
     "sharpness_bias": False,
 }
 
-#: Zhuo & Sim 2011 inside the harness: gradient-ratio blur at the (Elder–Zucker) edges, a plain
-#: joint bilateral filter of the sparse map (their Sec. 3.2 error correction; no sharpness bias),
-#: matting-Laplacian propagation (their Sec. 4).
+#: Zhuo & Sim 2011 inside the harness: gradient-ratio blur at Canny edges as their public code
+#: measures it (docs/zhuo-sim.md), a plain joint bilateral filter of the sparse map (their Sec. 3.2
+#: error correction; no sharpness bias), matting-Laplacian propagation (their Sec. 4).
 ZHUO_SIM_CHANGES: dict = {
     "estimator": "gradient_ratio",
+    "edge_detector": "canny",
+    "ratio_gradient_sigma": 1.0,
+    "ratio_reblur_sigma": math.sqrt(1.25),
+    "ratio_max_sigma": 5.0,
+    "ratio_below_one": "zero",
     "sharpness_bias": False,
     "propagation": "matting_laplacian",
 }

@@ -8,7 +8,8 @@ A/(√(2π)σ) to A/(√(2π)√(σ² + σ0²)); the ratio R = |∇I| / |∇I_re
 The scales, the clipping and what an unusable ratio gives are :class:`~method.params.DefocusParams`
 fields (``ratio_*``); their defaults are the harness's reading (gradient at 0.5 px, σ0 = 1 px, NaN
 where R ≤ 1), and the ``zhuo_sim`` preset sets those of the authors' method as its public port runs
-it (gradients at 1 and 1.5 px at Canny edges, σ clipped to [0, 5] px, 0 where R ≤ 1).
+it (gradients at 1 and 1.5 px at Canny edges, σ clipped to [0, 5] px, an estimate of 0 px no
+measure).
 """
 
 from __future__ import annotations
@@ -42,14 +43,14 @@ def estimate_blur_gradient_ratio(gray, edge_map, *, params):
         with ``params.edge_detector="canny"``, :func:`method.canny_edges.detect_edges_canny`).
     params : DefocusParams, keyword-only
         Uses ``ratio_gradient_sigma`` σg (px), ``ratio_reblur_sigma`` σ0 (px), ``ratio_max_sigma``
-        (px; None: ``max_sigma``) and ``ratio_below_one``.
+        (px; None: ``max_sigma``) and ``ratio_zero_is_measure``.
 
     Returns
     -------
     ndarray, shape (H, W), float64
-        σ in px at edge pixels, clipped to [0, ratio_max_sigma]; NaN elsewhere. Where R ≤ 1 (no
-        measurable blur change, e.g. noise) or R is undefined: NaN with ``ratio_below_one="nan"``,
-        0 with ``"zero"``.
+        σ in px at edge pixels, clipped to [0, ratio_max_sigma]; NaN elsewhere, where R ≤ 1 (no
+        measurable blur change, e.g. noise) or R is undefined, and, with
+        ``ratio_zero_is_measure=False``, where σ = 0.
 
     Notes
     -----
@@ -61,7 +62,7 @@ def estimate_blur_gradient_ratio(gray, edge_map, *, params):
        σg → 0 this is exactly Zhuo & Sim's formula; σg regularises the derivative of a sampled
        image and is removed again here. (The same σ as (R²σg² − σr²)/(1 − R²), the form of the
        public code, which reads gradients at σg = 1 and σr = 1.5 px.)
-    4. R ≤ 1 or non-finite: NaN or 0 (``ratio_below_one``).
+    4. R ≤ 1 or non-finite: NaN; σ = 0: NaN unless ``ratio_zero_is_measure``.
     5. Clip to [0, ratio_max_sigma].
     """
     img = check_edge_inputs(gray, edge_map)
@@ -82,6 +83,8 @@ def estimate_blur_gradient_ratio(gray, edge_map, *, params):
         ratio = g1 / g2
         sigma_e2 = s_0 ** 2 / (ratio ** 2 - 1.0)
         sigma = np.sqrt(np.maximum(sigma_e2 - s_g ** 2, 0.0))
-    sigma[~(ratio > 1.0) | ~np.isfinite(sigma)] = 0.0 if params.ratio_below_one == "zero" else np.nan
+    sigma[~(ratio > 1.0) | ~np.isfinite(sigma)] = np.nan
+    if not params.ratio_zero_is_measure:
+        sigma[sigma == 0.0] = np.nan
     out[edges] = np.clip(sigma, 0.0, max_sigma)
     return out

@@ -35,7 +35,7 @@ MARGIN = 16
 #: tiles of each σ (4 orientations × 3 contrasts × 2 noise seeds; a 0 estimate counts as an error of
 #: σ), measured 2026-12-02 at the commit named in the module docstring (3090–3105 edge pixels per σ).
 PUBLIC_MEDIAN_ERROR_PX = {1.0: 0.058, 1.5: 0.036, 2.0: 0.055, 3.0: 0.157, 4.0: 0.402}
-#: zhuo_sim must be within this of the public code's median, px (the brief's tolerance; measured
+#: zhuo_sim must be within this of the public code's median, px (the tolerance the baseline is held to; measured
 #: difference ≤ 0.006 px: the Gaussian-derivative gradients are the harness's FFT bank, not the
 #: public code's sampled 23×23 kernels).
 MATCH_TOLERANCE_PX = 0.05
@@ -79,7 +79,7 @@ def test_zhuo_sim_matches_public_code_on_isolated_steps(sigma):
 @pytest.mark.parametrize("sigma", (3.0, 4.0))
 def test_previous_reading_is_outside_the_tolerance(sigma):
     """The harness's own reading (Elder–Zucker edges, gradients at 0.5 and 1.12 px) fails the check:
-    the test can tell the two apart (measured 2026-12-02: 0.72 / 1.69 px at σ 3 / 4)."""
+    the test can tell the two apart (measured: 0.72 / 1.69 px at σ 3 / 4; docs/zhuo-sim.md)."""
     old = DefocusParams(estimator="gradient_ratio", sharpness_bias=False, propagation="matting_laplacian")
     assert _median_error(sigma, old) > PUBLIC_MEDIAN_ERROR_PX[sigma] + MATCH_TOLERANCE_PX
 

@@ -191,3 +191,25 @@ def test_canny_bad_image_raises():
         detect_edges_canny(np.full((16, 16), np.nan))
     with pytest.raises(ValueError):
         detect_edges_canny(np.zeros((16, 16, 3)))
+
+
+def test_gradient_ratio_defaults_are_the_previous_reading():
+    """The default ratio fields keep the harness's reading bit for bit (Fig. 4 and the evaluate goldens
+    run it): gradients at 0.5 and √1.25 px, σ = √(max(1/(R² − 1) − 0.25, 0)), NaN where R ≤ 1, 0 kept,
+    clipped to max_sigma."""
+    from method.elder_zucker_edges import detect_edges
+    from method.gaussian_derivatives import GaussianDerivativeBank
+
+    img = dead_leaves((64, 64), sigma=1.5, rng=2)
+    em = detect_edges(img)
+    got, *_ = blur_stage(img, em, params=DefocusParams(estimator="gradient_ratio"))
+    bank = GaussianDerivativeBank(img, math.sqrt(1.25))
+    g1 = np.hypot(*bank.gradient(0.5))[em.edges]
+    g2 = np.hypot(*bank.gradient(math.sqrt(1.25)))[em.edges]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = g1 / g2
+        want = np.sqrt(np.maximum(1.0 / (r ** 2 - 1.0) - 0.25, 0.0))
+    want[~(r > 1.0) | ~np.isfinite(want)] = np.nan
+    want = np.clip(want, 0.0, 64.0)
+    np.testing.assert_array_equal(got[em.edges], want)
+    assert np.count_nonzero(want == 0.0) > 0 and np.isfinite(want).sum() > 100

@@ -145,6 +145,9 @@ class DefocusParams:
     # but dead-leaves σ 3 0.28 → 0.39 px; "disk" 0.383 / 0.208, clutter f/4 0.53 → 0.75 px).
 
     # --- 3.3 biased cross-bilateral refinement (Eq. 3) ------------------------------------
+    refine: bool = True
+    # run the refinement of Eq. (3); False passes the sparse measures on unchanged (the public
+    # Zhuo & Sim code has no correction step between its measures and the propagation).
     bilateral_sigma_spatial: float = 0.10
     # σs as a fraction of the image size max(H, W) (Sec. 3.3: "10 % of the image size"). Robust: 0.05
     # (with the checked fit, blurry regions have few measures and a wide σs lets the many measures of
@@ -185,6 +188,9 @@ class DefocusParams:
     # λ of Zhuo & Sim's (L + λD) d = λ D d̂ (propagation="matting_laplacian"), dimensionless.
     matting_epsilon: float = 1e-5
     # ε of the matting Laplacian (Levin et al. 2008), image units², for propagation="matting_laplacian".
+    matting_data_weight: str = "constant"
+    # D of (L + λD) d = λ D d̂: "constant" (1 at every measure, Zhuo & Sim's equation) or "sigma"
+    # (D = diag(d̂), as the public Zhuo & Sim code builds it: larger σ̂ weigh more), dimensionless.
     alpha: float = 0.5
     # data-term weight α_p at edge pixels; 0 elsewhere (Sec. 4.1, Fig. 6 sweeps 0.1–1).
     propagation_window: int = 7
@@ -235,6 +241,7 @@ class DefocusParams:
         from .blur_model_fit import FIT_PSF_MODELS
         from .cross_bilateral import BILATERAL_METHODS, RANGE_KERNELS
         from .magnification import MAP_FLOOR_MODES
+        from .matting_propagation import MATTING_DATA_WEIGHTS
         from .propagation import PROPAGATION_REFINEMENTS, PROPAGATION_SOLVERS
         from .propagation_methods import PROPAGATION_METHODS
 
@@ -276,6 +283,8 @@ class DefocusParams:
                 bad(name, "finite and > 0 (px)")
         if self.ratio_max_sigma is not None and not (0 < self.ratio_max_sigma < float("inf")):
             bad("ratio_max_sigma", "None or finite and > 0 (px)")
+        if not isinstance(self.refine, bool):
+            bad("refine", "True or False")
         if not isinstance(self.ratio_zero_is_measure, bool):
             bad("ratio_zero_is_measure", "True or False")
         check_name("bilateral_method", BILATERAL_METHODS)
@@ -308,6 +317,7 @@ class DefocusParams:
             bad("matting_lambda", "> 0")
         if not self.matting_epsilon > 0:
             bad("matting_epsilon", "> 0")
+        check_name("matting_data_weight", MATTING_DATA_WEIGHTS)
         check_name("propagation", PROPAGATION_METHODS)
         if self.propagation == "matting_laplacian" and self.alpha_confidence != "none":
             bad("alpha_confidence", "'none' with propagation='matting_laplacian' (its data term has no per-edge weight)")
@@ -393,6 +403,8 @@ ZHUO_SIM_CHANGES: dict = {
     "ratio_zero_is_measure": False,
     "matting_lambda": 0.001,
     "matting_epsilon": 9e-7,
+    "matting_data_weight": "sigma",
+    "refine": False,
     "sharpness_bias": False,
     "propagation": "matting_laplacian",
 }

@@ -242,8 +242,8 @@ def refine_stage(sparse_sigma, rgb, *, params, confidence=None) -> np.ndarray:
     rgb : ndarray, HxWx3, float in [0, 1]
         Guide image.
     params : DefocusParams, keyword-only
-        ``bilateral_*``, ``sharpness_bias``, ``bias_scale`` with ``bias_reference`` (px, or a
-        fraction of max(H, W)), ``refinement_robust_*``.
+        ``refine`` (False: the measures pass unchanged), ``bilateral_*``, ``sharpness_bias``,
+        ``bias_scale`` with ``bias_reference`` (px, or a fraction of max(H, W)), ``refinement_robust_*``.
     confidence : ndarray, HxW, float in (0, 1], or None, keyword-only
         Beyond the paper: per-measure confidence c_q multiplying its Eq. (3) weight (the
         estimator's ``measure_confidence``); None: all 1 (paper; oracle inputs).
@@ -253,6 +253,8 @@ def refine_stage(sparse_sigma, rgb, *, params, confidence=None) -> np.ndarray:
     ndarray, HxW, float64
         Refined σ, px, at the finite pixels of ``sparse_sigma``; NaN elsewhere.
     """
+    if not params.refine:
+        return np.array(sparse_sigma, dtype=np.float64)
     scale = params.bias_scale
     if params.bias_reference == "image_fraction":
         scale = params.bias_scale * max(sparse_sigma.shape)

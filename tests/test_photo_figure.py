@@ -53,3 +53,20 @@ def test_photos_figure_quick_computes_scores_and_plots(tmp_path):
     assert set(res.metrics["summary"]) == set(config.presets)
     paths = fig.plot_function()(data, config, tmp_path / "photos")
     assert [p.suffix for p in paths] == [".png", ".pdf"] and all(p.stat().st_size > 10_000 for p in paths)
+
+
+def test_an_edited_region_file_changes_the_cache_key(tmp_path, monkeypatch):
+    """The code fingerprint covers .py files only; the config's regions digest covers the region files."""
+    import shutil
+
+    from experiments import figS2_photos, photo_regions
+    from experiments.registry import FIGURES, cache_key
+
+    before = cache_key(FIGURES["photos"], figS2_photos.PhotosConfig())
+    for p in photo_regions.PHOTO_DIR.glob("*.json"):
+        shutil.copy(p, tmp_path / p.name)
+    monkeypatch.setattr(photo_regions, "PHOTO_DIR", tmp_path)
+    assert cache_key(FIGURES["photos"], figS2_photos.PhotosConfig()) == before  # same files, same key
+    doc = (tmp_path / "coffee.json").read_text().replace('"why": "the cup', '"why": "The cup')
+    (tmp_path / "coffee.json").write_text(doc)
+    assert cache_key(FIGURES["photos"], figS2_photos.PhotosConfig()) != before

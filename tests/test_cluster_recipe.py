@@ -1,5 +1,6 @@
-"""The README's cluster recipe, run as written: ``dask scheduler`` and ``dask worker`` started outside the
-checkout, with the worker's default local directory, against the editable install.
+"""The documented cluster recipe (README.md or docs/), run as written: ``dask scheduler`` and
+``dask worker`` started outside the checkout, with the worker's default local directory, against the
+editable install.
 
 What this guards: a Dask worker puts its local directory on ``sys.path`` (first), and that directory holds
 a spill folder named ``storage/``. A top-level project package of that name was shadowed by the empty
@@ -16,6 +17,7 @@ on the worker by reference). Checked to fail on the code before the cache packag
 from __future__ import annotations
 
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -35,6 +37,21 @@ START_TIMEOUT_S = 120
 TASK_TIMEOUT_S = 600
 #: The project packages a sweep task imports on the worker.
 PACKAGES = ("defocus_cache", "method", "scenes", "experiments")
+
+
+def _documented_worker_flags() -> list[str]:
+    """The flags of the documented ``dask worker tcp://SCHEDULER:PORT ...`` line (README.md or docs/),
+    with ``--nworkers`` set to 1 (this machine is small)."""
+    pattern = re.compile(r"^\s*dask worker tcp://SCHEDULER:\d+((?:\s+--[\w-]+\s+[^\s#]+)*)", re.M)
+    for page in [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]:
+        m = pattern.search(page.read_text(encoding="utf-8"))
+        if m:
+            flags = m.group(1).split()
+            assert "--local-directory" not in flags, "the recipe sets a local directory: test that instead"
+            if "--nworkers" in flags:
+                flags[flags.index("--nworkers") + 1] = "1"
+            return flags
+    raise AssertionError("no 'dask worker tcp://SCHEDULER:PORT ...' recipe in README.md or docs/*.md")
 
 
 def _free_port() -> int:
@@ -79,8 +96,7 @@ def test_readme_cluster_recipe_outside_the_checkout_runs_a_sweep_render_and_cell
 
     from experiments.sweep_cells import cell_task, render_task
 
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    assert "dask worker tcp://SCHEDULER:8786 --nthreads 1 --nworkers" in readme, "the README's recipe changed"
+    worker_flags = _documented_worker_flags()
     outside = tmp_path / "elsewhere"
     (outside / "storage").mkdir(parents=True)  # as a worker's spill folder would be
     assert ROOT not in outside.parents
@@ -97,7 +113,7 @@ def test_readme_cluster_recipe_outside_the_checkout_runs_a_sweep_render_and_cell
                                        "--dashboard-address", "127.0.0.1:0"],
                                       cwd=outside, env=env, stdout=logs["scheduler"], stderr=subprocess.STDOUT,
                                       start_new_session=True))
-        procs.append(subprocess.Popen([dask, "worker", address, "--nthreads", "1", "--nworkers", "1"],
+        procs.append(subprocess.Popen([dask, "worker", address, *worker_flags],
                                       cwd=outside, env=env, stdout=logs["worker"], stderr=subprocess.STDOUT,
                                       start_new_session=True))
         with Client(address, timeout=f"{START_TIMEOUT_S}s") as client:

@@ -85,11 +85,21 @@ def _hann(n):
     return np.outer(w, w)
 
 
+#: Rings above this index are merged in pairs, above twice it in fours (bounds the bands per window).
+RING_MERGE = 16
+
+
 def _rings(n):
-    """Ring index of each DFT bin of an n×n window (round(|k|)), 0 at DC; (n², ) int, and the ring count."""
+    """Band index of each DFT bin of an n×n window, 0 at DC, and the band count.
+
+    Band = ring round(|k|) (k in DFT index units) up to RING_MERGE; beyond it rings are merged in
+    pairs, beyond 2·RING_MERGE in fours (their expected powers vary slowly there).
+    """
     k = np.fft.fftfreq(n) * n
     r = np.rint(np.hypot(k[:, None], k[None, :])).astype(np.int64).ravel()
-    return r, int(r.max()) + 1
+    m = RING_MERGE
+    band = np.where(r <= m, r, np.where(r <= 2 * m, m + (r - m + 1) // 2, m + m // 2 + (r - 2 * m + 3) // 4))
+    return band, int(band.max()) + 1
 
 
 def _transfer_sq(psf, sig, wx, wy):
@@ -143,10 +153,7 @@ def _model_tables(n, psf, grid):
     d2 = 4 * np.sin(wx / 2) ** 2 + 4 * np.sin(wy / 2) ** 2  # |Dx|² + |Dy|² of forward differences
     w2 = wx ** 2 + wy ** 2
     q = np.where(w2 > 0, d2 / np.where(w2 > 0, w2, 1.0), 1.0)
-    ring, n_rings = _rings(n)
-    keep = ring > 0
-    onehot = np.zeros((n * n, n_rings - 1))
-    onehot[np.flatnonzero(keep), ring[keep] - 1] = 1.0
+    onehot = _ring_matrix(n).astype(np.float64)
     spectra = np.stack([q * _transfer_sq(psf, s, wx, wy) for s in grid])
     A = _windowed_expectation(spectra, n).reshape(len(grid), -1) @ onehot
     dA = np.gradient(A, grid, axis=0)
@@ -373,7 +380,7 @@ def _nan_median3(a):
 
 
 def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=0.0, sigma_max=12.0,
-                        window_min=16, window_max=96, window_scale=9.0, stride=16, noise_variance=None,
+                        window_min=16, window_max=96, window_scale=9.0, stride=32, noise_variance=None,
                         likelihood="profile"):
     """Per-window blur measures on a block grid of window centres (the kernel of :func:`estimate_blur_local_spectrum`).
 
@@ -451,10 +458,19 @@ def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=
     choice = size_arr[np.minimum(np.searchsorted(size_arr, want), len(sizes) - 1)]
     res_s = np.full(ny * nx, np.nan)
     res_i = np.zeros(ny * nx)
+    iy, ix = np.divmod(np.arange(ny * nx), nx)
     for n in sizes:
         sel = np.flatnonzero(choice == n)
-        if sel.size:
+        if not sel.size:
+            continue
+        f = max(1, n // (2 * stride))  # windows ≥ 2·stride: one measure per f×f centres (≥ 50 % overlap)
+        if f == 1:
             res_s[sel], res_i[sel] = run(n, sel, coarse)
+            continue
+        rep = np.minimum(iy[sel] // f * f + f // 2, ny - 1) * nx + np.minimum(ix[sel] // f * f + f // 2, nx - 1)
+        uniq, inv = np.unique(rep, return_inverse=True)
+        s_u, i_u = run(n, uniq, coarse)
+        res_s[sel], res_i[sel] = s_u[inv], i_u[inv]
     sigma[:] = res_s.reshape(ny, nx)
     info[:] = res_i.reshape(ny, nx)
     wins[:] = choice.reshape(ny, nx)
@@ -540,8 +556,10 @@ def estimate_blur_local_spectrum(gray, *, params, edge_psf=None):
     5. Maximum likelihood: per σ of the grid, s by Newton steps on the profile score; the grid
        minimum refined by a parabola; "no measure" when 2·(L_noise − L_fit) < MIN_LOG_LR.
     6. Information: I_σσ − I_σs²/I_ss of the Gamma model at (σ̂, ŝ).
-    7. Multi-window: a coarse 32-px pass; each centre then uses the smallest window of
-       WINDOW_SIZES ≥ window_scale · σ̂ (3×3 median of the coarse σ̂), within [window_min, window_max].
+    7. Multi-window: a coarse 32-px pass on every other centre; each centre then uses the smallest
+       window of WINDOW_SIZES ≥ window_scale · σ̂ (3×3 median of the coarse σ̂), within
+       [window_min, window_max], searching σ within COARSE_RANGE of σ̂; a window of n ≥ 2·stride px
+       is evaluated once per ⌊n/(2·stride)⌋² centres (they still overlap by ≥ 50 %).
     8. Spread to pixels by bilinear interpolation of the centres' values.
     """
     psf = params.region_psf

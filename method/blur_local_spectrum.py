@@ -380,7 +380,7 @@ def _nan_median3(a):
 
 
 def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=0.0, sigma_max=12.0,
-                        window_min=16, window_max=96, window_scale=9.0, stride=32, noise_variance=None,
+                        window_min=16, window_max=96, window_scale=12.0, stride=32, noise_variance=None,
                         likelihood="profile"):
     """Per-window blur measures on a block grid of window centres (the kernel of :func:`estimate_blur_local_spectrum`).
 
@@ -459,18 +459,31 @@ def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=
     res_s = np.full(ny * nx, np.nan)
     res_i = np.zeros(ny * nx)
     iy, ix = np.divmod(np.arange(ny * nx), nx)
-    for n in sizes:
-        sel = np.flatnonzero(choice == n)
-        if not sel.size:
-            continue
-        f = max(1, n // (2 * stride))  # windows ≥ 2·stride: one measure per f×f centres (≥ 50 % overlap)
-        if f == 1:
-            res_s[sel], res_i[sel] = run(n, sel, coarse)
-            continue
-        rep = np.minimum(iy[sel] // f * f + f // 2, ny - 1) * nx + np.minimum(ix[sel] // f * f + f // 2, nx - 1)
-        uniq, inv = np.unique(rep, return_inverse=True)
-        s_u, i_u = run(n, uniq, coarse)
-        res_s[sel], res_i[sel] = s_u[inv], i_u[inv]
+
+    def final_pass(which, prior):
+        for n in sizes:
+            sel = which[choice[which] == n]
+            if not sel.size:
+                continue
+            f = max(1, n // (2 * stride))  # windows ≥ 2·stride: one measure per f×f centres (≥ 50 % overlap)
+            if f == 1:
+                res_s[sel], res_i[sel] = run(n, sel, prior)
+                continue
+            rep = np.minimum(iy[sel] // f * f + f // 2, ny - 1) * nx + np.minimum(ix[sel] // f * f + f // 2, nx - 1)
+            uniq, inv = np.unique(rep, return_inverse=True)
+            s_u, i_u = run(n, uniq, prior)
+            res_s[sel], res_i[sel] = s_u[inv], i_u[inv]
+
+    final_pass(np.arange(ny * nx), coarse)
+    # one more pass where the final σ̂ (3×3 median) asks for a larger window than the coarse one gave
+    # (a 32-px window under-reads σ ≳ 4, most of all for the disk)
+    again = _nan_median3(res_s.reshape(ny, nx)).ravel()
+    want2 = np.where(np.isfinite(again), window_scale * again, 0.0)
+    choice2 = size_arr[np.minimum(np.searchsorted(size_arr, want2), len(sizes) - 1)]
+    grow = np.flatnonzero(choice2 > choice)
+    if grow.size:
+        choice[grow] = choice2[grow]
+        final_pass(grow, again)
     sigma[:] = res_s.reshape(ny, nx)
     info[:] = res_i.reshape(ny, nx)
     wins[:] = choice.reshape(ny, nx)
@@ -559,7 +572,8 @@ def estimate_blur_local_spectrum(gray, *, params, edge_psf=None):
     7. Multi-window: a coarse 32-px pass on every other centre; each centre then uses the smallest
        window of WINDOW_SIZES ≥ window_scale · σ̂ (3×3 median of the coarse σ̂), within
        [window_min, window_max], searching σ within COARSE_RANGE of σ̂; a window of n ≥ 2·stride px
-       is evaluated once per ⌊n/(2·stride)⌋² centres (they still overlap by ≥ 50 %).
+       is evaluated once per ⌊n/(2·stride)⌋² centres (they still overlap by ≥ 50 %); where the
+       result's 3×3 median asks for a larger window, that centre is measured once more with it.
     8. Spread to pixels by bilinear interpolation of the centres' values.
     """
     psf = params.region_psf

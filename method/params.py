@@ -131,8 +131,8 @@ class DefocusParams:
     # smallest analysis window side, px (Zhu et al. 2013 use ≈ 41 px filters).
     region_window_max: int = 96
     # largest analysis window side, px.
-    region_window_scale: float = 9.0
-    # window side / coarse σ̂, dimensionless (≈ 8–10 σ resolves the blur's cut-off).
+    region_window_scale: float = 12.0
+    # window side / coarse σ̂, dimensionless (12: disk σ 2–6 MAE 0.38–1.07 → 0.19–0.28 px vs 9).
     region_sigma_min: float = 0.0
     # smallest σ of the likelihood's grid, px.
     region_sigma_max: float = 12.0

@@ -260,8 +260,8 @@ def _profile_nll(P, A, N, kappa, *, iters=3, likelihood="profile"):
     Pn = P[:, None, :]
     Nn = N[:, None, :]
     # start: weighted least squares of P − N ≈ s·A with weights κ/P² (closed form), then Newton
-    wgt = kappa / np.maximum(Pn, np.float32(1e-30)) ** 2
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        wgt = kappa / np.maximum(Pn, np.float32(1e-15)) ** 2
         s = np.sum(wgt * A * (Pn - Nn), -1) / np.sum(wgt * A * A, -1)
     s = np.where(np.isfinite(s), s, 0.0)
     s = np.maximum(s, 1e-6 * np.sum(Nn, -1) / np.maximum(np.sum(A, -1), 1e-30))
@@ -559,8 +559,8 @@ def estimate_blur_local_spectrum(gray, *, params, edge_psf=None):
     -----
     1. Gradient z = ∂x I + i ∂y I by forward differences (one complex FFT per window gives the
        sum of both components' periodograms over each ring of ±k).
-    2. Noise variance v from the MAD of the finest diagonal Haar detail, at least the 8-bit
-       quantisation's LSB²/12 (``noise_model="white"``); or per ring the 5 % quantile of all windows'
+    2. Noise variance v from the quietest 8×8 blocks of 3×3 second differences
+       (:func:`estimate_noise_variance`), at least the 8-bit quantisation's LSB²/12 (``noise_model="white"``); or per ring the 5 % quantile of all windows'
        powers (``"spectrum"``, the image's own noise floor; ``"spectrum_or_white"`` the smaller).
     3. Hann windows on a grid of centres (stride px); per window the ring sums P_b of the periodogram.
     4. Model E P_b = s·A_b(σ) + N_b, A_b = Σ_ring (|H_σ|² Q ⊛ |Ŵ|²), computed exactly through the

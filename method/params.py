@@ -125,8 +125,9 @@ class DefocusParams:
     # blur kernel of the region likelihood: "gaussian", "disk" (disk ⊗ 1-px box, reports
     # √((R/2)² + 1/12) px) or "edges" (the family the edge fit chose; gaussian if unknown).
     region_noise_model: str = "white"
-    # noise term: "white" (Haar-MAD variance, ≥ 8-bit LSB²/12), "spectrum" (per-frequency floor read
-    # from the image's own spectrum) or "spectrum_or_white" (the smaller of the two per frequency).
+    # noise term: "white" (variance from the image's quietest blocks, ≥ 8-bit LSB²/12), "spectrum"
+    # (per-frequency floor read from the image's own spectrum; fails on blurry texture,
+    # docs/region-blur.md) or "spectrum_or_white" (the smaller of the two per frequency).
     region_window_min: int = 16
     # smallest analysis window side, px (Zhu et al. 2013 use ≈ 41 px filters).
     region_window_max: int = 96

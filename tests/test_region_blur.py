@@ -1,9 +1,10 @@
 """Region (spectral) blur estimators: known σ in → σ out, no measure without texture, bad options, oracles.
 
-Tolerances (measured 2026-12-02 on 256² dead leaves, 8 bits + noise 1/255, seeds 0–1, raw
-per-window estimates before any fusion, see docs/region-blur.md): Gaussian median error +0.16 px
-at σ 1 (the dead leaves' own ≈ 0.5 px roll-off in quadrature), ≤ 0.11 px at σ 2–4, −0.26 px at σ 6,
-−0.48 px at σ 8; disk median error ≤ 0.05 px for σ 1–4. The tolerances below allow about twice that.
+Tolerances (measured on 256² dead leaves, 8 bits + noise 1/255 and 2/255, seeds 0–1,
+raw per-window estimates before any fusion, docs/region-blur.md): Gaussian median error +0.19 px at
+σ 1 (the dead leaves' own ≈ 0.5 px roll-off in quadrature), +0.14 px at σ 2, ≤ 0.04 px at σ 3–4,
+−0.20 px at σ 6, −0.57 px at σ 8; disk median error ≤ 0.07 px for σ 1–6. The tolerances below allow
+about 1.5–3× that on the smaller test images.
 """
 
 import numpy as np
@@ -18,7 +19,7 @@ from scenes.analytic import dead_leaves, degrade
 #: |median σ̂ − σ| allowed on the Gaussian dead leaves, px: max(GAUSS_TOL_PX, GAUSS_TOL_REL · σ).
 GAUSS_TOL_PX = 0.3
 GAUSS_TOL_REL = 0.1
-#: |median σ̂ − σ| allowed on the disk-blurred dead leaves with the disk model, px (measured ≤ 0.05 at σ 1–4).
+#: |median σ̂ − σ| allowed on the disk-blurred dead leaves with the disk model, px (measured ≤ 0.07 at σ 1–6).
 DISK_TOL_PX = 0.25
 #: Largest share of windows measured on a noise-only image (measured: 0).
 NOISE_ONLY_MAX_MEASURED = 0.02

@@ -126,15 +126,15 @@ def _windowed_expectation(spectra, n):
     ω_k = 2πk/n. Returns (..., n, n).
     """
     L = spectra.shape[-1]
-    acf = np.real(np.fft.ifft2(spectra))
+    acf = scipy.fft.irfft2(spectra[..., : L // 2 + 1], s=(L, L))  # the spectra are real and even
     pad = np.zeros((2 * n, 2 * n))
     pad[:n, :n] = _hann(n)
-    rw = np.real(np.fft.ifft2(np.abs(np.fft.fft2(pad)) ** 2))  # r_w at lags mod 2n; 0 at |τ| = n
+    rw = np.real(scipy.fft.ifft2(np.abs(scipy.fft.fft2(pad)) ** 2))  # r_w at lags mod 2n; 0 at |τ| = n
     lag = np.concatenate([np.arange(0, n + 1), np.arange(-n + 1, 0)])  # circular order mod 2n
     c = rw * acf[..., (lag % L)[:, None], (lag % L)[None, :]]
     folded = c[..., :n, :] + c[..., n:, :]
     folded = folded[..., :, :n] + folded[..., :, n:]
-    return np.real(np.fft.fft2(folded))
+    return np.real(scipy.fft.fft2(folded))
 
 
 @functools.lru_cache(maxsize=64)

@@ -241,3 +241,14 @@ def test_colour_input_uses_luminance():
     s_grey, _ = estimate_region_blur(img, params=p)
     s_rgb, _ = estimate_region_blur(np.repeat(img[..., None], 3, axis=2), params=p)
     np.testing.assert_allclose(s_rgb, s_grey, rtol=1e-6, equal_nan=True)
+
+
+def test_information_density_sums_to_one_window_per_block():
+    img = _leaves(2.0, size=128)
+    p = DefocusParams(region_estimator="local_spectrum", region_stride=16)
+    grid = bls.local_spectrum_grid(img, stride=16, window_scale=p.region_window_scale)
+    s, info = estimate_region_blur(img, params=p)
+    cy, cx = grid["cy"], grid["cx"]
+    # at a window centre the bilinear spread is that window's own value, divided by stride²
+    np.testing.assert_allclose(s[np.ix_(cy, cx)], grid["sigma"], rtol=1e-12, equal_nan=True)
+    np.testing.assert_allclose(info[np.ix_(cy, cx)] * 16 ** 2, grid["information"], rtol=1e-12)

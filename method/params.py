@@ -144,6 +144,30 @@ class DefocusParams:
     # textured dense MAE tabletop 0.393 → 0.370, paper_cameras 0.234 → 0.208 px; "best" 0.370 / 0.221
     # but dead-leaves σ 3 0.28 → 0.39 px; "disk" 0.383 / 0.208, clutter f/4 0.53 → 0.75 px).
 
+    # --- region (spectral) blur, beyond the paper (method.region_estimators) -------------
+    region_estimator: str | None = None
+    # key of method.region_estimators.REGION_ESTIMATORS: "local_spectrum" (Zhu et al., IEEE TIP 2013)
+    # or "gsm" (Chakrabarti et al., CVPR 2010); None: no region measure (paper).
+    region_psf: str = "gaussian"
+    # blur kernel of the region likelihood: "gaussian", "disk" (disk ⊗ 1-px box, reports
+    # √((R/2)² + 1/12) px) or "edges" (the family the edge fit chose; gaussian if unknown).
+    region_noise_model: str = "white"
+    # noise term: "white" (variance from the image's quietest blocks, ≥ 8-bit LSB²/12), "spectrum"
+    # (per-frequency floor read from the image's own spectrum; fails on blurry texture,
+    # docs/region-blur.md) or "spectrum_or_white" (the smaller of the two per frequency).
+    region_window_min: int = 16
+    # smallest analysis window side, px (Zhu et al. 2013 use ≈ 41 px filters).
+    region_window_max: int = 96
+    # largest analysis window side, px.
+    region_window_scale: float = 12.0
+    # window side / coarse σ̂, dimensionless (12: disk σ 2–6 MAE 0.38–1.07 → 0.19–0.28 px vs 9).
+    region_sigma_min: float = 0.0
+    # smallest σ of the likelihood's grid, px.
+    region_sigma_max: float = 12.0
+    # largest σ of the likelihood's grid, px.
+    region_stride: int = 32
+    # spacing of the window centres, px (docs/region-blur.md: 16 → 32 halves the time, same MAE).
+
     # --- 3.3 biased cross-bilateral refinement (Eq. 3) ------------------------------------
     refine: bool = True
     # run the refinement of Eq. (3); False passes the sparse measures on unchanged (the public
@@ -244,6 +268,7 @@ class DefocusParams:
         from .matting_propagation import MATTING_DATA_WEIGHTS
         from .propagation import PROPAGATION_REFINEMENTS, PROPAGATION_SOLVERS
         from .propagation_methods import PROPAGATION_METHODS
+        from .region_estimators import REGION_ESTIMATORS, REGION_NOISE_MODELS, REGION_PSFS
 
         for name in ("sigma1_scales", "sigma2_scales"):
             scales = tuple(float(s) for s in getattr(self, name))
@@ -311,6 +336,24 @@ class DefocusParams:
         if self.fit_below_scale not in ("zero", "nan"):
             bad("fit_below_scale", "'zero' or 'nan'")
         check_name("fit_psf", FIT_PSF_MODELS)
+        if self.region_estimator is not None and (not isinstance(self.region_estimator, str)
+                                                  or self.region_estimator not in REGION_ESTIMATORS):
+            bad("region_estimator", [None, *sorted(REGION_ESTIMATORS)])
+        if self.region_psf not in REGION_PSFS:
+            bad("region_psf", list(REGION_PSFS))
+        if self.region_noise_model not in REGION_NOISE_MODELS:
+            bad("region_noise_model", list(REGION_NOISE_MODELS))
+        for name in ("region_window_min", "region_window_max", "region_stride"):
+            v = getattr(self, name)
+            if not (isinstance(v, int) and not isinstance(v, bool) and v >= (16 if name != "region_stride" else 1)):
+                bad(name, "integer >= 16 (px)" if name != "region_stride" else "integer >= 1 (px)")
+        if self.region_window_max < self.region_window_min:
+            bad("region_window_max", "integer >= region_window_min (px)")
+        if not (0 < self.region_window_scale < float("inf")):
+            bad("region_window_scale", "finite and > 0 (dimensionless)")
+        if not (0 <= self.region_sigma_min < self.region_sigma_max < float("inf")):
+            bad("region_sigma_max" if self.region_sigma_min >= 0 else "region_sigma_min",
+                "0 <= region_sigma_min < region_sigma_max < inf (px)")
         if self.alpha_confidence not in ("none", "agreement"):
             bad("alpha_confidence", "'none' or 'agreement'")
         if not self.matting_lambda > 0:

@@ -1,4 +1,4 @@
-"""The storage layer: atomic writes, cross-process locks and a checksummed content-addressed cache.
+"""The cache layer: atomic writes, cross-process locks and a checksummed content-addressed cache.
 
 Used by every layer of the harness but ``method`` (pure numerics); imports no project package
 (tests/test_architecture.py).
@@ -28,6 +28,7 @@ import inspect
 import json
 import os
 import shutil
+import sys
 import tempfile
 import textwrap
 import types
@@ -157,42 +158,38 @@ def _source_files(item) -> list[Path]:
     return sorted(p.rglob("*.py")) if p.is_dir() else [p]
 
 
-def _strip_docstrings(tree: ast.AST) -> ast.AST:
-    """Drop every statement that is a bare string literal (docstrings, attribute docstrings): no-ops
-    at run time apart from ``__doc__``, which no computation of the project reads."""
-    for node in ast.walk(tree):
-        for field in ("body", "orelse", "finalbody"):
-            body = getattr(node, field, None)
-            if isinstance(body, list):
-                body[:] = [st for st in body
-                           if not (isinstance(st, ast.Expr) and isinstance(st.value, ast.Constant)
-                                   and isinstance(st.value.value, str))]
-    return tree
-
-
 def _code_meaning(text: str) -> bytes:
-    """What a piece of Python source *means*: its syntax tree without docstrings, dumped without line
-    numbers, so comments, docstrings, blank lines and layout do not count. Text that does not parse
-    counts by its bytes."""
+    """The parsed code of ``text`` without docstrings or comments (``ast.dump``), as bytes.
+
+    Comments never reach the AST; docstrings (a string constant opening a module, class or function
+    body) are dropped, so editing either keeps every cache entry, while any change of a token that
+    the interpreter executes changes the result. Text that does not parse is returned as is.
+    """
     try:
         tree = ast.parse(textwrap.dedent(text))
     except SyntaxError:
         return text.encode()
-    return ast.dump(_strip_docstrings(tree), annotate_fields=True, include_attributes=False).encode()
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if (isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+                and body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant)
+                and isinstance(body[0].value.value, str)):
+            node.body = body[1:] or [ast.Pass()]
+    return ast.dump(tree, include_attributes=False).encode()
 
 
 def source_fingerprint(*items, exclude: tuple[str, ...] = ()) -> str:
-    """SHA-256 (16 hex digits) of the meaning of the source code that computes a cache entry.
+    """SHA-256 (16 hex digits) of the code, by meaning, that computes a cache entry.
 
-    The one way the project fingerprints code for its caches: a change of any listed source's code
-    invalidates the entries that depend on it, with no version number to remember to bump, while an
-    edit of its comments, docstrings or layout keeps them.
+    The one way the project fingerprints code for its caches: a change of any listed code
+    invalidates the entries that depend on it, with no version number to remember to bump; an edit
+    of docstrings or comments only keeps them (:func:`_code_meaning`).
 
     Parameters
     ----------
     *items : module, str, Path or callable
         A package (every ``.py`` below it), a module or a file/folder path, or a function/class (its
-        module, qualified name and source text; used for code registered at run time, e.g. a blur
+        module, qualified name and code; used for code registered at run time, e.g. a blur
         estimator defined in a test).
     exclude : tuple of str, keyword-only
         Posix path prefixes, relative to the project root, left out (modules that only read
@@ -201,19 +198,11 @@ def source_fingerprint(*items, exclude: tuple[str, ...] = ()) -> str:
     Returns
     -------
     str
-        16 hex digits; equal code gives equal fingerprints in any process and on any machine.
-
-    Notes
-    -----
-    1. Each source is parsed with :func:`ast.parse`; statements that are a bare string literal
-       (docstrings) are removed; comments never reach the tree.
-    2. The tree is dumped with :func:`ast.dump` without positions (line/column numbers), so moving
-       code by a blank line or re-wrapping a docstring does not change it.
-    3. The hash covers, per file, its path relative to the project root and that dump (a file that
-       does not parse counts by its bytes); per callable, its qualified name and the dump of its
-       source.
+        16 hex digits; equal code gives equal fingerprints in any process of one Python minor
+        version (the AST's dump format is the interpreter's, so it is part of the key).
     """
     h = hashlib.sha256()
+    h.update(f"ast-py{sys.version_info[0]}.{sys.version_info[1]}".encode())
     for item in items:
         if callable(item) and not isinstance(item, (str, Path)):
             name = f"{getattr(item, '__module__', '')}.{getattr(item, '__qualname__', repr(item))}"
@@ -232,9 +221,7 @@ def source_fingerprint(*items, exclude: tuple[str, ...] = ()) -> str:
             if any(rel.startswith(ex) for ex in exclude):
                 continue
             h.update(rel.encode())
-            h.update(b"\0")
-            h.update(_code_meaning(path.read_text(encoding="utf-8")) if path.suffix == ".py" else path.read_bytes())
-            h.update(b"\0")
+            h.update(_code_meaning(path.read_text(encoding="utf-8")))
     return h.hexdigest()[:16]
 
 

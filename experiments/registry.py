@@ -41,7 +41,7 @@ __all__ = [
 #: Modules (under ``experiments``) that each define ``FIGURE``; order = listing order.
 FIGURE_MODULES = ("fig2_sensor_size", "fig4_estimators", "fig5_cross_bilateral", "fig6_alpha_sweep",
                   "fig7_doubled_defocus", "fig8_refocus", "fig10_coc_vs_distance", "fig11_gallery",
-                  "figS1_stages")
+                  "figS1_stages", "figS2_photos")
 
 #: Folder under the project cache holding figure compute results.
 CACHE_SUBDIR = "figures"

@@ -4,6 +4,8 @@
 [--fnumber N ...] [--scene-preset small|full] [--encoding srgb linear] [--stages] [--out DIR] [--force]
 [--variant V] [-q]``
 
+``python -m repro.evaluate --photos [NAME ...] [--preset NAME ...] [--out DIR] [--force] [-q]``
+
 For every combination, the scene is rendered (cached), the whole pipeline runs with the estimator
 (:func:`experiments.evaluation.evaluate_case`, cached per estimator, scene, f-number, preset and
 encoding, keyed also by the code fingerprint), and the errors against the render's σ_gt are
@@ -16,6 +18,14 @@ over all / edge / textured pixels, RTF-normalised errors and the in-focus outlie
 each stage (sparse, refined, dense over all / textured / edge pixels) for the estimated measures
 and with oracle inputs (σ_gt at the detected edges fed into Eq. 3, or straight into Eq. 4), per
 σ_gt bin; printed and written to ``<out>/stages.csv`` and ``<out>/stages.json``.
+
+``--photos`` scores the method presets (default: paper, robust, zhuo_sim) on the real photos that
+ship with hand-drawn "in focus" / "defocused" regions (:mod:`experiments.photo_regions`; default:
+all of them) instead: the ranking AUC P(σ_defocused > σ_in-focus) and the share of in-focus pixels
+above the defocused region's median, per photo × preset. The maps are the ``photos`` figure's
+(cached, recomputed with ``--force``); the table is printed and written to ``<out>/photos.json``
+and ``<out>/photos.md`` (atomically). An unknown photo or preset, or ``--photos`` with the scene
+options: one line on stderr, exit status 2.
 
 Estimators are read from :data:`method.BLUR_ESTIMATORS` at run time, so a newly registered
 estimator is compared on the same ground truth with no other change. Unknown estimator or scene,
@@ -78,10 +88,107 @@ def _parser():
                    help="also print and write the stage attribution (errors after each stage, with oracle inputs)")
     p.add_argument("--encoding", nargs="+", default=["srgb"], choices=("srgb", "linear"),
                    help="input encoding(s) given to the method (default: srgb, as a camera stores it)")
+    p.add_argument("--photos", nargs="*", default=None, metavar="NAME",
+                   help="score the presets on the real photos with hand-drawn regions instead of the renders "
+                        f"(photos: {', '.join(_photo_names())}; default: all; presets default: "
+                        "paper robust zhuo_sim)")
     p.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="DIR", help=f"output folder (default: {DEFAULT_OUT})")
     add_force_option(p)
     add_quiet_option(p, what="no progress display")
     return p
+
+
+def _photo_names() -> tuple[str, ...]:
+    from experiments.photo_regions import available_photos
+
+    return available_photos()
+
+
+#: Options of the render evaluation that ``--photos`` does not take (flag, argparse default).
+_SCENE_ONLY = (("--estimator", "estimator", None), ("--scenes", "scenes", None), ("--stages", "stages", False),
+               ("--fnumber", "fnumber", [8.0, 4.0]), ("--scene-preset", "scene_preset", "small"),
+               ("--encoding", "encoding", ["srgb"]), ("--variant", "variant", None))
+
+
+def _validate_photos(args):
+    from experiments.photo_regions import SCORE_PRESETS, validate_photo_names
+    from method import PRESETS
+
+    used = [flag for flag, attr, default in _SCENE_ONLY if getattr(args, attr, default) != default]
+    if used:
+        raise ValueError(f"--photos does not take {', '.join(used)}; allowed with --photos: --preset, --out, "
+                         "--force, -q")
+    names = validate_photo_names(args.photos)
+    presets = list(dict.fromkeys(args.preset or SCORE_PRESETS))
+    bad = [p for p in presets if p not in PRESETS]
+    if bad:
+        raise ValueError(f"unknown preset(s) {', '.join(map(repr, bad))}; allowed: {sorted(PRESETS)}")
+    if args.out.exists() and not args.out.is_dir():
+        raise ValueError(f"--out {str(args.out)!r} is a file; allowed: a folder")
+    return names, presets
+
+
+#: Columns of the photo table (keys of experiments.photo_regions.score_defocus_map, plus seconds).
+PHOTO_COLUMNS = ("auc", "in_focus_above_defocused_median", "in_focus_median_px", "defocused_median_px",
+                 "n_in_focus", "n_defocused", "meets_targets", "seconds")
+
+
+def photo_rows(metrics: dict) -> list[dict]:
+    """One flat dict per photo × preset from the ``photos`` figure's metrics."""
+    rows = []
+    for photo, per in metrics["photos"].items():
+        for preset in metrics["presets_scored"]:
+            rows.append({"photo": photo, "method_preset": preset, **{c: per[preset][c] for c in PHOTO_COLUMNS}})
+    return rows
+
+
+def format_photo_table(rows, *, markdown: bool = False) -> str:
+    """Terminal (or Markdown) table of :func:`photo_rows`."""
+    head = ["photo", "preset", "AUC", "in-focus > defoc. median", "median σ in focus (px)",
+            "median σ defocused (px)", "meets targets"]
+    body = [[r["photo"], r["method_preset"], f"{r['auc']:.3f}", f"{100 * r['in_focus_above_defocused_median']:.1f} %",
+             f"{r['in_focus_median_px']:.2f}", f"{r['defocused_median_px']:.2f}",
+             "yes" if r["meets_targets"] else "no"] for r in rows]
+    if markdown:
+        lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+        return "\n".join(lines + ["| " + " | ".join(b) + " |" for b in body])
+    widths = [max(len(h), *(len(b[i]) for b in body)) if body else len(h) for i, h in enumerate(head)]
+    lines = ["  ".join(h.ljust(w) for h, w in zip(head, widths))]
+    return "\n".join(lines + ["  ".join(c.ljust(w) for c, w in zip(b, widths)) for b in body])
+
+
+def main_photos(args) -> int:
+    """``--photos``: score the presets on the photos (the ``photos`` figure's cached compute); exit status."""
+    import dataclasses
+
+    from defocus_cache import atomic_write_text
+    from experiments.photo_regions import TARGET_AUC, TARGET_SHARE
+    from experiments.registry import FIGURES, code_fingerprint, compute_cached, library_versions, to_jsonable
+
+    names, presets = _validate_photos(args)
+    fig = FIGURES["photos"]
+    config = dataclasses.replace(fig.config("full"), photos=tuple(names), presets=tuple(presets))
+    if not args.quiet:
+        print(f"scoring {', '.join(presets)} on {', '.join(names)} ...", file=sys.stderr)
+    result = compute_cached(fig, config, force=args.force)
+    rows = photo_rows(result.metrics)
+    info = {"columns": ["photo", "method_preset", *PHOTO_COLUMNS],
+            "scores": "auc = P(σ_defocused > σ_in-focus) over pixel pairs, ties half (Mann–Whitney U); "
+                      "in_focus_above_defocused_median = share of in-focus pixels with σ above the defocused "
+                      "region's median",
+            "targets": {"auc_min": TARGET_AUC, "in_focus_above_defocused_median_max": TARGET_SHARE},
+            "regions": "experiments/photos/<photo>.json (hand-drawn, conservative)",
+            "code": code_fingerprint(), "versions": library_versions(), "cache_hit": result.cached}
+    args.out.mkdir(parents=True, exist_ok=True)
+    json_path, md_path = args.out / "photos.json", args.out / "photos.md"
+    atomic_write_text(json_path, json.dumps(to_jsonable({**info, "rows": rows}), indent=1, sort_keys=True) + "\n")
+    atomic_write_text(md_path, "# Defocus maps on real photos with hand-drawn regions\n\n"
+                      f"Targets: AUC ≥ {TARGET_AUC:g} and at most {100 * TARGET_SHARE:g} % of in-focus pixels above "
+                      "the defocused region's median σ.\n\n" + format_photo_table(rows, markdown=True) + "\n")
+    print(format_photo_table(rows))
+    for p in (json_path, md_path):
+        print(f"  {p}")
+    return 0
 
 
 def _validate(args):
@@ -224,6 +331,8 @@ def write_stage_outputs(rows, out_dir: Path, info: dict) -> list[Path]:
 def main(argv=None) -> int:
     """Entry point; returns the exit status."""
     args = _parser().parse_args(argv)
+    if args.photos is not None:
+        return main_photos(args)
     presets, estimators, scenes, f_numbers, encodings = _validate(args)
     if args.variant:
         from scenes.backend import select_variant

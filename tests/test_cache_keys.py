@@ -43,6 +43,44 @@ def test_source_fingerprint_follows_file_content(tmp_path):
     assert source_fingerprint(pkg) != second
 
 
+def test_source_fingerprint_ignores_docstrings_and_comments(tmp_path):
+    """A docstring or comment edit keeps the fingerprint; a one-token code change does not."""
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    src = '"""Module doc."""\n\ndef f(x):\n    """Doc."""\n    return x + 1  # note\n\nclass C:\n    "doc"\n    y = 2\n'
+    (pkg / "a.py").write_text(src)
+    first = source_fingerprint(pkg)
+    (pkg / "a.py").write_text(src.replace("Module doc.", "Edited.").replace("# note", "# other note")
+                              .replace('"""Doc."""', '"""A longer\n    docstring."""').replace('"doc"', "'x'"))
+    assert source_fingerprint(pkg) == first
+    (pkg / "a.py").write_text(src.replace("x + 1", "x + 2"))
+    assert source_fingerprint(pkg) != first
+    (pkg / "a.py").write_text(src.replace("y = 2", "y = '2'"))
+    assert source_fingerprint(pkg) != first
+
+
+def test_cache_entry_survives_a_docstring_edit(tmp_path):
+    """A cache entry keyed by the fingerprint of a module is found again after its docstring changes."""
+    from defocus_cache import Cache
+
+    mod = tmp_path / "m.py"
+    mod.write_text('def k():\n    """v1"""\n    return 1\n')
+    cache = Cache(tmp_path / "cache")
+    calls = []
+
+    def build(folder):
+        calls.append(1)
+        (folder / "x.txt").write_text("x")
+
+    cache.get_or_build({"code": source_fingerprint(mod)}, build)
+    mod.write_text('def k():\n    """v2, reworded"""\n    return 1  # comment\n')
+    cache.get_or_build({"code": source_fingerprint(mod)}, build)
+    assert len(calls) == 1
+    mod.write_text('def k():\n    """v2, reworded"""\n    return 2\n')
+    cache.get_or_build({"code": source_fingerprint(mod)}, build)
+    assert len(calls) == 2
+
+
 def test_source_fingerprint_of_functions():
     def f(x):
         return x + 1

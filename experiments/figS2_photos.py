@@ -1,0 +1,140 @@
+"""Real photos scored against hand-drawn regions: photo with its regions, map per preset, magnified result.
+
+The photos ship inside scikit-image (``skimage.data``) with region files in ``experiments/photos``
+(:mod:`experiments.photo_regions`): "in focus" and "defocused" polygons drawn by hand before any map
+was computed on them. A photo has no ground-truth σ; the score is whether the map ranks the
+defocused region blurrier than the in-focus one (ranking AUC, and the share of in-focus pixels above
+the defocused region's median; targets AUC ≥ 0.95, share ≤ 2 %).
+
+Notes
+-----
+1. Load each photo's region file (validated against the photo's shape) and the photo, 8-bit sRGB →
+   float in [0, 1], at its shipped size (the regions are in its pixels).
+2. Per method preset of ``config.presets``: :func:`method.estimate_defocus_map` with
+   ``DefocusParams.preset(name)``.
+3. :func:`experiments.photo_regions.score_defocus_map` of each map.
+4. :func:`method.magnify_defocus` of each map with ``factor`` (Sec. 5 preprocessing of the preset:
+   ``map_clip_percent``, ``map_smoothing``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import warnings
+
+import numpy as np
+
+from .registry import Figure
+
+__all__ = ["FIGURE", "FULL", "QUICK", "PhotosConfig", "compute"]
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class PhotosConfig:
+    """Every parameter of the photos figure."""
+
+    photos: tuple[str, ...] = ("coffee", "chelsea", "astronaut")
+    # photos with a region file (experiments.photo_regions.available_photos), in drawing order.
+    presets: tuple[str, ...] = ("paper", "robust", "zhuo_sim")
+    # method parameter presets (method.PRESETS), one map column each.
+    factor: float = 2.0
+    # defocus magnification k (total blur k·B; 2 = doubling the aperture diameter).
+    kernel: str = "gaussian"
+    # magnification kernel (method.MAGNIFICATION_KERNELS).
+    magnify_preset: str = "robust"
+    # the preset whose map is magnified in the last column (must be in presets; else the first).
+    regions_digest: str = dataclasses.field(default_factory=lambda: _regions_digest())
+    # SHA-256 (16 hex digits) of the shipped region files, read when the config is made: part of the
+    # cache key, so an edited region file recomputes the figure (the code fingerprint covers .py only).
+
+
+def _regions_digest() -> str:
+    import hashlib
+
+    from .photo_regions import PHOTO_DIR
+
+    h = hashlib.sha256()
+    for path in sorted(PHOTO_DIR.glob("*.json")):
+        h.update(path.name.encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+FULL = PhotosConfig()
+QUICK = PhotosConfig(photos=("coffee",))
+
+
+def compute(config: PhotosConfig) -> dict:
+    """Maps, scores and magnified results of every photo × preset.
+
+    Parameters
+    ----------
+    config : PhotosConfig
+
+    Returns
+    -------
+    dict
+        ``items`` (n,) photo names; per photo ``<photo>__input`` (H, W, 3) float32 in [0, 1],
+        ``<photo>__in_focus`` / ``<photo>__defocused`` (H, W) bool region masks,
+        ``<photo>__<preset>__map`` (H, W) float32 σ px, ``<photo>__magnified`` (H, W, 3) float32
+        (the map of ``magnify_preset`` magnified ×factor); ``metrics``: ``photos.<photo>.<preset>``
+        = the score dict (:func:`experiments.photo_regions.score_defocus_map`) plus ``seconds``,
+        ``photos.<photo>.shape``, ``summary.<preset>`` (min AUC, max share, photos meeting the
+        targets), ``targets``, ``magnify_preset``, ``factor``.
+    """
+    from method import DefocusParams, magnify_defocus
+
+    from .photo_regions import (SCORE_PRESETS, TARGET_AUC, TARGET_SHARE, compute_photo_maps, score_defocus_map,
+                                validate_photo_names)
+
+    names = validate_photo_names(config.photos)
+    presets = tuple(dict.fromkeys(config.presets or SCORE_PRESETS))
+    mag_preset = config.magnify_preset if config.magnify_preset in presets else presets[0]
+    data, per_photo = {}, {}
+    t_start = time.perf_counter()
+    for name in names:
+        run = compute_photo_maps(name, presets)
+        image, regions = run["image"], run["regions"]
+        masks = regions.masks()
+        data[f"{name}__input"] = image.astype(np.float32)
+        data[f"{name}__in_focus"] = masks["in_focus"]
+        data[f"{name}__defocused"] = masks["defocused"]
+        scores = {"shape": list(image.shape[:2]), "source": regions.source}
+        for p, res in run["results"].items():
+            data[f"{name}__{p}__map"] = res.defocus_map.astype(np.float32)
+            scores[p] = {**score_defocus_map(res.defocus_map, regions), "seconds": run["seconds"][p]}
+        params = DefocusParams.preset(mag_preset)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            out = magnify_defocus(image, run["results"][mag_preset].defocus_map, factor=config.factor,
+                                  kernel=config.kernel, clip_percent=params.map_clip_percent,
+                                  smoothing=params.map_smoothing)
+        data[f"{name}__magnified"] = out.astype(np.float32)
+        per_photo[name] = scores
+    summary = {}
+    for p in presets:
+        aucs = [per_photo[n][p]["auc"] for n in names]
+        shares = [per_photo[n][p]["in_focus_above_defocused_median"] for n in names]
+        summary[p] = {"min_auc": float(min(aucs)), "max_in_focus_above_defocused_median": float(max(shares)),
+                      "photos_meeting_targets": int(sum(per_photo[n][p]["meets_targets"] for n in names)),
+                      "n_photos": len(names)}
+    data["items"] = np.asarray(names)
+    data["metrics"] = {"photos": per_photo, "summary": summary, "presets_scored": list(presets),
+                       "targets": {"auc_min": TARGET_AUC, "in_focus_above_defocused_median_max": TARGET_SHARE},
+                       "magnify_preset": mag_preset, "factor": config.factor,
+                       "compute_seconds": time.perf_counter() - t_start}
+    return data
+
+
+FIGURE = Figure(
+    name="photos",
+    title="Real photos (skimage.data) with hand-drawn in-focus/defocused regions: map per preset, ranking AUC, "
+          "magnified result",
+    compute=compute,
+    plot="experiments.plotting.photos:plot",
+    configs={"quick": QUICK, "full": FULL},
+    version=1,
+    sigma_convention="Gaussian sigma of the estimated blur, px of the photo (no ground truth)",
+    renders=False,
+)

@@ -6,6 +6,9 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 PYTEST_ARGS ?=
+# pytest-xdist workers; tests that share a module fixture, a cache folder or a port carry an
+# xdist_group mark (tests/conftest.py), which --dist loadgroup keeps on one worker.
+PYTEST_WORKERS ?= 2
 
 .PHONY: setup system-deps figures figures-quick report test test-fast bench clean-cache
 
@@ -38,7 +41,7 @@ system-deps:
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q -e '.[test]'
+	$(BIN)/python -m pip install -q -e '.[all,test]'
 	touch $(STAMP)
 
 figures: setup
@@ -53,10 +56,11 @@ report: setup
 	$(BIN)/python -m repro.report
 
 test: setup
-	$(BIN)/python -m pytest $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -n $(PYTEST_WORKERS) --dist loadgroup --durations=15 $(PYTEST_ARGS)
 
+# Everything that neither renders nor is slow (docs/test-suite.md): under 90 s with a warm numba cache.
 test-fast: setup
-	$(BIN)/python -m pytest -m "not slow" $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -n $(PYTEST_WORKERS) --dist loadgroup -m "not slow and not render" --durations=15 $(PYTEST_ARGS)
 
 bench: setup
 	$(BIN)/python -m repro.bench

@@ -28,7 +28,7 @@ sys.path.insert(0, str(HERE.parents[1]))
 
 VARIANTS = {
     "galerkin (default: max(⌈2.5·s⌉, 20) its)": dict(),
-    "galerkin, 24 its (the default before session 7)": dict(refine_iterations=24),
+    "galerkin, 24 its (the earlier default)": dict(refine_iterations=24),
     "galerkin, 48 its": dict(refine_iterations=48),
     "two_level re-discretised, 4x, 80 its (previous default)": dict(refinement="two_level", downsample=4,
                                                                      refine_iterations=80),

@@ -1,4 +1,4 @@
-"""The storage layer: atomic writes, cross-process locks and a checksummed content-addressed cache.
+"""The cache layer: atomic writes, cross-process locks and a checksummed content-addressed cache.
 
 Used by every layer of the harness but ``method`` (pure numerics); imports no project package
 (tests/test_architecture.py).
@@ -20,6 +20,7 @@ Cache keys are built from three helpers defined here and nowhere else: :func:`so
 
 from __future__ import annotations
 
+import ast
 import contextlib
 import functools
 import hashlib
@@ -27,7 +28,9 @@ import inspect
 import json
 import os
 import shutil
+import sys
 import tempfile
+import textwrap
 import types
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -155,18 +158,39 @@ def _source_files(item) -> list[Path]:
     return sorted(p.rglob("*.py")) if p.is_dir() else [p]
 
 
-def source_fingerprint(*items, exclude: tuple[str, ...] = ()) -> str:
-    """SHA-256 (16 hex digits) of the source code that computes a cache entry.
+def _code_meaning(text: str) -> bytes:
+    """The parsed code of ``text`` without docstrings or comments (``ast.dump``), as bytes.
 
-    The one way the project fingerprints code for its caches: an edit of any listed source
-    invalidates the entries that depend on it, with no version number to remember to bump.
+    Comments never reach the AST; docstrings (a string constant opening a module, class or function
+    body) are dropped, so editing either keeps every cache entry, while any change of a token that
+    the interpreter executes changes the result. Text that does not parse is returned as is.
+    """
+    try:
+        tree = ast.parse(textwrap.dedent(text))
+    except SyntaxError:
+        return text.encode()
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if (isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))
+                and body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant)
+                and isinstance(body[0].value.value, str)):
+            node.body = body[1:] or [ast.Pass()]
+    return ast.dump(tree, include_attributes=False).encode()
+
+
+def source_fingerprint(*items, exclude: tuple[str, ...] = ()) -> str:
+    """SHA-256 (16 hex digits) of the code, by meaning, that computes a cache entry.
+
+    The one way the project fingerprints code for its caches: a change of any listed code
+    invalidates the entries that depend on it, with no version number to remember to bump; an edit
+    of docstrings or comments only keeps them (:func:`_code_meaning`).
 
     Parameters
     ----------
     *items : module, str, Path or callable
-        A package (every ``.py`` below it), a module or a file/folder path (its bytes), or a
-        function/class (its module, qualified name and source text; used for code registered at
-        run time, e.g. a blur estimator defined in a test).
+        A package (every ``.py`` below it), a module or a file/folder path, or a function/class (its
+        module, qualified name and code; used for code registered at run time, e.g. a blur
+        estimator defined in a test).
     exclude : tuple of str, keyword-only
         Posix path prefixes, relative to the project root, left out (modules that only read
         results, such as plots).
@@ -174,15 +198,17 @@ def source_fingerprint(*items, exclude: tuple[str, ...] = ()) -> str:
     Returns
     -------
     str
-        16 hex digits; equal sources give equal fingerprints in any process.
+        16 hex digits; equal code gives equal fingerprints in any process of one Python minor
+        version (the AST's dump format is the interpreter's, so it is part of the key).
     """
     h = hashlib.sha256()
+    h.update(f"ast-py{sys.version_info[0]}.{sys.version_info[1]}".encode())
     for item in items:
         if callable(item) and not isinstance(item, (str, Path)):
             name = f"{getattr(item, '__module__', '')}.{getattr(item, '__qualname__', repr(item))}"
             h.update(name.encode())
             try:
-                h.update(inspect.getsource(item).encode())
+                h.update(_code_meaning(inspect.getsource(item)))
             except (OSError, TypeError):
                 h.update(repr(item).encode())
             continue
@@ -195,7 +221,7 @@ def source_fingerprint(*items, exclude: tuple[str, ...] = ()) -> str:
             if any(rel.startswith(ex) for ex in exclude):
                 continue
             h.update(rel.encode())
-            h.update(path.read_bytes())
+            h.update(_code_meaning(path.read_text(encoding="utf-8")))
     return h.hexdigest()[:16]
 
 

@@ -17,21 +17,38 @@ under ``"scene_sets"`` (each with its own ``"presets"``); ``"scene_set"`` names 
 projected metrics. A figure without ``"presets"`` is the same for every preset, one without
 ``"scene_set"``/``"scene_sets"`` the same for every scene set. :func:`claim_matrix` evaluates every
 (preset, scene set) the metrics contain.
+
+One evaluation per cell: every claim declares what it varies with (:attr:`Claim.varies_with`: the
+method preset, the scene set, both, or neither). A cell of the matrix reads its figure's metrics for
+the cell's preset and scene set along those axes only, and a figure without data for that preset or
+scene set gives "not evaluated" (never another preset's or set's numbers). Each verdict records the
+evaluation it came from (:attr:`Verdict.evaluation`, ``"<figure>/<preset>/<scene set>/<config>"``,
+``all-presets`` / ``all-scene-sets`` along the axes the claim does not vary with); cells of one
+claim share an evaluation only along those axes (:func:`evaluation_problems` checks it, and
+:func:`cell_sources` says which earlier cell a repeated one equals).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import json
 import math
 from collections.abc import Callable, Mapping
 
-__all__ = ["CLAIMS", "Claim", "Verdict", "VERDICTS", "claim_matrix", "evaluate_claims", "mismatch_findings",
-           "project_metrics", "presets_and_scene_sets"]
+__all__ = ["AXES", "CLAIMS", "Claim", "Verdict", "VERDICTS", "cell_sources", "claim_matrix", "claims_document",
+           "evaluate_claims", "evaluation_id", "evaluation_problems", "mismatch_findings", "project_metrics", "presets_and_scene_sets",
+           "scope_note"]
 
 VERDICTS = ("reproduced", "partly reproduced", "not reproduced", "not evaluated", "error")
 
 #: The preset whose metrics are the flat (top-level) keys of a figure.
 DEFAULT_PRESET = "paper"
+#: The axes of the claim matrix a claim can vary with (:attr:`Claim.varies_with`).
+AXES = ("preset", "scene_set")
+#: Evaluation-id parts along an axis the claim does not vary with.
+ALL_PRESETS = "all-presets"
+ALL_SCENE_SETS = "all-scene-sets"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -41,6 +58,7 @@ class Verdict:
     verdict: str     # one of VERDICTS
     evidence: str    # one or two sentences with the measured numbers
     numbers: dict    # the numbers the verdict rests on (JSON-able)
+    evaluation: str = ""  # id of the evaluation the verdict rests on ("" when none: "not evaluated")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -53,6 +71,18 @@ class Claim:
     text: str        # the claim, paraphrased
     rule: str        # how numbers become a verdict
     check: Callable[[Mapping[str, dict]], Verdict]
+    varies_with: tuple[str, ...] = ("preset", "scene_set")
+    # the axes of AXES the claim's numbers depend on: () for a property of the optics (Eq. 5, Eq. 6),
+    # ("preset",) for the method on analytic images (no scene set), ("scene_set",) for the paper's
+    # Eq. (3) filter with and without its bias (Fig. 5 fixes the filter's parameters: a claim about
+    # the filter, not a preset; the robust preset turns the bias off), both for a preset's method on
+    # rendered scenes.
+
+    def __post_init__(self):
+        bad = [a for a in self.varies_with if a not in AXES]
+        if bad or len(set(self.varies_with)) != len(self.varies_with):
+            raise ValueError(f"claim {self.id!r}: varies_with={self.varies_with!r} is invalid; allowed: "
+                             f"distinct names of {AXES}")
 
 
 class _Missing(LookupError):
@@ -77,12 +107,17 @@ def _strip(node: Mapping) -> dict:
             if not (k == "scene_set" or (k in ("presets", "scene_sets") and isinstance(v, Mapping)))}
 
 
-def _project_one(inner: Mapping, preset: str, scene_set: str | None):
-    """One figure's metrics for (preset, scene_set); a str (the reason) when it has none."""
+def _project_one(inner: Mapping, preset: str, scene_set: str | None, require=()):
+    """One figure's metrics for (preset, scene_set); a str (the reason) when it has none.
+
+    ``require``: axes (of :data:`AXES`) along which a figure without nesting has no data for another
+    preset than ``"paper"`` / for a named scene set (instead of counting as the same for all)."""
     if not isinstance(inner, Mapping):
         return "metrics are not a mapping"
     node = inner
     has_sets = "scene_set" in inner or _nested(inner, "scene_sets") is not None
+    if "scene_set" in require and scene_set is not None and not has_sets:
+        return f"computed without a scene set (none named), not for scene set {scene_set!r}"
     if has_sets and scene_set is not None and scene_set != inner.get("scene_set"):
         sets = _nested(inner, "scene_sets") or {}
         if scene_set not in sets:
@@ -90,6 +125,8 @@ def _project_one(inner: Mapping, preset: str, scene_set: str | None):
         node = sets[scene_set]
         if not isinstance(node, Mapping):
             return f"scene set {scene_set!r} is not a mapping"
+    if "preset" in require and preset != DEFAULT_PRESET and _nested(node, "presets") is None:
+        return f"computed for the {DEFAULT_PRESET} preset only, not for preset {preset!r}"
     if preset != DEFAULT_PRESET and _nested(node, "presets") is not None:
         presets = _nested(node, "presets")
         if preset not in presets:
@@ -101,7 +138,7 @@ def _project_one(inner: Mapping, preset: str, scene_set: str | None):
 
 
 def project_metrics(metrics_by_figure: Mapping[str, dict], *, preset: str = DEFAULT_PRESET,
-                    scene_set: str | None = None) -> dict:
+                    scene_set: str | None = None, require: tuple[str, ...] = ()) -> dict:
     """The metrics of every figure for one preset and one scene set.
 
     Parameters
@@ -112,6 +149,9 @@ def project_metrics(metrics_by_figure: Mapping[str, dict], *, preset: str = DEFA
         Method preset; ``"paper"`` is the flat keys, others come from ``"presets"``.
     scene_set : str or None, keyword-only
         Scene set name; ``None`` is each figure's default set (its flat keys).
+    require : tuple of str, keyword-only
+        Axes of :data:`AXES` along which a figure without nesting is *not* the same for every value:
+        it then has data only for the ``"paper"`` preset / for no named scene set.
 
     Returns
     -------
@@ -121,12 +161,12 @@ def project_metrics(metrics_by_figure: Mapping[str, dict], *, preset: str = DEFA
 
     Notes
     -----
-    A figure without ``"presets"`` is the same for every preset; one without ``"scene_set"`` and
-    ``"scene_sets"`` is the same for every scene set (CONTRACT: figures 2, 4, 8, 10).
+    Outside ``require``, a figure without ``"presets"`` is the same for every preset and one without
+    ``"scene_set"`` and ``"scene_sets"`` the same for every scene set (figures 2 and 10).
     """
     out = {}
     for fig, data in metrics_by_figure.items():
-        got = _project_one(_inner(data), preset, scene_set)
+        got = _project_one(_inner(data), preset, scene_set, require)
         out[fig] = {_ABSENT: got} if isinstance(got, str) else {"metrics": got}
     return out
 
@@ -134,10 +174,11 @@ def project_metrics(metrics_by_figure: Mapping[str, dict], *, preset: str = DEFA
 def presets_and_scene_sets(metrics_by_figure: Mapping[str, dict]) -> list[tuple[str, str | None]]:
     """Every (preset, scene set) the metrics contain, paper preset and default set first.
 
-    The scene set is a name when any figure names its default set (``"scene_set"``), else ``None``.
+    The scene set is a name when any figure names its default set (``"scene_set"``), else ``None``;
+    the first set is the one most figures name as their default (ties: the first seen).
     """
     presets, sets = [DEFAULT_PRESET], []
-    default = None
+    defaults: dict[str, int] = {}  # default set name -> number of figures naming it (first seen first)
 
     def add(seq, x):
         if x not in seq:
@@ -148,7 +189,7 @@ def presets_and_scene_sets(metrics_by_figure: Mapping[str, dict]) -> list[tuple[
         if not isinstance(inner, Mapping):
             continue
         if inner.get("scene_set") is not None:
-            default = default or inner["scene_set"]
+            defaults[inner["scene_set"]] = defaults.get(inner["scene_set"], 0) + 1
             add(sets, inner["scene_set"])
         others = _nested(inner, "scene_sets") or {}
         for name in others:
@@ -156,7 +197,8 @@ def presets_and_scene_sets(metrics_by_figure: Mapping[str, dict]) -> list[tuple[
         for node in [inner] + [v for v in others.values() if isinstance(v, Mapping)]:
             for p in _nested(node, "presets") or ():
                 add(presets, p)
-    if default is not None:
+    if defaults:
+        default = max(defaults, key=defaults.get)  # the set most figures describe flat (ties: first seen)
         sets.remove(default)
         sets.insert(0, default)
     return [(p, s) for s in (sets or [None]) for p in presets]
@@ -286,23 +328,38 @@ def _eq6(m):
                    {"measured_ratio": meas, "eq6_ratio": eq6, "sensor_width_ratio": width, "max_rel_err": err})
 
 
+def _fit_name(m) -> str:
+    """The key of the preset's model fit in fig4's metrics (``fit_estimator``; older files: model_fit)."""
+    node = m.get("fig4", {})
+    inner = node.get("metrics", node) if isinstance(node, Mapping) else {}
+    name = inner.get("fit_estimator", "model_fit") if isinstance(inner, Mapping) else "model_fit"
+    return name if isinstance(name, str) else "model_fit"
+
+
 def _model_fit_analytic(m):
-    clean = _num(_get(m, "fig4", "analytic", "straight", "clean", "model_fit", "median_ae"))
-    noisy = _num(_get(m, "fig4", "analytic", "straight", "noisy", "model_fit", "median_ae"))
-    curved = _num(_get(m, "fig4", "analytic", "curved", "clean", "model_fit", "median_ae"))
+    fit = _fit_name(m)
+    clean = _num(_get(m, "fig4", "analytic", "straight", "clean", fit, "median_ae"))
+    noisy = _num(_get(m, "fig4", "analytic", "straight", "noisy", fit, "median_ae"))
+    curved = _num(_get(m, "fig4", "analytic", "curved", "clean", fit, "median_ae"))
     ok_clean = clean <= FIT_CLEAN_MAX_MEDIAN_AE_PX and curved <= FIT_CLEAN_MAX_MEDIAN_AE_PX
     ok_noisy = noisy <= FIT_NOISY_MAX_MEDIAN_AE_PX
     v = "reproduced" if ok_clean and ok_noisy else ("partly reproduced" if ok_clean else "not reproduced")
-    return Verdict(v, f"Median |error| of model fit on analytic steps: straight {_fmt(clean)} px, "
+    return Verdict(v, f"Median |error| of model fit ({fit}) on analytic steps: straight {_fmt(clean)} px, "
                       f"curved {_fmt(curved)} px (clean), straight with noise + 8-bit {_fmt(noisy)} px.",
                    {"straight_clean_median_ae": clean, "curved_clean_median_ae": curved,
                     "straight_noisy_median_ae": noisy})
 
 
+def _err_or_inf(x) -> float:
+    """An error metric as float; NaN (stored as null: the estimator gave no estimate) as +inf (a failure)."""
+    return math.inf if x is None or (isinstance(x, float) and math.isnan(x)) else _num(x)
+
+
 def _neighbouring_edges(m):
     cases = _get(m, "fig4", "claims", "neighbouring_edges")
-    errs = {k: (_num(_need(c, "model_fit", where=f"fig4 case {k}")),
-                _num(_need(c, "zero_crossing", where=f"fig4 case {k}"))) for k, c in cases.items()}
+    errs = {k: (_err_or_inf(_need(c, "model_fit", where=f"fig4 case {k}")),
+                _err_or_inf(_need(c, "zero_crossing", where=f"fig4 case {k}"))) for k, c in cases.items()}
+    no_fit = sorted(k for k, (mf, _) in errs.items() if math.isinf(mf))
     excluded = sorted(k for k, (mf, zc) in errs.items()
                       if mf > NEIGHBOUR_BOTH_FAIL_REL and zc > NEIGHBOUR_BOTH_FAIL_REL)
     judged = {k: e for k, e in errs.items() if k not in excluded}
@@ -314,22 +371,26 @@ def _neighbouring_edges(m):
     frac = k / n
     v = ("reproduced" if frac >= NEIGHBOUR_REPRODUCED_FRACTION else
          "partly reproduced" if frac > NEIGHBOUR_PARTLY_FRACTION else "not reproduced")
-    return Verdict(v, f"Model fit has the lower median relative error in {k} of {n} nearby-edge cases "
+    return Verdict(v, f"Model fit ({_fit_name(m)}) has the lower median relative error in {k} of {n} nearby-edge cases "
                       f"(bars and staircases, 2–6σ apart): {', '.join(wins) or 'none'}; {len(excluded)} of "
                       f"{len(errs)} cases excluded because both estimators are more than "
                       f"{100 * NEIGHBOUR_BOTH_FAIL_REL:.0f} % off"
-                      + (f" ({', '.join(excluded)})." if excluded else "."),
-                   {"cases": len(errs), "judged": n, "excluded": excluded, "model_fit_better": k, "fraction": frac})
+                      + (f" ({', '.join(excluded)})." if excluded else ".")
+                      + (f" The model fit gave no estimate in {len(no_fit)} cases ({', '.join(no_fit)}), counted as "
+                         "a failure." if no_fit else ""),
+                   {"cases": len(errs), "judged": n, "excluded": excluded, "model_fit_better": k, "fraction": frac,
+                    "model_fit_no_estimate": no_fit})
 
 
 def _rendered_edges(m):
+    fit = _fit_name(m)
     pooled = _get(m, "fig4", "rendered", "pooled", "srgb", "line_spread")
-    mf, zc = _need(pooled, "model_fit", where="fig4 pooled"), _need(pooled, "zero_crossing", where="fig4 pooled")
+    mf, zc = _need(pooled, fit, where="fig4 pooled"), _need(pooled, "zero_crossing", where="fig4 pooled")
     mae = (_num(_need(mf, "mae")), _num(_need(zc, "mae")))
     med = (_num(_need(mf, "median_ae")), _num(_need(zc, "median_ae")))
     better_mae, better_med = mae[0] < mae[1], med[0] < med[1]
     v = "reproduced" if better_mae and better_med else ("partly reproduced" if better_mae else "not reproduced")
-    return Verdict(v, f"Rendered scenes (sRGB input, edge pixels off occlusion boundaries): model fit MAE "
+    return Verdict(v, f"Rendered scenes (sRGB input, edge pixels off occlusion boundaries): model fit ({fit}) MAE "
                       f"{_fmt(mae[0])} px / median {_fmt(med[0])} px vs zero crossing "
                       f"{_fmt(mae[1])} / {_fmt(med[1])} px; outliers >1 px "
                       f"{_fmt(mf.get('outlier_fraction'))} vs {_fmt(zc.get('outlier_fraction'))}.",
@@ -552,23 +613,24 @@ CLAIMS: tuple[Claim, ...] = (
     Claim("eq5", "Appendix A, Eq. (5), Fig. 10", "fig10",
           "The circle of confusion of a thin lens is c = |S − D|/S · f²/(N(D − f)).",
           f"reproduced when every rendered point is within {100 * EQ_MAX_REL_ERR:g} % of Eq. (5); otherwise not "
-          "(no partial form)", _eq5),
+          "(no partial form)", _eq5, varies_with=()),
     Claim("eq6", "Appendix A, Eq. (6), Fig. 2", "fig2",
           "At the same field of view and f-number, image-space defocus scales with the sensor size.",
           f"reproduced when the measured blur ratio is within {100 * EQ_MAX_REL_ERR:g} % of Eq. (6); otherwise not "
-          "(no partial form)", _eq6),
+          "(no partial form)", _eq6, varies_with=()),
     Claim("model_fit_accuracy", "Sec. 3.2, Eq. (2)", "fig4",
           "Fitting the second-derivative response model recovers the blur σ of a Gaussian-blurred step.",
           f"reproduced when median |error| ≤ {FIT_CLEAN_MAX_MEDIAN_AE_PX:g} px (clean, straight and curved) and ≤ "
           f"{FIT_NOISY_MAX_MEDIAN_AE_PX:g} px (noise + 8 bit); partly (weaker form: it recovers σ of noise-free "
-          "steps only) when only the clean bound holds", _model_fit_analytic),
+          "steps only) when only the clean bound holds", _model_fit_analytic, varies_with=("preset",)),
     Claim("neighbouring_edges", "Sec. 3.2, Fig. 4", "fig4",
           "Zero crossings of the third derivative are disturbed by neighbouring edges; the model fit is not.",
           f"cases where both estimators' median relative error exceeds {100 * NEIGHBOUR_BOTH_FAIL_REL:g} % are "
           f"excluded (evidence for neither; the count is reported); reproduced when the model fit has the lower "
-          f"error in ≥ {100 * NEIGHBOUR_REPRODUCED_FRACTION:g} % of the remaining cases; partly (weaker form: the "
+          f"error in ≥ {100 * NEIGHBOUR_REPRODUCED_FRACTION:g} % of the remaining cases (an estimator without "
+          f"any estimate in a case fails it); partly (weaker form: the "
           f"model fit is the less disturbed in most, not nearly all, cases) when in more than "
-          f"{100 * NEIGHBOUR_PARTLY_FRACTION:g} %", _neighbouring_edges),
+          f"{100 * NEIGHBOUR_PARTLY_FRACTION:g} %", _neighbouring_edges, varies_with=("preset",)),
     Claim("model_fit_real_images", "Sec. 3.2", "fig4",
           "On real images the model fit is a more robust blur estimate than the zero-crossing localisation.",
           "reproduced when the model fit has both the lower MAE and the lower median error on the rendered scenes; "
@@ -580,14 +642,14 @@ CLAIMS: tuple[Claim, ...] = (
           f"{100 * BIAS_MIN_OUTLIERS_BEFORE:g} % in-focus outliers before the "
           f"filter: reproduced when the outlier fraction falls by ≥ {100 * BIAS_MIN_RELATIVE_DROP:g} % of its value "
           "on every case; partly (weaker form: it corrects them on average, not on every case) when the mean over "
-          "the cases falls by that much", _bias_outliers),
+          "the cases falls by that much", _bias_outliers, varies_with=("scene_set",)),
     Claim("refinement_small_change", "Sec. 3.3", "fig5",
           "The refinement does not generate much change but refines a few outliers.",
           f"reproduced when the MAE at edges changes by ≤ {100 * SMALL_CHANGE_MAX_REL:g} % on every case and the "
           f"mean MAE falls by ≥ {100 * REFINE_MIN_RELATIVE_GAIN:g} %; partly (weaker form: a small change that "
           "refines, on most cases) when the mean MAE falls and at least half the cases change by ≤ "
           f"{100 * SMALL_CHANGE_MAX_REL:g} %; a refinement that changes nothing is not reproduced",
-          _refinement_small_change),
+          _refinement_small_change, varies_with=("scene_set",)),
     Claim("alpha_balance", "Sec. 4.1, Fig. 6", "fig6",
           "α balances the data term against smoothness in Eq. (4): the maps change visibly with α.",
           f"sRGB input, every scene: the data term of Eq. (4) falls and the smoothness term rises as α grows "
@@ -627,6 +689,48 @@ CLAIMS: tuple[Claim, ...] = (
 )
 
 
+def _config_label(data) -> str:
+    """``"<mode>-<8 hex digits of the config>"`` from a metrics file (``mode`` / ``config``), as far as known."""
+    if not isinstance(data, Mapping):
+        return "unrecorded-config"
+    mode, config = data.get("mode"), data.get("config")
+    digest = (hashlib.sha256(json.dumps(config, sort_keys=True, default=str).encode()).hexdigest()[:8]
+              if config is not None else None)
+    if mode is None and digest is None:
+        return "unrecorded-config"
+    return "-".join(str(x) for x in (mode or "config", digest) if x is not None)
+
+
+def evaluation_id(claim: Claim, metrics_by_figure: Mapping[str, dict], *, preset: str,
+                  scene_set: str | None) -> str:
+    """Id of the evaluation a cell of ``claim`` reads: ``"<figure>/<preset>/<scene set>/<config>"``.
+
+    Parameters
+    ----------
+    claim : Claim
+    metrics_by_figure : mapping
+        Parsed metrics files by figure name.
+    preset, scene_set : str, str or None, keyword-only
+        The cell (``scene_set=None``: the figure's default set).
+
+    Returns
+    -------
+    str
+        ``all-presets`` / ``all-scene-sets`` in place of the preset / scene set the claim does not vary
+        with; the scene set ``None`` is the figure's default set by name (``"default"`` when unnamed);
+        the config is :func:`_config_label` of the figure's file.
+    """
+    data = metrics_by_figure.get(claim.figure)
+    p = preset if "preset" in claim.varies_with else ALL_PRESETS
+    if "scene_set" in claim.varies_with:
+        inner = _inner(data) if data is not None else {}
+        s = scene_set if scene_set is not None else (inner.get("scene_set") if isinstance(inner, Mapping) else None)
+        s = s or "default"
+    else:
+        s = ALL_SCENE_SETS
+    return f"{claim.figure}/{p}/{s}/{_config_label(data)}"
+
+
 def evaluate_claims(metrics_by_figure: Mapping[str, dict], *, preset: str = DEFAULT_PRESET,
                     scene_set: str | None = None) -> list[tuple[Claim, Verdict]]:
     """Check every claim against ``{figure name: parsed <fig>.metrics.json}`` for one preset and scene set.
@@ -643,24 +747,36 @@ def evaluate_claims(metrics_by_figure: Mapping[str, dict], *, preset: str = DEFA
     Returns
     -------
     list of (Claim, Verdict)
-        In :data:`CLAIMS` order.
+        In :data:`CLAIMS` order; each verdict names its evaluation (:func:`evaluation_id`; ``""``
+        when "not evaluated").
 
     Notes
     -----
-    Missing figures or numbers give ``"not evaluated"`` with the reason; a check that raises
-    anything else gives ``"error"`` with the exception (a harness failure, never hidden).
+    1. Per claim, project the metrics (:func:`project_metrics`) for ``preset`` and ``scene_set`` along
+       the axes of :attr:`Claim.varies_with` (the ``paper`` preset and the default set along the
+       others), requiring data along those axes: a figure computed for the paper preset only, or
+       without a scene set, has no data for another preset / a named set.
+    2. Missing figures or numbers give ``"not evaluated"`` with the reason; a check that raises
+       anything else gives ``"error"`` with the exception (a harness failure, never hidden).
     """
-    projected = project_metrics(metrics_by_figure, preset=preset, scene_set=scene_set)
+    projections: dict = {}
     out = []
     for claim in CLAIMS:
+        p = preset if "preset" in claim.varies_with else DEFAULT_PRESET
+        s = scene_set if "scene_set" in claim.varies_with else None
+        key = (p, s, claim.varies_with)
+        if key not in projections:
+            projections[key] = project_metrics(metrics_by_figure, preset=p, scene_set=s, require=claim.varies_with)
+        ev = evaluation_id(claim, metrics_by_figure, preset=p, scene_set=s)
         try:
-            verdict = claim.check(projected)
+            verdict = claim.check(projections[key])
         except _Missing as exc:
             verdict = Verdict("not evaluated", f"missing data: {exc}", {})
         except Exception as exc:  # noqa: BLE001 - a raising check is reported, not swallowed as missing
             verdict = Verdict("error", f"the check raised {type(exc).__name__}: {exc}", {})
         if verdict.verdict not in VERDICTS:
             verdict = Verdict("error", f"the check returned an unknown verdict {verdict.verdict!r}", {})
+        verdict = dataclasses.replace(verdict, evaluation="" if verdict.verdict == "not evaluated" else ev)
         out.append((claim, verdict))
     return out
 
@@ -676,6 +792,120 @@ def claim_matrix(metrics_by_figure: Mapping[str, dict]) -> dict:
     """
     return {(p, s): evaluate_claims(metrics_by_figure, preset=p, scene_set=s)
             for p, s in presets_and_scene_sets(metrics_by_figure)}
+
+
+def scope_note(claim: Claim) -> str:
+    """What the first cell of a claim stands for when the claim does not vary with every axis.
+
+    ``"all presets and scene sets"`` (varies with nothing), ``"all scene sets"`` (preset only),
+    ``"all presets"`` (scene set only), ``""`` (both)."""
+    v = set(claim.varies_with)
+    return {frozenset(): "all presets and scene sets", frozenset({"preset"}): "all scene sets",
+            frozenset({"scene_set"}): "all presets"}.get(frozenset(v), "")
+
+
+def cell_sources(matrix: Mapping) -> dict:
+    """For every cell, the earlier column whose cell of the same claim is the same evaluation.
+
+    Parameters
+    ----------
+    matrix : mapping
+        :func:`claim_matrix` (``{(preset, scene_set): [(Claim, Verdict), ...]}``).
+
+    Returns
+    -------
+    dict
+        ``{(column, claim id): earlier column or None}`` (``None``: the cell's own evaluation, or no
+        evaluation at all).
+    """
+    first: dict = {}
+    out = {}
+    for col, rows in matrix.items():
+        for claim, v in rows:
+            key = (claim.id, v.evaluation)
+            if v.evaluation and key in first:
+                out[(col, claim.id)] = first[key]
+            else:
+                first.setdefault(key, col)
+                out[(col, claim.id)] = None
+    return out
+
+
+def claims_document(matrix: Mapping) -> list[dict]:
+    """The ``"matrix"`` of ``claims.json``: one entry per (preset, scene set) with, per claim, the
+    verdict, the evidence, the evaluation id and the column whose cell it repeats (``same_as``)."""
+    sources = cell_sources(matrix)
+    doc = []
+    for (p, sset), rows in matrix.items():
+        cells = {}
+        for c, v in rows:
+            src = sources[((p, sset), c.id)]
+            cells[c.id] = {"verdict": v.verdict, "evidence": v.evidence, "evaluation": v.evaluation,
+                           "varies_with": list(c.varies_with),
+                           "same_as": None if src is None else {"preset": src[0], "scene_set": src[1]}}
+        doc.append({"preset": p, "scene_set": sset, "verdicts": cells})
+    return doc
+
+
+def evaluation_problems(document: list[dict], claims: tuple[Claim, ...] = CLAIMS) -> list[str]:
+    """Where a claims matrix breaks "one evaluation per cell" (empty: it holds).
+
+    Parameters
+    ----------
+    document : list of dict
+        :func:`claims_document` (the ``"matrix"`` of ``claims.json``).
+    claims : tuple of Claim
+        The declarations (:attr:`Claim.varies_with`) the cells are checked against.
+
+    Returns
+    -------
+    list of str
+        One line per problem: a judged cell (not "not evaluated") without an evaluation id; an id
+        that does not name the cell's preset / scene set along an axis the claim varies with; two
+        cells of a claim sharing an id although they differ along such an axis; a claim that varies
+        with nothing evaluated more than once.
+    """
+    by_id = {c.id: c for c in claims}
+    problems = []
+    seen: dict = {}  # (claim id, evaluation) -> first cell
+    ids_of: dict = {}  # claim id -> set of evaluation ids
+    for entry in document:
+        p, sset = entry["preset"], entry["scene_set"]
+        for cid, cell in entry["verdicts"].items():
+            claim = by_id.get(cid)
+            if claim is None:
+                problems.append(f"{cid}: not a claim")
+                continue
+            ev = cell.get("evaluation") or ""
+            if not ev:
+                if cell.get("verdict") != "not evaluated":
+                    problems.append(f"{cid} at ({p}, {sset}): verdict {cell.get('verdict')!r} names no evaluation")
+                continue
+            parts = ev.split("/")
+            if len(parts) != 4 or parts[0] != claim.figure:
+                problems.append(f"{cid} at ({p}, {sset}): evaluation {ev!r} is not '{claim.figure}/<preset>/<scene set>/<config>'")
+                continue
+            if "preset" in claim.varies_with and parts[1] != p:
+                problems.append(f"{cid} at ({p}, {sset}): evaluation {ev!r} is not of preset {p!r}")
+            if "preset" not in claim.varies_with and parts[1] != ALL_PRESETS:
+                problems.append(f"{cid} at ({p}, {sset}): evaluation {ev!r} names a preset, the claim varies with none")
+            if "scene_set" in claim.varies_with and sset is not None and parts[2] != sset:
+                problems.append(f"{cid} at ({p}, {sset}): evaluation {ev!r} is not of scene set {sset!r}")
+            if "scene_set" not in claim.varies_with and parts[2] != ALL_SCENE_SETS:
+                problems.append(f"{cid} at ({p}, {sset}): evaluation {ev!r} names a scene set, the claim varies "
+                                "with none")
+            ids_of.setdefault(cid, set()).add(ev)
+            first = seen.setdefault((cid, ev), (p, sset))
+            if first != (p, sset):
+                differ = [a for a, x, y in (("preset", first[0], p), ("scene_set", first[1], sset)) if x != y]
+                along = [a for a in differ if a in claim.varies_with]
+                if along:
+                    problems.append(f"{cid}: cells {first} and {(p, sset)} share evaluation {ev!r} but the claim "
+                                    f"varies with {', '.join(along)}")
+    for cid, ids in ids_of.items():
+        if not by_id[cid].varies_with and len(ids) > 1:
+            problems.append(f"{cid}: varies with nothing but has {len(ids)} evaluations {sorted(ids)}")
+    return problems
 
 
 def mismatch_findings(metrics_by_figure: Mapping[str, dict]) -> list[dict]:

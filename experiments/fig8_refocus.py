@@ -33,8 +33,10 @@ Notes
 1. Render at f/``f_number`` focused at D1 (the scene's default) and at D2 = ``focus_distance_2_m``,
    and at f/``all_in_focus_f_number`` focused at D1 (near-pinhole: the all-in-focus reference of
    the deconvolution). Images: ``render.image(encoding, quantize_bits)``.
-2. Estimate the D1 map (:func:`method.estimate_defocus_map`, paper defaults) and prepare it as
-   Sec. 5 does (:func:`method.preprocess_defocus_map`: clip 5 %, smooth 0.5 %, clamp at 0) → B.
+2. Estimate the D1 map (:func:`method.estimate_defocus_map` with the preset's parameters; the
+   ``paper`` preset = the paper's defaults) and prepare it as Sec. 5 does
+   (:func:`method.preprocess_defocus_map` with the preset's ``map_clip_percent`` and ``map_smoothing``,
+   paper: clip 5 %, smooth 0.5 %; clamp at 0) → B.
 3. Results (:func:`method.refocus`, ``deconvolution`` filter with λ = ``nsr``, Gaussian re-blur):
    ``refocused_estimated`` (deconvolve with B, re-blur with the estimated virtual map — the paper's
    method), ``refocused_estimated_oracle_virtual`` (deconvolve with B, re-blur with σ_gt(D2): isolates
@@ -51,6 +53,11 @@ Notes
 6. Sensitivity to λ: the PSNRs of step 4 (whole image) and 5 for each λ of ``nsr_sweep``.
 7. Virtual-map error against σ_gt(D2) (MAE/bias, px) outside occlusion bands, and the depth at the
    click (checked to lie on the D2 plane).
+8. Method presets (``config.presets``, the first ``"paper"``): steps 2–7 with each preset's map
+   (renders and the oracle results shared); further presets under ``metrics["presets"][name]``.
+9. Scene sets: steps 1–8 on the default set's scene (``scene_set``, flat keys) and on each of
+   ``other_scene_sets`` (its own scene, D2 and click; ``metrics["scene_sets"][name]``, with its own
+   ``"presets"``; arrays ``<set>__<key>``).
 """
 
 from __future__ import annotations
@@ -72,7 +79,18 @@ class Fig8Config:
 
     scene: str = "portrait"
     # scene rendered at both focus distances (portrait: figure at 0.25 m, cat photo at 1.5 m,
-    # shelf at 0.6 m, foreground card at 0.125 m).
+    # shelf at 0.6 m, foreground card at 0.125 m); in ``scene_set``.
+    scene_set: str = "tabletop_stress"
+    # name of the scenes.SCENE_SETS entry ``scene`` belongs to (the flat metrics describe it).
+    other_scene_sets: tuple = (("paper_cameras", (("scene", "portrait_garden"), ("focus_distance_2_m", 10.0),
+                                                  ("focus_point_xy", (0.8, 0.15)))),)
+    # further scene sets: (set name, ((config field, value), ...)) overrides of ``scene``,
+    # ``focus_distance_2_m`` and ``focus_point_xy`` (portrait_garden: person at 2 m, refocused to the
+    # brick house at 10 m, clicked on it at the top right); metrics["scene_sets"][name], arrays "<name>__<key>".
+    presets: tuple[str, ...] = ("paper", "robust")
+    # method parameter presets (method.PRESETS) whose maps are refocused; the first is "paper"
+    # (= DefocusParams(), the top-level metrics), the others go to metrics["presets"][name]
+    # (not to be confused with the render `preset`).
     preset: str = "full"
     # render preset: "small" (160x120 px) or "full" (640x480 px).
     f_number: float = 4.0
@@ -161,8 +179,29 @@ def _masked_ssim(test, reference, mask):
     return float(smap.mean(axis=-1)[mask].mean())
 
 
+def _check_scene_sets(config: Fig8Config) -> list[tuple[str, Fig8Config]]:
+    """``[(set name, config)]``, default set first; ``ValueError`` unless each scene is in its named set."""
+    from scenes import SCENE_SETS, SCENES
+
+    out = [(config.scene_set, config)]
+    for name, overrides in config.other_scene_sets:
+        out.append((name, dataclasses.replace(config, scene_set=name, other_scene_sets=(), **dict(overrides))))
+    seen = set()
+    for name, cfg in out:
+        if name in seen:
+            raise ValueError(f"scene set {name!r} appears twice in the config")
+        seen.add(name)
+        if name not in SCENE_SETS:
+            raise ValueError(f"scene_set={name!r} is invalid; allowed: one of {sorted(SCENE_SETS)}")
+        if cfg.scene not in SCENES:
+            raise ValueError(f"scene={cfg.scene!r} is unknown; allowed: {sorted(SCENES)}")
+        if cfg.scene not in SCENE_SETS[name]:
+            raise ValueError(f"scene {cfg.scene!r} is not in scene set {name!r}; allowed: {list(SCENE_SETS[name])}")
+    return out
+
+
 def compute(config: Fig8Config) -> dict:
-    """Refocusing experiment (see the module Notes).
+    """Refocusing experiment (see the module Notes) for every preset and scene set.
 
     Parameters
     ----------
@@ -178,17 +217,36 @@ def compute(config: Fig8Config) -> dict:
         ``focus_point_px`` (x, y); and ``metrics``: ``images_vs_d2.<image>.{psnr_db, ssim,
         psnr_in_focus_db, ssim_in_focus}``, ``deconvolution_vs_pinhole.<image>.{psnr_db, ssim,
         psnr_no_occlusion_db}``, ``virtual_map_vs_gt_d2.<map>.<region>.{mae, bias}``, ``nsr_sweep.nsr=<λ>.*_psnr_db``, ``sigma_t_px``,
-        ``map_floor_px``, ``click_depth_m``, pixel counts, timings.
+        ``map_floor_px``, ``click_depth_m``, pixel counts, timings — the paper preset on the default
+        scene set; ``presets.<P>`` the same keys for preset P (its map: ``<P>__map_estimated``,
+        ``<P>__virtual_map_estimated``, ``<P>__deconvolved_estimated``, ``<P>__refocused_estimated``);
+        ``scene_set``; ``scene_sets.<set>`` the same for each further set (arrays ``<set>__<key>``).
     """
-    from method import DefocusParams, estimate_defocus_map, preprocess_defocus_map
+    from .fig6_alpha_sweep import method_presets
+
+    presets = method_presets(config.presets)
+    sets = _check_scene_sets(config)
+    data = metrics = None
+    nested = {}
+    for set_name, cfg in sets:
+        arrays, m = _compute_set(cfg, presets)
+        m["scene_set"] = set_name
+        if data is None:
+            data, metrics = arrays, m
+        else:
+            nested[set_name] = m
+            data.update({f"{set_name}__{k}": v for k, v in arrays.items()})
+    metrics["scene_sets"] = nested
+    data["metrics"] = metrics
+    return data
+
+
+def _compute_set(config: Fig8Config, presets: dict) -> tuple[dict, dict]:
+    """Renders of ``config.scene`` and the refocusing of every preset's map: (arrays, metrics)."""
     from method.refocusing import deconvolve_defocus, refocus
     from scenes import SCENES, render_scene
     from scenes.render import FILTER_SIGMA_PX
 
-    from .metrics import dense_metrics, image_quality
-
-    if config.scene not in SCENES:
-        raise ValueError(f"scene={config.scene!r} is unknown; allowed: {sorted(SCENES)}")
     t_start = time.perf_counter()
     scene = SCENES[config.scene]
 
@@ -211,34 +269,84 @@ def compute(config: Fig8Config) -> dict:
     mask = finite & ~r1.occlusion_boundary & ~r2.occlusion_boundary
     sf = FILTER_SIGMA_PX
     in_focus = mask & (np.sqrt(np.maximum(gt2**2 - sf**2, 0.0)) <= config.in_focus_sigma_px)
+    t_renders = time.perf_counter() - t_start
 
+    opts = {"method": config.deconvolution, "nsr": config.nsr}
+    oracle_deblur = np.sqrt(np.maximum(gt1**2 - gtp**2, 0.0))
+    refocused_oracle = refocus(img1, gt1, gt2, kernel=config.kernel, **opts)
+    deconv_oracle = deconvolve_defocus(img1, oracle_deblur, **opts)
+    h, w = img1.shape[:2]
+    click = (round(config.focus_point_xy[0] * (w - 1)), round(config.focus_point_xy[1] * (h - 1)))
+    r_win = max(1, round(config.focus_window_frac * max(h, w)))
+    win = np.s_[max(click[1] - r_win, 0):click[1] + r_win + 1, max(click[0] - r_win, 0):click[0] + r_win + 1]
+    shared = {"config": config, "img1": img1, "img2": img2, "imgp": imgp, "gt1": gt1, "gt2": gt2, "gtp": gtp,
+              "mask": mask, "in_focus": in_focus, "occl_p": rp.occlusion_boundary, "opts": opts,
+              "oracle_deblur": oracle_deblur, "refocused_oracle": refocused_oracle, "deconv_oracle": deconv_oracle}
+    common = {
+        "click_depth_m": float(np.median(np.asarray(r1.depth)[win])),
+        "focus_distance_1_m": float(scene.focus_distance_m),
+        "focus_distance_2_m": float(config.focus_distance_2_m),
+        "gt_range_px": {"d1": [float(gt1.min()), float(gt1.max())], "d2": [float(gt2.min()), float(gt2.max())],
+                        "pinhole": [float(gtp.min()), float(gtp.max())]},
+        "nonfinite_gt_pixels": int((~finite).sum()),
+        "evaluated_pixels": int(mask.sum()),
+        "in_focus_d2_pixels": int(in_focus.sum()),
+    }
+    names = list(presets)
+    per_preset = {}
+    for pname in names:
+        t0 = time.perf_counter()
+        p_arrays, p_metrics = _refocus_one(shared, presets[pname])
+        p_metrics.update(common)
+        p_metrics["compute_seconds"] = time.perf_counter() - t0 + (t_renders if pname == names[0] else 0.0)
+        per_preset[pname] = (p_arrays, p_metrics)
+    arrays, metrics = per_preset[names[0]]
+    metrics["presets"] = {p: per_preset[p][1] for p in names[1:]}
+    arrays = {
+        "image_d1": img1, "image_d2": img2, "image_pinhole": imgp,
+        "gt_d1": gt1, "gt_d2": gt2, "gt_pinhole": gtp,
+        "deconvolved_oracle": deconv_oracle, "refocused_oracle": refocused_oracle, **arrays,
+    }
+    data = {k: np.asarray(a, dtype=np.float32) for k, a in arrays.items()}
+    for p in names[1:]:
+        data.update({f"{p}__{k}": np.asarray(a, dtype=np.float32) for k, a in per_preset[p][0].items()})
+    data["mask"] = mask
+    data["in_focus_d2"] = in_focus
+    data["focus_point_px"] = np.asarray(click, dtype=np.int64)
+    return data, metrics
+
+
+def _refocus_one(shared: dict, params) -> tuple[dict, dict]:
+    """Steps 2–7 of the module Notes with one preset's map: (its arrays, its metrics)."""
+    from method import estimate_defocus_map, preprocess_defocus_map
+    from method.refocusing import deconvolve_defocus, refocus
+
+    from .metrics import dense_metrics, image_quality
+
+    config = shared["config"]
+    img1, img2, imgp, gt1, gt2 = (shared[k] for k in ("img1", "img2", "imgp", "gt1", "gt2"))
+    mask, in_focus, opts = shared["mask"], shared["in_focus"], shared["opts"]
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        est = estimate_defocus_map(img1).defocus_map
+        est = estimate_defocus_map(img1, params).defocus_map
     t_est = time.perf_counter() - t0
-    p = DefocusParams()
-    b = preprocess_defocus_map(est, clip_percent=p.map_clip_percent, smoothing=p.map_smoothing, floor="clamp")
-    floor_px = max(float(np.percentile(est, p.map_clip_percent)), 0.0)
+    b = preprocess_defocus_map(est, clip_percent=params.map_clip_percent, smoothing=params.map_smoothing,
+                               floor="clamp")
+    floor_px = max(float(np.percentile(est, params.map_clip_percent)), 0.0)
     virtual, sigma_t = virtual_focus_map(b, config.focus_point_xy, window_frac=config.focus_window_frac,
                                          floor_px=floor_px)
-    h, w = b.shape
-    click = (round(config.focus_point_xy[0] * (w - 1)), round(config.focus_point_xy[1] * (h - 1)))
-
-    opts = {"method": config.deconvolution, "nsr": config.nsr}
     t0 = time.perf_counter()
     refocused_est = refocus(img1, b, virtual, kernel=config.kernel, **opts)
     t_refocus = time.perf_counter() - t0
     refocused_est_ov = refocus(img1, b, gt2, kernel=config.kernel, **opts)
-    refocused_oracle = refocus(img1, gt1, gt2, kernel=config.kernel, **opts)
     deconv_est = deconvolve_defocus(img1, b, **opts)
-    deconv_oracle = deconvolve_defocus(img1, np.sqrt(np.maximum(gt1**2 - gtp**2, 0.0)), **opts)
 
     results = {
         "unchanged_d1": img1,
         "refocused_estimated": refocused_est,
         "refocused_estimated_oracle_virtual": refocused_est_ov,
-        "refocused_oracle": refocused_oracle,
+        "refocused_oracle": shared["refocused_oracle"],
     }
     vs_d2 = {}
     for name, im in results.items():
@@ -247,9 +355,10 @@ def compute(config: Fig8Config) -> dict:
         q["ssim_in_focus"] = _masked_ssim(im, img2, in_focus)
         vs_d2[name] = q
     deconv = {}
-    for name, im in (("unchanged_d1", img1), ("deconvolved_estimated", deconv_est), ("deconvolved_oracle", deconv_oracle)):
+    for name, im in (("unchanged_d1", img1), ("deconvolved_estimated", deconv_est),
+                     ("deconvolved_oracle", shared["deconv_oracle"])):
         q = image_quality(im, imgp)
-        q["psnr_no_occlusion_db"] = _masked_psnr(im, imgp, mask & ~rp.occlusion_boundary)
+        q["psnr_no_occlusion_db"] = _masked_psnr(im, imgp, mask & ~shared["occl_p"])
         deconv[name] = q
     sweep = []
     for lam in config.nsr_sweep:
@@ -260,14 +369,12 @@ def compute(config: Fig8Config) -> dict:
             "refocused_oracle_psnr_db": image_quality(refocus(img1, gt1, gt2, kernel=config.kernel, **o), img2)["psnr_db"],
             "deconvolved_estimated_psnr_db": image_quality(deconvolve_defocus(img1, b, **o), imgp)["psnr_db"],
             "deconvolved_oracle_psnr_db": image_quality(
-                deconvolve_defocus(img1, np.sqrt(np.maximum(gt1**2 - gtp**2, 0.0)), **o), imgp)["psnr_db"],
+                deconvolve_defocus(img1, shared["oracle_deblur"], **o), imgp)["psnr_db"],
         })
     regions = {"all": mask, "in_focus_d2": in_focus}
     vmaps = {name: dense_metrics(m, gt2, regions=regions) for name, m in
              (("estimated", virtual), ("d1_map_unchanged", b))}
     vmaps = {name: {reg: {"mae": v["mae"], "bias": v["bias"]} for reg, v in d.items()} for name, d in vmaps.items()}
-    r_win = max(1, round(config.focus_window_frac * max(h, w)))
-    win = np.s_[max(click[1] - r_win, 0):click[1] + r_win + 1, max(click[0] - r_win, 0):click[0] + r_win + 1]
     metrics = {
         "images_vs_d2": vs_d2,
         "deconvolution_vs_pinhole": deconv,
@@ -275,32 +382,12 @@ def compute(config: Fig8Config) -> dict:
         "nsr_sweep": {f"nsr={row['nsr']:g}": row for row in sweep},
         "sigma_t_px": sigma_t,
         "map_floor_px": floor_px,
-        "click_depth_m": float(np.median(np.asarray(r1.depth)[win])),
-        "focus_distance_1_m": float(scene.focus_distance_m),
-        "focus_distance_2_m": float(config.focus_distance_2_m),
-        "gt_range_px": {"d1": [float(gt1.min()), float(gt1.max())], "d2": [float(gt2.min()), float(gt2.max())],
-                        "pinhole": [float(gtp.min()), float(gtp.max())]},
-        "nonfinite_gt_pixels": int((~finite).sum()),
-        "evaluated_pixels": int(mask.sum()),
-        "in_focus_d2_pixels": int(in_focus.sum()),
         "estimate_seconds": t_est,
         "refocus_seconds": t_refocus,
-        "compute_seconds": time.perf_counter() - t_start,
     }
-    arrays = {
-        "image_d1": img1, "image_d2": img2, "image_pinhole": imgp,
-        "map_estimated": b, "virtual_map_estimated": virtual,
-        "gt_d1": gt1, "gt_d2": gt2, "gt_pinhole": gtp,
-        "deconvolved_estimated": deconv_est, "deconvolved_oracle": deconv_oracle,
-        "refocused_estimated": refocused_est, "refocused_estimated_oracle_virtual": refocused_est_ov,
-        "refocused_oracle": refocused_oracle,
-    }
-    data = {k: np.asarray(a, dtype=np.float32) for k, a in arrays.items()}
-    data["mask"] = mask
-    data["in_focus_d2"] = in_focus
-    data["focus_point_px"] = np.asarray(click, dtype=np.int64)
-    data["metrics"] = metrics
-    return data
+    arrays = {"map_estimated": b, "virtual_map_estimated": virtual, "deconvolved_estimated": deconv_est,
+              "refocused_estimated": refocused_est, "refocused_estimated_oracle_virtual": refocused_est_ov}
+    return arrays, metrics
 
 
 FIGURE = Figure(
@@ -309,5 +396,5 @@ FIGURE = Figure(
     compute=compute,
     plot="experiments.plotting.fig8:plot",
     configs={"quick": QUICK, "full": FULL},
-    version=1,
+    version=2,  # 2: every preset of ``presets`` and every scene set
 )

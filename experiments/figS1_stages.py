@@ -6,7 +6,7 @@ texture mosaics (:func:`scenes.analytic.texture_mosaic`: tiles of one known Gaus
 edges, dense over textured pixels) for the estimated measures and with oracle inputs (σ_gt at the
 detected edges fed into Eq. 3, or straight into Eq. 4; :mod:`experiments.stage_attribution`).
 Also the robust preset's ablation (each beyond-the-paper switch turned off alone) on the mosaics,
-and the issue's accuracy targets for the robust preset, checked per σ bin.
+and the dense-map accuracy targets for the robust preset (docs/presets.md), checked per σ bin.
 
 Notes
 -----

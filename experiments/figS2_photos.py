@@ -44,6 +44,21 @@ class PhotosConfig:
     # magnification kernel (method.MAGNIFICATION_KERNELS).
     magnify_preset: str = "robust"
     # the preset whose map is magnified in the last column (must be in presets; else the first).
+    regions_digest: str = dataclasses.field(default_factory=lambda: _regions_digest())
+    # SHA-256 (16 hex digits) of the shipped region files, read when the config is made: part of the
+    # cache key, so an edited region file recomputes the figure (the code fingerprint covers .py only).
+
+
+def _regions_digest() -> str:
+    import hashlib
+
+    from .photo_regions import PHOTO_DIR
+
+    h = hashlib.sha256()
+    for path in sorted(PHOTO_DIR.glob("*.json")):
+        h.update(path.name.encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()[:16]
 
 
 FULL = PhotosConfig()

@@ -122,7 +122,7 @@ def estimate_blur(gray, edge_map, *, params, method=None):
 
 
 def uses_measure_confidence(params) -> bool:
-    """Whether ``params`` ask for a per-measure confidence (beyond the paper; issue 8).
+    """Whether ``params`` ask for a per-measure confidence (beyond the paper; docs/presets.md).
 
     True when ``params.estimator`` is registered in :data:`MEASURE_CONFIDENCE` and its ``asks(params)``
     is true (``model_fit_checked``: ``fit_residual_noise`` > 0 and ``relaxed_fit_weight`` < 1).

@@ -4,6 +4,12 @@ Recognition 44(9), 2011), implemented from its description.
 Re-blurring a step blurred by σ with a Gaussian of known σ0 lowers the peak gradient from
 A/(√(2π)σ) to A/(√(2π)√(σ² + σ0²)); the ratio R = |∇I| / |∇I_reblurred| at the edge gives
 σ = σ0 / √(R² − 1).
+
+The scales, the clipping and what an unusable ratio gives are :class:`~method.params.DefocusParams`
+fields (``ratio_*``); their defaults are the harness's reading (gradient at 0.5 px, σ0 = 1 px, NaN
+where R ≤ 1), and the ``zhuo_sim`` preset sets those of the authors' method as its public port runs
+it (gradients at 1 and 1.5 px at Canny edges, σ clipped to [0, 5] px, an estimate of 0 px no
+measure).
 """
 
 from __future__ import annotations
@@ -17,9 +23,10 @@ from .gaussian_derivatives import GaussianDerivativeBank
 
 __all__ = ["GRADIENT_SIGMA", "REBLUR_SIGMA", "estimate_blur_gradient_ratio"]
 
-#: σ0 of the re-blurring Gaussian, px (Zhuo & Sim use σ0 = 1).
+#: Default σ0 of the re-blurring Gaussian, px (Zhuo & Sim use σ0 = 1); ``DefocusParams.ratio_reblur_sigma``.
 REBLUR_SIGMA = 1.0
-#: Scale of the Gaussian-derivative gradient operator, px (the smallest Elder–Zucker scale).
+#: Default scale of the Gaussian-derivative gradient operator, px (the smallest Elder–Zucker scale);
+#: ``DefocusParams.ratio_gradient_sigma``.
 GRADIENT_SIGMA = 0.5
 
 
@@ -31,34 +38,42 @@ def estimate_blur_gradient_ratio(gray, edge_map, *, params):
     gray : ndarray, shape (H, W), float
         Luminance in [0, 1].
     edge_map : EdgeMap
-        Only ``edge_map.edges`` is used (the edge set; Zhuo & Sim used Canny edges — we use the
-        Elder–Zucker edges so that all estimators are compared on the same pixels).
+        Only ``edge_map.edges`` is used (the edge set: the Elder–Zucker edges of Sec. 3.1 by
+        default, so that all estimators are compared on the same pixels; Zhuo & Sim's Canny edges
+        with ``params.edge_detector="canny"``, :func:`method.canny_edges.detect_edges_canny`).
     params : DefocusParams, keyword-only
-        Uses ``max_sigma``.
+        Uses ``ratio_gradient_sigma`` σg (px), ``ratio_reblur_sigma`` σ0 (px), ``ratio_max_sigma``
+        (px; None: ``max_sigma``) and ``ratio_zero_is_measure``.
 
     Returns
     -------
     ndarray, shape (H, W), float64
-        σ in px at edge pixels, clipped to [0, max_sigma]; NaN elsewhere and where R ≤ 1
-        (no measurable blur change, e.g. noise).
+        σ in px at edge pixels, clipped to [0, ratio_max_sigma]; NaN elsewhere, where R ≤ 1 (no
+        measurable blur change, e.g. noise) or R is undefined, and, with
+        ``ratio_zero_is_measure=False``, where σ = 0.
 
     Notes
     -----
-    1. Gradients by Gaussian derivatives (Eq. 7) at σg = :data:`GRADIENT_SIGMA`: |∇I| at σg, and
-       |∇(I ∗ g_σ0)| = |∇I| at √(σg² + σ0²) (Gaussians compose), σ0 = :data:`REBLUR_SIGMA`.
-    2. R = |∇I|_σg / |∇I|_√(σg²+σ0²) at edge pixels.
+    1. Gradients by Gaussian derivatives (Eq. 7) at σg: |∇I| at σg, and |∇(I ∗ g_σ0)| = |∇I| at
+       σr = √(σg² + σ0²) (Gaussians compose).
+    2. R = |∇I|_σg / |∇I|_σr at edge pixels.
     3. σe = σ0 / √(R² − 1) is the blur seen by the gradient operator, √(σ² + σg²); so
-       σ = √(σe² − σg²) (0 if negative). With σg → 0 this is exactly Zhuo & Sim's formula; the
-       small σg regularises the derivative of a sampled image and is removed again here.
-    4. Clip to [0, max_sigma].
+       σ = √(σe² − σg²), 0 if negative (R ≥ σr/σg: sharper than the operator resolves). With
+       σg → 0 this is exactly Zhuo & Sim's formula; σg regularises the derivative of a sampled
+       image and is removed again here. (The same σ as (R²σg² − σr²)/(1 − R²), the form of the
+       public code, which reads gradients at σg = 1 and σr = 1.5 px.)
+    4. R ≤ 1 or non-finite: NaN; σ = 0: NaN unless ``ratio_zero_is_measure``.
+    5. Clip to [0, ratio_max_sigma].
     """
     img = check_edge_inputs(gray, edge_map)
     out = np.full(img.shape, np.nan)
     edges = np.asarray(edge_map.edges, dtype=bool)
     if not edges.any():
         return out
-    s_g = GRADIENT_SIGMA
-    s_r = math.sqrt(GRADIENT_SIGMA ** 2 + REBLUR_SIGMA ** 2)
+    s_g = float(params.ratio_gradient_sigma)
+    s_0 = float(params.ratio_reblur_sigma)
+    s_r = math.sqrt(s_g ** 2 + s_0 ** 2)
+    max_sigma = float(params.max_sigma if params.ratio_max_sigma is None else params.ratio_max_sigma)
     bank = GaussianDerivativeBank(img, s_r)
     gx, gy = bank.gradient(s_g)
     g1 = np.hypot(gx[edges], gy[edges])
@@ -66,8 +81,10 @@ def estimate_blur_gradient_ratio(gray, edge_map, *, params):
     g2 = np.hypot(gx[edges], gy[edges])
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = g1 / g2
-        sigma_e2 = REBLUR_SIGMA ** 2 / (ratio ** 2 - 1.0)
+        sigma_e2 = s_0 ** 2 / (ratio ** 2 - 1.0)
         sigma = np.sqrt(np.maximum(sigma_e2 - s_g ** 2, 0.0))
     sigma[~(ratio > 1.0) | ~np.isfinite(sigma)] = np.nan
-    out[edges] = np.clip(sigma, 0.0, float(params.max_sigma))
+    if not params.ratio_zero_is_measure:
+        sigma[sigma == 0.0] = np.nan
+    out[edges] = np.clip(sigma, 0.0, max_sigma)
     return out

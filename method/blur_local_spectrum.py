@@ -85,11 +85,21 @@ def _hann(n):
     return np.outer(w, w)
 
 
+#: Rings above this index are merged in pairs, above twice it in fours (bounds the bands per window).
+RING_MERGE = 16
+
+
 def _rings(n):
-    """Ring index of each DFT bin of an n×n window (round(|k|)), 0 at DC; (n², ) int, and the ring count."""
+    """Band index of each DFT bin of an n×n window, 0 at DC, and the band count.
+
+    Band = ring round(|k|) (k in DFT index units) up to RING_MERGE; beyond it rings are merged in
+    pairs, beyond 2·RING_MERGE in fours (their expected powers vary slowly there).
+    """
     k = np.fft.fftfreq(n) * n
     r = np.rint(np.hypot(k[:, None], k[None, :])).astype(np.int64).ravel()
-    return r, int(r.max()) + 1
+    m = RING_MERGE
+    band = np.where(r <= m, r, np.where(r <= 2 * m, m + (r - m + 1) // 2, m + m // 2 + (r - 2 * m + 3) // 4))
+    return band, int(band.max()) + 1
 
 
 def _transfer_sq(psf, sig, wx, wy):
@@ -107,64 +117,99 @@ def _transfer_sq(psf, sig, wx, wy):
     return (disk * box) ** 2
 
 
-def _windowed_expectation(spectrum, n):
-    """Exact expected periodogram of an n×n Hann-windowed stationary field of DTFT power ``spectrum``.
+def _windowed_expectation(spectra, n):
+    """Exact expected periodograms of n×n Hann-windowed stationary fields of DTFT powers ``spectra``.
 
-    ``spectrum`` is sampled on an L×L DFT grid (L ≥ 2n); its inverse FFT gives the autocorrelation at
-    integer lags, which is multiplied by the window's autocorrelation (|τ| < n, exact) and folded
-    modulo n: E|Σ w x e^{-iω_k x}|² = Σ_τ r_w(τ) R(τ) e^{-iω_k τ} at ω_k = 2πk/n.
+    ``spectra`` (..., L, L) real and even, sampled on an L×L DFT grid (L ≥ 2n); their inverse FFT
+    gives the autocorrelations R at integer lags (:func:`_windowed_expectation_acf`). Returns (..., n, n).
     """
-    L = spectrum.shape[0]
-    acf = np.real(np.fft.ifft2(spectrum))
-    w = _hann(n)
+    L = spectra.shape[-1]
+    return _windowed_expectation_acf(scipy.fft.irfft2(spectra[..., : L // 2 + 1], s=(L, L)), n)
+
+
+def _windowed_expectation_acf(acf, n):
+    """Expected periodograms of n×n Hann windows from autocorrelations ``acf`` (..., L, L) at lags mod L.
+
+    R is multiplied by the window's autocorrelation r_w (|τ| < n, exact) and folded modulo n:
+    E|Σ_x w(x) f(x) e^{-iω_k·x}|² = Σ_τ r_w(τ) R(τ) e^{-iω_k·τ} at ω_k = 2πk/n.
+    """
+    L = acf.shape[-1]
     pad = np.zeros((2 * n, 2 * n))
-    pad[:n, :n] = w
-    fw = np.fft.fft2(pad)
-    rw = np.real(np.fft.ifft2(np.abs(fw) ** 2))  # r_w(τ) at lags τ mod 2n (|τ| < n nonzero)
-    lags = np.concatenate([np.arange(0, n), np.arange(-n + 1, 0)])  # 2n−1 lags
-    rw_l = rw[np.ix_(lags % (2 * n), lags % (2 * n))]
-    r_l = acf[np.ix_(lags % L, lags % L)]
-    c = rw_l * r_l
-    folded = np.zeros((n, n))
-    np.add.at(folded, np.ix_(lags % n, lags % n), c)
-    return np.real(np.fft.fft2(folded))
+    pad[:n, :n] = _hann(n)
+    rw = np.real(scipy.fft.ifft2(np.abs(scipy.fft.fft2(pad)) ** 2))  # r_w at lags mod 2n; 0 at |τ| = n
+    lag = np.concatenate([np.arange(0, n + 1), np.arange(-n + 1, 0)])  # circular order mod 2n
+    c = rw * acf[..., (lag % L)[:, None], (lag % L)[None, :]]
+    folded = c[..., :n, :] + c[..., n:, :]
+    folded = folded[..., :, :n] + folded[..., :, n:]
+    return np.real(scipy.fft.fft2(folded))
+
+
+@functools.lru_cache(maxsize=8)
+def _acf_tables(psf, grid, L):
+    """Autocorrelations at integer lags (mod L) of the model's gradient fields: signal (G, L, L) per σ, noise (L, L).
+
+    Signal: DTFT |H_σ|²·Q (Q = (|Dx|² + |Dy|²)/|ω|², the forward-difference gradient of a 1/|ω|²
+    texture); noise: |Dx|² + |Dy|² (the gradient of unit white noise). Shared by every window size.
+    """
+    w = 2 * np.pi * np.fft.fftfreq(L)
+    wx, wy = w[None, : L // 2 + 1], w[:, None]  # the half plane of a real inverse FFT
+    d2 = 4 * np.sin(wx / 2) ** 2 + 4 * np.sin(wy / 2) ** 2  # |Dx|² + |Dy|² of forward differences
+    w2 = wx ** 2 + wy ** 2
+    q = np.where(w2 > 0, d2 / np.where(w2 > 0, w2, 1.0), 1.0)
+    spectra = np.stack([q * _transfer_sq(psf, s, wx, wy) for s in grid])
+    return scipy.fft.irfft2(spectra, s=(L, L)), scipy.fft.irfft2(d2, s=(L, L))
 
 
 @functools.lru_cache(maxsize=64)
 def _model_tables(n, psf, grid):
     """Ring-summed expected periodograms of an n×n window: signal (G, B) per unit s, noise (B,) per unit v.
 
-    Returns (A, dA, N, kappa, ring_of_bin): A[g, b] the expected ring-b power of the gradient of a
-    blurred 1/|ω|² texture (s = 1) for σ = grid[g]; dA its σ-derivative (central differences); N[b]
-    that of unit white noise; kappa[b] the effective Gamma shape of the ring sum (bins / window
-    variance inflation).
+    Returns (A, dA, N, kappa): A[g, b] the expected ring-b power of the gradient of a blurred
+    1/|ω|² texture (s = 1) for σ = grid[g]; dA its σ-derivative (central differences); N[b] that of
+    unit white noise; kappa[b] the effective Gamma shape of the ring sum (bins / window variance
+    inflation).
     """
-    grid = np.asarray(grid)
-    L = max(4 * n, 128)
-    w = 2 * np.pi * np.fft.fftfreq(L)
-    wx, wy = w[None, :], w[:, None]
-    d2 = 4 * np.sin(wx / 2) ** 2 + 4 * np.sin(wy / 2) ** 2  # |Dx|² + |Dy|² of forward differences
-    w2 = wx ** 2 + wy ** 2
-    with np.errstate(invalid="ignore", divide="ignore"):
-        q = np.where(w2 > 0, d2 / np.where(w2 > 0, w2, 1.0), 1.0)
-    ring, n_rings = _rings(n)
-    keep = ring > 0
-
-    def ring_sum(e):
-        return np.bincount(ring[keep], weights=e.ravel()[keep], minlength=n_rings)[1:]
-
-    A = np.stack([ring_sum(_windowed_expectation(q * _transfer_sq(psf, s, wx, wy), n)) for s in grid])
-    dA = np.gradient(A, grid, axis=0)
-    N = ring_sum(_windowed_expectation(d2, n))
-    counts = np.bincount(ring[keep], minlength=n_rings)[1:].astype(np.float64)
+    grid_arr = np.asarray(grid)
+    L = 128 if 2 * n <= 128 else 256 * (-(-2 * n // 256))  # ≥ 2n; R(τ ≥ 64) < 1e-3 R(0) at σ ≤ 12
+    acf, acf_noise = _acf_tables(psf, grid, L)
+    onehot = _ring_matrix(n).astype(np.float64)
+    A = _windowed_expectation_acf(acf, n).reshape(len(grid), -1) @ onehot
+    dA = np.gradient(A, grid_arr, axis=0)
+    N = _windowed_expectation_acf(acf_noise, n).ravel() @ onehot
     win = _hann(n)
     inflation = n * n * np.sum(win ** 4) / np.sum(win ** 2) ** 2
-    kappa = counts / inflation
-    return A, dA, N, kappa, ring
+    kappa = onehot.sum(0) / inflation
+    return A, dA, N, kappa
+
+
+#: 3×3 high-pass of the noise estimate (second differences in x and y): its response to white
+#: noise of variance v has variance 36·v, and it is 0 on any linear ramp.
+_NOISE_MASK = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
+#: Block side (px) and quantile of the block energies of the noise estimate.
+_NOISE_BLOCK = 8
+_NOISE_QUANTILE = 0.1
+
+
+def _block_energy_quantile(g):
+    h = (g[:-2, :-2] - 2 * g[:-2, 1:-1] + g[:-2, 2:] - 2 * g[1:-1, :-2] + 4 * g[1:-1, 1:-1]
+         - 2 * g[1:-1, 2:] + g[2:, :-2] - 2 * g[2:, 1:-1] + g[2:, 2:])
+    b = _NOISE_BLOCK
+    hh, ww = (h.shape[0] // b) * b, (h.shape[1] // b) * b
+    if hh == 0 or ww == 0:
+        return float(np.mean(h ** 2)) if h.size else 0.0
+    e = (h[:hh, :ww] ** 2).reshape(hh // b, b, ww // b, b).mean(axis=(1, 3))
+    return float(np.quantile(e, _NOISE_QUANTILE))
+
+
+@functools.lru_cache(maxsize=1)
+def _noise_quantile_bias():
+    """Block-energy quantile of unit white noise / 36 (a seeded 256² noise image; measured once)."""
+    z = np.random.default_rng(12345).standard_normal((258, 258))
+    return _block_energy_quantile(z) / 36.0
 
 
 def estimate_noise_variance(gray, *, bits=8):
-    """White-noise variance of an image from the MAD of its finest diagonal Haar coefficients, image units².
+    """White-noise variance of an image from its quietest blocks of second differences, image units².
 
     Parameters
     ----------
@@ -176,14 +221,15 @@ def estimate_noise_variance(gray, *, bits=8):
     Returns
     -------
     float
-        max((median|d| / 0.6745)², LSB²/12), d = (a − b − c + e)/2 over disjoint 2×2 blocks (the db1
-        diagonal detail of ``skimage.restoration.estimate_sigma``).
+        max(q₁₀ / (36·b), LSB²/12): q₁₀ the 10 % quantile of the mean squared 3×3 second-difference
+        response over 8×8 blocks, b the same quantile's value for unit white noise (so pure white
+        noise gives its variance); texture raises few of the quietest blocks.
     """
     g = np.asarray(gray, dtype=np.float64)
-    h, w = (g.shape[0] // 2) * 2, (g.shape[1] // 2) * 2
-    b = g[:h, :w]
-    d = (b[0::2, 0::2] - b[0::2, 1::2] - b[1::2, 0::2] + b[1::2, 1::2]) / 2.0
-    v = (np.median(np.abs(d)) / 0.6744897501960817) ** 2 if d.size else 0.0
+    if min(g.shape) < 3:
+        v = 0.0
+    else:
+        v = _block_energy_quantile(g) / (36.0 * _noise_quantile_bias())
     floor = (1.0 / (2 ** bits - 1)) ** 2 / 12.0 if bits else 0.0
     return float(max(v, floor))
 
@@ -199,67 +245,112 @@ def _window_starts(centres, n, size):
     return np.clip(centres - n // 2, 0, size - n)
 
 
+@functools.lru_cache(maxsize=16)
+def _ring_matrix(n):
+    ring, n_rings = _rings(n)
+    keep = ring > 0
+    onehot = np.zeros((n * n, n_rings - 1), dtype=np.float32)
+    onehot[np.flatnonzero(keep), ring[keep] - 1] = 1.0
+    return onehot
+
+
 def _ring_powers(z, ys, xs, n):
     """Ring-summed periodograms (len(ys), B) of the n×n Hann windows of z starting at (ys, xs)."""
     win = _hann(n).astype(np.float32)
-    ring, n_rings = _rings(n)
-    onehot = np.zeros((n * n, n_rings - 1), dtype=np.float32)
-    keep = ring > 0
-    onehot[np.flatnonzero(keep), ring[keep] - 1] = 1.0
+    onehot = _ring_matrix(n)
     view = sliding_window_view(z, (n, n))
-    out = np.empty((len(ys), n_rings - 1), dtype=np.float64)
-    for i in range(0, len(ys), _BATCH):
-        patches = view[ys[i:i + _BATCH], xs[i:i + _BATCH]] * win
+    out = np.empty((len(ys), onehot.shape[1]), dtype=np.float32)
+    batch = max(1, (_BATCH * 64 * 64) // (n * n))
+    for i in range(0, len(ys), batch):
+        patches = view[ys[i:i + batch], xs[i:i + batch]] * win
         f = scipy.fft.fft2(patches, axes=(-2, -1), overwrite_x=True)
         p = (f.real ** 2 + f.imag ** 2).reshape(len(patches), -1)
-        out[i:i + _BATCH] = p @ onehot
+        out[i:i + batch] = p @ onehot
     return out
 
 
-def _fit(P, A, dA, N, kappa, *, iters=8, likelihood="profile"):
-    """Maximum likelihood of M = s·A(σ) + N under independent Gamma(κ_b) ring sums, s profiled.
+def _profile_nll(P, A, N, kappa, *, iters=3, likelihood="profile"):
+    """NLL of the Gamma model M = s·A + N with s maximised (or marginalised), per window and σ.
 
-    Parameters: P (n, B) ring powers; A, dA (G, B); N (n, B) noise; kappa (B,). Returns σ index
-    (fractional, parabolic refinement), ŝ, Fisher information of σ per unit of grid σ (caller maps
-    it), log-likelihood ratio against noise only, and the grid NLL (n, G).
+    P (n, B) ring powers, A (1 or n, G, B) per-σ signal tables, N (n, B) noise, kappa (B,).
+    Returns (nll (n, G) to minimise, s (n, G), profile nll (n, G)).
     """
-    n, B = P.shape
     Pn = P[:, None, :]
     Nn = N[:, None, :]
-    An = A[None, :, :]
-    # start: weighted moment estimate s0 = Σκ(P − N)⁺ / ΣκA
-    s = np.maximum(np.sum(kappa * np.maximum(Pn - Nn, 0.0), -1) / np.sum(kappa * An, -1), 1e-30)
-    for _ in range(iters):  # Newton on the profile score in s (s >= 0)
-        M = s[..., None] * An + Nn
+    # start: weighted least squares of P − N ≈ s·A with weights κ/P² (closed form), then Newton
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        wgt = kappa / np.maximum(Pn, np.float32(1e-15)) ** 2
+        s = np.sum(wgt * A * (Pn - Nn), -1) / np.sum(wgt * A * A, -1)
+    s = np.where(np.isfinite(s), s, 0.0)
+    s = np.maximum(s, 1e-6 * np.sum(Nn, -1) / np.maximum(np.sum(A, -1), 1e-30))
+    for _ in range(iters):  # Newton on the score in s, kept > 0
+        M = s[..., None] * A + Nn
+        am = A / M
         r = Pn / M
-        g = np.sum(kappa * An / M * (1.0 - r), -1)
-        h = np.sum(kappa * (An / M) ** 2 * (2.0 * r - 1.0), -1)
-        step = np.where(h > 0, g / np.where(h > 0, h, 1.0), -s)
-        s = np.maximum(s - step, s * 0.1)
-    M = s[..., None] * An + Nn
-    nll = np.sum(kappa * (Pn / M + np.log(M)), -1)  # (n, G)
+        g = np.sum(kappa * am * (1.0 - r), -1)
+        h = np.sum(kappa * am * am * (2.0 * r - 1.0), -1)
+        step = np.where(h > 0, g / np.where(h > 0, h, 1.0), 0.0)
+        s = np.clip(s - step, 0.1 * s, 10.0 * s)
+    M = s[..., None] * A + Nn
+    nll = np.sum(kappa * (Pn / M + np.log(M)), -1)
     if likelihood == "gsm":  # s marginalised under a log-uniform mixture prior (Laplace, in log s)
-        nll = nll + 0.5 * np.log(np.maximum(np.sum(kappa * (s[..., None] * An / M) ** 2, -1), 1e-300))
-    nll0 = np.sum(kappa * (P / N + np.log(N)), -1)
-    j = np.argmin(nll, axis=1)
+        return nll + 0.5 * np.log(np.maximum(np.sum(kappa * (s[..., None] * A / M) ** 2, -1), 1e-30)), s, nll
+    return nll, s, nll
+
+
+#: The final pass searches σ within [σ̂_c / COARSE_RANGE − 0.5, σ̂_c · COARSE_RANGE + 0.5] px of the
+#: coarse pass's 3×3 median σ̂_c (the disk's likelihood is multimodal: its transfer function has zeros).
+COARSE_RANGE = 1.6
+#: The grid search evaluates every COARSE_STEP-th σ of the grid, then all σ within ±COARSE_STEP
+#: grid steps of the coarse minimum.
+COARSE_STEP = 3
+
+
+def _fit(P, A, N, kappa, *, likelihood="profile", allowed=None):
+    """Grid maximum likelihood of σ (coarse, then fine around the minimum) for each window.
+
+    ``allowed`` (n, G) bool or None: the grid σ each window may take (the others get +inf NLL).
+
+    Returns (j, s, nll_fine, j_fine_idx, lr): best grid index, its ŝ, the fine NLL (n, F) at grid
+    indices j_fine_idx (n, F), and the log-likelihood ratio 2·(L_noise − L_fit) of the profile
+    likelihood at the chosen σ (for both likelihoods).
+    """
+    n, B = P.shape
+    G = A.shape[0]
+    coarse = np.arange(0, G, COARSE_STEP)
+    nll_c, _, _ = _profile_nll(P, A[coarse][None], N, kappa, likelihood=likelihood)
     rows = np.arange(n)
-    return j, s[rows, j], nll, 2.0 * (nll0 - nll[rows, j])
+    if allowed is not None:
+        nll_c = np.where(allowed[:, coarse], nll_c, np.inf)
+    jc = coarse[np.argmin(nll_c, 1)]
+    offs = np.arange(-COARSE_STEP, COARSE_STEP + 1)
+    jf = np.clip(jc[:, None] + offs[None], 0, G - 1)  # (n, F) (duplicates at the ends are harmless)
+    nll_f, s_f, prof_f = _profile_nll(P, A[jf], N, kappa, likelihood=likelihood)
+    if allowed is not None:
+        nll_f = np.where(allowed[rows[:, None], jf], nll_f, np.inf)
+    k = np.argmin(nll_f, 1)
+    nll0 = np.sum(kappa * (P / N + np.log(N)), -1)
+    return jf[rows, k], s_f[rows, k], nll_f, jf, 2.0 * (nll0 - prof_f[rows, k])
 
 
-def _refine(grid, nll, j):
-    """Parabolic vertex through the grid NLL at j−1, j, j+1 (clamped to the grid), px."""
+def _refine(grid, nll_f, jf, j):
+    """Parabolic vertex through the NLL at grid indices j−1, j, j+1 (from the fine search), px."""
     G = len(grid)
+    rows = np.arange(len(j))
+
+    def at(idx):  # NLL at grid index idx (inside the fine window by construction)
+        col = np.argmax(jf == idx[:, None], axis=1)
+        return nll_f[rows, col]
+
     jm = np.clip(j - 1, 0, G - 3)
-    x = np.stack([grid[jm], grid[jm + 1], grid[jm + 2]], 1)
-    y = np.take_along_axis(nll, np.stack([jm, jm + 1, jm + 2], 1), 1)
-    x0, x1, x2 = x.T
-    y0, y1, y2 = y.T
+    x0, x1, x2 = grid[jm], grid[jm + 1], grid[jm + 2]
+    y0, y1, y2 = at(jm), at(jm + 1), at(jm + 2)
     d01 = (y1 - y0) / (x1 - x0)
     d12 = (y2 - y1) / (x2 - x1)
     curv = (d12 - d01) / (x2 - x0)
     with np.errstate(invalid="ignore", divide="ignore"):
         v = 0.5 * (x0 + x1) - d01 / (2.0 * curv)
-    inner = (j > 0) & (j < G - 1) & (curv > 0)
+    inner = (j > 0) & (j < G - 1) & (curv > 0) & np.isfinite(v)
     return np.where(inner, np.clip(v, grid[np.maximum(j - 1, 0)], grid[np.minimum(j + 1, G - 1)]), grid[j])
 
 
@@ -279,23 +370,35 @@ def _information(sig, s, grid, A, dA, N, kappa):
     return np.where(np.isfinite(info) & (info > 0), info, 0.0)
 
 
+#: Quantile of the windows' ring powers read as the image's own noise floor (noise_model "spectrum").
+SPECTRUM_QUANTILE = 0.05
+
+
 def _noise_rings(P, v_white, Nunit, model):
     """Per-window noise ring powers (n, B) for the chosen noise model."""
-    white = np.broadcast_to(v_white * Nunit, P.shape)
-    if model == "white":
-        return white
-    # noise floor read from the image's own spectrum: per ring, a low quantile of the windows' powers
-    # (windows whose spectrum is noise there), never below the quantisation floor
-    floor = np.quantile(P, 0.05, axis=0) if P.shape[0] >= 20 else np.min(P, axis=0)
-    qfloor = (LSB ** 2 / 12.0) * Nunit
-    spec = np.maximum(floor, qfloor)
-    if model == "spectrum":
-        return np.broadcast_to(spec, P.shape)
-    return np.broadcast_to(np.minimum(spec, white[0]), P.shape)
+    white = v_white * Nunit
+    if model != "white":
+        # the image's own noise floor: per ring, a low quantile of the windows' powers (the windows
+        # whose spectrum there is noise), never below the quantisation floor
+        floor = np.quantile(P, SPECTRUM_QUANTILE, axis=0) if P.shape[0] >= 20 else np.min(P, axis=0)
+        spec = np.maximum(floor, (LSB ** 2 / 12.0) * Nunit)
+        white = spec if model == "spectrum" else np.minimum(spec, white)
+    return np.ascontiguousarray(np.broadcast_to(white.astype(np.float32), P.shape))
+
+
+def _nan_median3(a):
+    """NaN-aware 3×3 median of a 2-D grid (edges replicated); NaN where all nine are NaN."""
+    p = np.pad(a, 1, mode="edge")
+    v = sliding_window_view(p, (3, 3)).reshape(a.shape + (9,))
+    v = np.sort(v, axis=-1)  # NaN sort last
+    cnt = np.sum(np.isfinite(v), axis=-1)
+    idx = np.maximum(cnt - 1, 0) // 2
+    out = np.take_along_axis(v, idx[..., None], -1)[..., 0]
+    return np.where(cnt > 0, out, np.nan)
 
 
 def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=0.0, sigma_max=12.0,
-                        window_min=16, window_max=96, window_scale=9.0, stride=16, noise_variance=None,
+                        window_min=16, window_max=96, window_scale=12.0, stride=32, noise_variance=None,
                         likelihood="profile"):
     """Per-window blur measures on a block grid of window centres (the kernel of :func:`estimate_blur_local_spectrum`).
 
@@ -323,13 +426,11 @@ def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=
     -------
     dict
         ``cy``, ``cx`` (ny,), (nx,) centre rows / columns, px; ``sigma`` (ny, nx) px, NaN without a
-        measure; ``information`` (ny, nx) 1/px², 0 without a measure; ``window`` (ny, nx) side used, px;
-        ``noise_variance`` float.
+        measure; ``information`` (ny, nx) 1/px², 0 without a measure; ``window`` (ny, nx) side used, px
+        (0 where none fits); ``noise_variance`` float.
     """
     g = np.asarray(gray, dtype=np.float64)
     H, W = g.shape
-    z = _gradient_field(g)
-    hz, wz = z.shape
     v = estimate_noise_variance(g) if noise_variance is None else float(noise_variance)
     cy = np.arange(stride // 2, H, stride)
     cx = np.arange(stride // 2, W, stride)
@@ -337,45 +438,74 @@ def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=
     sigma = np.full((ny, nx), np.nan)
     info = np.zeros((ny, nx))
     wins = np.zeros((ny, nx), dtype=np.int64)
+    out = dict(cy=cy, cx=cx, sigma=sigma, information=info, window=wins, noise_variance=v)
+    z = _gradient_field(g)
+    hz, wz = z.shape
     sizes = [s for s in WINDOW_SIZES if window_min <= s <= window_max and s <= min(hz, wz)]
     if not sizes:
-        if min(hz, wz) >= 16:
-            sizes = [min(hz, wz, window_max)]
-        else:
-            return dict(cy=cy, cx=cx, sigma=sigma, information=info, window=wins, noise_variance=v)
-    grid = tuple(sigma_grid(sigma_min, sigma_max, psf))
+        return out
+    grid = tuple(float(x) for x in sigma_grid(sigma_min, sigma_max, psf))
     garr = np.asarray(grid)
     yy, xx = np.meshgrid(cy, cx, indexing="ij")
     yy, xx = yy.ravel(), xx.ravel()
 
-    def run(n, idx):
-        A, dA, Nu, kappa, _ = _model_tables(n, psf, grid)
+    def run(n, idx, prior=None):
+        A, dA, Nu, kappa = _model_tables(n, psf, grid)
         P = _ring_powers(z, _window_starts(yy[idx], n, hz), _window_starts(xx[idx], n, wz), n)
-        N = np.ascontiguousarray(_noise_rings(P, v, Nu, noise_model))
-        j, s, nll, lr = _fit(P, A, dA, N, kappa, likelihood=likelihood)
-        sig = _refine(garr, nll, j)
-        inf = _information(sig, s, garr, A, dA, N, kappa)
+        N = _noise_rings(P, v, Nu, noise_model)
+        allowed = None
+        if prior is not None:  # σ within a factor COARSE_RANGE of the neighbourhood's coarse σ̂
+            p = prior[idx][:, None]
+            allowed = ~np.isfinite(p) | ((garr[None] >= p / COARSE_RANGE - 0.5) & (garr[None] <= p * COARSE_RANGE + 0.5))
+        j, s, nll_f, jf, lr = _fit(P, A.astype(np.float32), N, kappa.astype(np.float32), likelihood=likelihood,
+                                   allowed=allowed)
+        sig = _refine(garr, nll_f.astype(np.float64), jf, j)
+        inf = _information(sig, s.astype(np.float64), garr, A, dA, N.astype(np.float64), kappa)
         ok = (lr > MIN_LOG_LR) & (inf > 0)
         return np.where(ok, sig, np.nan), np.where(ok, inf, 0.0)
 
-    # coarse pass, then each location's window from its coarse σ̂ (median over the 3×3 neighbours)
+    # coarse pass on every other centre, then each centre's window from its coarse σ̂ (3×3 median)
     n0 = min(sizes, key=lambda s: abs(s - COARSE_WINDOW))
-    all_idx = np.arange(ny * nx)
-    s0, i0 = run(n0, all_idx)
-    from scipy.ndimage import generic_filter  # small grid: a NaN-aware 3×3 median
-    coarse = generic_filter(s0.reshape(ny, nx), np.nanmedian, size=3, mode="nearest").ravel()
+    sub = (slice(None, None, 2), slice(None, None, 2))
+    idx0 = np.arange(ny * nx).reshape(ny, nx)[sub].ravel()
+    s0, _ = run(n0, idx0)
+    coarse_sub = _nan_median3(s0.reshape(np.arange(ny * nx).reshape(ny, nx)[sub].shape))
+    coarse = np.repeat(np.repeat(coarse_sub, 2, 0), 2, 1)[:ny, :nx].ravel()
     want = np.where(np.isfinite(coarse), window_scale * coarse, sizes[0])
-    choice = np.array([next((s for s in sizes if s >= w_), sizes[-1]) for w_ in want])
-    out_s, out_i = s0.copy(), i0.copy()
-    for n in sizes:
-        sel = np.flatnonzero(choice == n)
-        if n == n0 or not sel.size:
-            continue
-        out_s[sel], out_i[sel] = run(n, sel)
-    sigma[:] = out_s.reshape(ny, nx)
-    info[:] = out_i.reshape(ny, nx)
+    size_arr = np.asarray(sizes)
+    choice = size_arr[np.minimum(np.searchsorted(size_arr, want), len(sizes) - 1)]
+    res_s = np.full(ny * nx, np.nan)
+    res_i = np.zeros(ny * nx)
+    iy, ix = np.divmod(np.arange(ny * nx), nx)
+
+    def final_pass(which, prior):
+        for n in sizes:
+            sel = which[choice[which] == n]
+            if not sel.size:
+                continue
+            f = max(1, n // (2 * stride))  # windows ≥ 2·stride: one measure per f×f centres (≥ 50 % overlap)
+            if f == 1:
+                res_s[sel], res_i[sel] = run(n, sel, prior)
+                continue
+            rep = np.minimum(iy[sel] // f * f + f // 2, ny - 1) * nx + np.minimum(ix[sel] // f * f + f // 2, nx - 1)
+            uniq, inv = np.unique(rep, return_inverse=True)
+            s_u, i_u = run(n, uniq, prior)
+            res_s[sel], res_i[sel] = s_u[inv], i_u[inv]
+
+    final_pass(np.arange(ny * nx), coarse)
+    # one more pass where the final σ̂ (3×3 median) asks for a larger window than the coarse one gave
+    # (a 32-px window under-reads σ ≳ 4, most of all for the disk)
+    again = _nan_median3(res_s.reshape(ny, nx)).ravel()
+    want2 = np.where(np.isfinite(again), window_scale * again, 0.0)
+    choice2 = size_arr[np.minimum(np.searchsorted(size_arr, want2), len(sizes) - 1)]
+    grow = np.flatnonzero(choice2 > choice)
+    if grow.size:
+        choice[grow] = choice2[grow]
+        final_pass(grow, again)
+    sigma[:] = res_s.reshape(ny, nx)
+    info[:] = res_i.reshape(ny, nx)
     wins[:] = choice.reshape(ny, nx)
-    return dict(cy=cy, cx=cx, sigma=sigma, information=info, window=wins, noise_variance=v)
+    return out
 
 
 def _linear_weights(centres, n):
@@ -447,8 +577,8 @@ def estimate_blur_local_spectrum(gray, *, params, edge_psf=None):
     -----
     1. Gradient z = ∂x I + i ∂y I by forward differences (one complex FFT per window gives the
        sum of both components' periodograms over each ring of ±k).
-    2. Noise variance v from the MAD of the finest diagonal Haar detail, at least the 8-bit
-       quantisation's LSB²/12 (``noise_model="white"``); or per ring the 5 % quantile of all windows'
+    2. Noise variance v from the quietest 8×8 blocks of 3×3 second differences
+       (:func:`estimate_noise_variance`), at least the 8-bit quantisation's LSB²/12 (``noise_model="white"``); or per ring the 5 % quantile of all windows'
        powers (``"spectrum"``, the image's own noise floor; ``"spectrum_or_white"`` the smaller).
     3. Hann windows on a grid of centres (stride px); per window the ring sums P_b of the periodogram.
     4. Model E P_b = s·A_b(σ) + N_b, A_b = Σ_ring (|H_σ|² Q ⊛ |Ŵ|²), computed exactly through the
@@ -457,8 +587,11 @@ def estimate_blur_local_spectrum(gray, *, params, edge_psf=None):
     5. Maximum likelihood: per σ of the grid, s by Newton steps on the profile score; the grid
        minimum refined by a parabola; "no measure" when 2·(L_noise − L_fit) < MIN_LOG_LR.
     6. Information: I_σσ − I_σs²/I_ss of the Gamma model at (σ̂, ŝ).
-    7. Multi-window: a coarse 32-px pass; each centre then uses the smallest window of
-       WINDOW_SIZES ≥ window_scale · σ̂ (3×3 median of the coarse σ̂), within [window_min, window_max].
+    7. Multi-window: a coarse 32-px pass on every other centre; each centre then uses the smallest
+       window of WINDOW_SIZES ≥ window_scale · σ̂ (3×3 median of the coarse σ̂), within
+       [window_min, window_max], searching σ within COARSE_RANGE of σ̂; a window of n ≥ 2·stride px
+       is evaluated once per ⌊n/(2·stride)⌋² centres (they still overlap by ≥ 50 %); where the
+       result's 3×3 median asks for a larger window, that centre is measured once more with it.
     8. Spread to pixels by bilinear interpolation of the centres' values.
     """
     psf = params.region_psf

@@ -169,7 +169,7 @@ def estimate_blur_model_fit_checked_confidence(gray, edge_map, *, params):
 
     Notes
     -----
-    Beyond the paper (issue 8). The confidence multiplies each measure's weight in Eq. (3) and its
+    Beyond the paper (measurements: docs/presets.md). The confidence multiplies each measure's weight in Eq. (3) and its
     α_p in Eq. (4) (:func:`method.pipeline.refine_stage`, :func:`method.pipeline.propagate_stage`),
     so the relaxed measures (fits of blurry edges, but also of in-focus low-contrast edges fitted
     too wide) decide the map only where no strict measure is near. The fit runs once.

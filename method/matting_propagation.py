@@ -84,6 +84,7 @@ import scipy.sparse.linalg as spla
 from .validation import check_positive, validate_propagation_inputs
 
 __all__ = [
+    "MATTING_DATA_WEIGHTS",
     "MATTING_SOLVERS",
     "matting_system",
     "propagate_defocus_matting",
@@ -93,6 +94,11 @@ __all__ = [
 DEFAULT_LAMBDA = 0.005
 #: ε of the matting Laplacian, Levin's convention (Σ_k + ε/|w_k| I₃) (not from the paper).
 DEFAULT_EPSILON = 1e-5
+#: name -> what D of the data term holds at a measure d̂ (0 elsewhere).
+MATTING_DATA_WEIGHTS: dict[str, str] = {
+    "constant": "1 (Zhuo & Sim's equation)",
+    "sigma": "d̂ (the public Zhuo & Sim code: D = diag(sparse map))",
+}
 #: Largest image (pixels) accepted by ``solver="direct"`` (sparse LU took ~70 s at 512² here).
 DIRECT_MAX_PIXELS = 512 * 512
 
@@ -137,11 +143,19 @@ def _validate(sparse_sigma, reference, lam, epsilon, radius):
 # --------------------------------------------------------------------------------------------
 # the linear system
 # --------------------------------------------------------------------------------------------
-def _assemble(ref, sparse_sigma, lam, epsilon, radius):
+def _data_diagonal(sparse_sigma, data_weight):
+    """The diagonal of D: 0 off the measures, 1 (``"constant"``) or d̂ (``"sigma"``) at them."""
+    known = np.isfinite(sparse_sigma).ravel()
+    if data_weight == "sigma":
+        return np.where(known, np.nan_to_num(sparse_sigma.ravel()), 0.0)
+    return known.astype(np.float64)
+
+
+def _assemble(ref, sparse_sigma, lam, epsilon, radius, data_weight="constant"):
     """A = L + λD (canonical CSR, explicit zeros removed) and b = λ D d̂."""
     known = np.isfinite(sparse_sigma).ravel()
     L = _pymatting().cf_laplacian(ref, epsilon=epsilon, radius=radius)
-    data = np.where(known, lam, 0.0)
+    data = lam * _data_diagonal(sparse_sigma, data_weight)
     A = (L + sp.diags(data, format="csr")).tocsr()
     del L
     A.sum_duplicates()
@@ -150,7 +164,14 @@ def _assemble(ref, sparse_sigma, lam, epsilon, radius):
     return A, b
 
 
-def matting_system(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, epsilon=DEFAULT_EPSILON, radius=1):
+def _check_data_weight(data_weight):
+    if not isinstance(data_weight, str) or data_weight not in MATTING_DATA_WEIGHTS:
+        raise ValueError(f"data_weight={data_weight!r} is unknown; allowed: {sorted(MATTING_DATA_WEIGHTS)}")
+    return data_weight
+
+
+def matting_system(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, epsilon=DEFAULT_EPSILON, radius=1,
+                   data_weight="constant"):
     """The system (L + λD) d = λ D d̂ that :func:`propagate_defocus_matting` solves.
 
     Parameters
@@ -165,6 +186,8 @@ def matting_system(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, epsilon=DEFAU
         ε of the matting Laplacian, image units², Levin's convention (> 0).
     radius : int, keyword-only
         Window radius r, px (windows of (2r+1)² px; ≥ 1).
+    data_weight : str, keyword-only
+        Key of :data:`MATTING_DATA_WEIGHTS`: D's diagonal at the measures.
 
     Returns
     -------
@@ -183,11 +206,11 @@ def matting_system(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, epsilon=DEFAU
     -----
     1. L = :func:`pymatting.cf_laplacian` (reference, ε, r) — Levin et al. 2008, windows fully
        inside the image.
-    2. D = diag(1 where ``sparse_sigma`` is finite, else 0); A = L + λD with duplicates summed
-       and explicit zeros removed; b = λ D d̂.
+    2. D = diag(1, or d̂ with ``data_weight="sigma"``, where ``sparse_sigma`` is finite, else 0);
+       A = L + λD with duplicates summed and explicit zeros removed; b = λ D d̂.
     """
     sparse_sigma, ref, lam, epsilon, radius = _validate(sparse_sigma, reference, lam, epsilon, radius)
-    return _assemble(ref, sparse_sigma, lam, epsilon, radius)
+    return _assemble(ref, sparse_sigma, lam, epsilon, radius, _check_data_weight(data_weight))
 
 
 # --------------------------------------------------------------------------------------------
@@ -256,7 +279,8 @@ MATTING_SOLVERS: dict[str, Callable] = {
 # public entry point
 # --------------------------------------------------------------------------------------------
 def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, epsilon=DEFAULT_EPSILON,
-                              radius=1, tol=1e-6, solver="cg_vcycle", max_iterations=2000) -> np.ndarray:
+                              radius=1, tol=1e-6, solver="cg_vcycle", max_iterations=2000,
+                              data_weight="constant") -> np.ndarray:
     """Dense defocus map from sparse blur σ by matting-Laplacian propagation (Zhuo & Sim 2011).
 
     Minimises E(d) = dᵀ L d + λ (d − d̂)ᵀ D (d − d̂) (see the module docstring).
@@ -287,6 +311,10 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
         2.5× the memory at 1024²) or ``"direct"`` (sparse LU; ≤ 512² px, for tests and small images).
     max_iterations : int, keyword-only
         Most CG iterations (≥ 1; default 2000, ~10× what the V-cycle needed up to 1024²).
+    data_weight : str, keyword-only
+        Key of :data:`MATTING_DATA_WEIGHTS`: ``"constant"`` (default; D = 1 at every measure, Zhuo &
+        Sim's equation) or ``"sigma"`` (D = d̂, as the public Zhuo & Sim code builds it, so larger
+        measures weigh more and a measure of 0 px weighs nothing; docs/zhuo-sim.md).
 
     Returns
     -------
@@ -326,6 +354,7 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
     if not tol < 1:
         raise ValueError(f"tol={tol!r} is invalid; allowed: 0 < tol < 1")
     max_iterations = _check_int("max_iterations", max_iterations, 1)
+    data_weight = _check_data_weight(data_weight)
     h, w = sparse_sigma.shape
     if solver == "direct" and h * w > DIRECT_MAX_PIXELS:
         raise ValueError(f"solver='direct' is for small images; got {h * w} px, allowed <= {DIRECT_MAX_PIXELS}")
@@ -338,7 +367,9 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
     if np.ptp(values) == 0:
         return np.full((h, w), float(values[0]))
 
-    A, b = _assemble(ref, sparse_sigma, lam, epsilon, radius)
+    if not _data_diagonal(sparse_sigma, data_weight).any():  # every weight 0: no constraint
+        return np.zeros((h, w))
+    A, b = _assemble(ref, sparse_sigma, lam, epsilon, radius, data_weight)
     x0 = np.full(h * w, fill)
     d = MATTING_SOLVERS[solver](A, b, shape=(h, w), x0=x0, tol=tol, max_iterations=max_iterations)
     return np.asarray(d, dtype=np.float64).reshape(h, w)

@@ -7,6 +7,7 @@ Images are floats in [0, 1]; every blur quantity is a Gaussian σ in pixels of t
 from __future__ import annotations
 
 import dataclasses
+import math
 
 __all__ = ["PRESETS", "ROBUST_CHANGES", "ZHUO_SIM_CHANGES", "DefocusParams"]
 
@@ -38,6 +39,32 @@ class DefocusParams:
     estimator: str = "model_fit"
     # key of method.BLUR_ESTIMATORS: "model_fit" (paper), "zero_crossing" (Elder–Zucker),
     # "gradient_ratio" (Zhuo & Sim 2011 baseline).
+    # --- edge set and gradient ratio of the Zhuo & Sim 2011 baseline (not in Bae & Durand) ----------
+    edge_detector: str = "elder_zucker"
+    # where the blur is measured: "elder_zucker" (Sec. 3.1, the paper) or "canny" (Canny 1986 via
+    # skimage.feature.canny, as Zhuo & Sim 2011 and their public code; method.canny_edges; only with
+    # estimator "gradient_ratio", the other estimators read the detector's σ2 scales). zhuo_sim: "canny".
+    canny_sigma: float = 1.0
+    # σ of Canny's Gaussian smoothing, px (edge_detector="canny"; Zhuo & Sim's public code: 1).
+    canny_low_threshold: float = 0.1
+    canny_high_threshold: float = 0.2
+    # Canny hysteresis thresholds on skimage's Sobel magnitude of the smoothed image (≈ 8·|∇I|, image
+    # units/px); 0.1, 0.2 = skimage's defaults for float images, as the public code uses them.
+    ratio_gradient_sigma: float = 0.5
+    # σ of the Gaussian-derivative gradient |∇I| of estimator "gradient_ratio", px (Eq. 7 kernels).
+    # 0.5: the harness's reading (the smallest Elder–Zucker scale). zhuo_sim: 1 (public code).
+    ratio_reblur_sigma: float = 1.0
+    # σ0 of Zhuo & Sim's re-blur, px: R = |∇I|_σg / |∇I|_√(σg² + σ0²), σ = √(σ0²/(R² − 1) − σg²).
+    # 1: their paper's σ0. zhuo_sim: √1.25 (the public code's gradients at 1 and 1.5 px).
+    ratio_max_sigma: float | None = None
+    # largest σ "gradient_ratio" reports, px; larger estimates are clipped to it. None: max_sigma.
+    # zhuo_sim: 5 (public code).
+    ratio_zero_is_measure: bool = True
+    # whether a "gradient_ratio" estimate of 0 px (R ≥ √(σg² + σ0²)/σg: sharper than the gradient
+    # resolves) is a measure (True) or no measure, NaN (False: as the public code's propagation, whose
+    # data weight is σ̂ itself, and the authors' release, which keeps σ > 1e-4 only). R ≤ 1 (noise, or
+    # a very blurry edge) is NaN either way (the public code writes 0 there: the same when False).
+    # zhuo_sim: False (dense MAE on 128² dead-leaves tiles, σ 1–4: 0.62 → 0.55 px; docs/zhuo-sim.md).
     fit_window_min: int = 3
     # smallest model-fit window, px (Sec. 3.2: "window sizes from 3×3 to 71×71").
     fit_window_max: int = 71
@@ -125,22 +152,26 @@ class DefocusParams:
     # blur kernel of the region likelihood: "gaussian", "disk" (disk ⊗ 1-px box, reports
     # √((R/2)² + 1/12) px) or "edges" (the family the edge fit chose; gaussian if unknown).
     region_noise_model: str = "white"
-    # noise term: "white" (Haar-MAD variance, ≥ 8-bit LSB²/12), "spectrum" (per-frequency floor read
-    # from the image's own spectrum) or "spectrum_or_white" (the smaller of the two per frequency).
+    # noise term: "white" (variance from the image's quietest blocks, ≥ 8-bit LSB²/12), "spectrum"
+    # (per-frequency floor read from the image's own spectrum; fails on blurry texture,
+    # docs/region-blur.md) or "spectrum_or_white" (the smaller of the two per frequency).
     region_window_min: int = 16
     # smallest analysis window side, px (Zhu et al. 2013 use ≈ 41 px filters).
     region_window_max: int = 96
     # largest analysis window side, px.
-    region_window_scale: float = 9.0
-    # window side / coarse σ̂, dimensionless (≈ 8–10 σ resolves the blur's cut-off).
+    region_window_scale: float = 12.0
+    # window side / coarse σ̂, dimensionless (12: disk σ 2–6 MAE 0.38–1.07 → 0.19–0.28 px vs 9).
     region_sigma_min: float = 0.0
     # smallest σ of the likelihood's grid, px.
     region_sigma_max: float = 12.0
     # largest σ of the likelihood's grid, px.
-    region_stride: int = 16
-    # spacing of the window centres, px.
+    region_stride: int = 32
+    # spacing of the window centres, px (docs/region-blur.md: 16 → 32 halves the time, same MAE).
 
     # --- 3.3 biased cross-bilateral refinement (Eq. 3) ------------------------------------
+    refine: bool = True
+    # run the refinement of Eq. (3); False passes the sparse measures on unchanged (the public
+    # Zhuo & Sim code has no correction step between its measures and the propagation).
     bilateral_sigma_spatial: float = 0.10
     # σs as a fraction of the image size max(H, W) (Sec. 3.3: "10 % of the image size"). Robust: 0.05
     # (with the checked fit, blurry regions have few measures and a wide σs lets the many measures of
@@ -181,6 +212,9 @@ class DefocusParams:
     # λ of Zhuo & Sim's (L + λD) d = λ D d̂ (propagation="matting_laplacian"), dimensionless.
     matting_epsilon: float = 1e-5
     # ε of the matting Laplacian (Levin et al. 2008), image units², for propagation="matting_laplacian".
+    matting_data_weight: str = "constant"
+    # D of (L + λD) d = λ D d̂: "constant" (1 at every measure, Zhuo & Sim's equation) or "sigma"
+    # (D = diag(d̂), as the public Zhuo & Sim code builds it: larger σ̂ weigh more), dimensionless.
     alpha: float = 0.5
     # data-term weight α_p at edge pixels; 0 elsewhere (Sec. 4.1, Fig. 6 sweeps 0.1–1).
     propagation_window: int = 7
@@ -274,6 +308,7 @@ class DefocusParams:
         from .blur_model_fit import FIT_PSF_MODELS
         from .cross_bilateral import BILATERAL_METHODS, RANGE_KERNELS
         from .magnification import MAP_FLOOR_MODES
+        from .matting_propagation import MATTING_DATA_WEIGHTS
         from .propagation import PROPAGATION_REFINEMENTS, PROPAGATION_SOLVERS
         from .propagation_methods import PROPAGATION_METHODS
         from .region_estimators import REGION_ESTIMATORS, REGION_NOISE_MODELS, REGION_PSFS
@@ -302,6 +337,24 @@ class DefocusParams:
         if not self.bias_scale > 0:
             bad("bias_scale", "> 0")
         check_name("estimator", BLUR_ESTIMATORS)
+        if self.edge_detector not in ("elder_zucker", "canny"):
+            bad("edge_detector", "'elder_zucker' or 'canny'")
+        if self.edge_detector == "canny" and self.estimator != "gradient_ratio":
+            bad("edge_detector", "'canny' only with estimator='gradient_ratio' (the other estimators read the "
+                                 "Elder–Zucker σ2 scales); else 'elder_zucker'")
+        if not (0 < self.canny_sigma < float("inf")):
+            bad("canny_sigma", "finite and > 0 (px)")
+        if not (0 <= self.canny_low_threshold <= self.canny_high_threshold < float("inf")):
+            bad("canny_low_threshold", "finite 0 <= canny_low_threshold <= canny_high_threshold")
+        for name in ("ratio_gradient_sigma", "ratio_reblur_sigma"):
+            if not (0 < getattr(self, name) < float("inf")):
+                bad(name, "finite and > 0 (px)")
+        if self.ratio_max_sigma is not None and not (0 < self.ratio_max_sigma < float("inf")):
+            bad("ratio_max_sigma", "None or finite and > 0 (px)")
+        if not isinstance(self.refine, bool):
+            bad("refine", "True or False")
+        if not isinstance(self.ratio_zero_is_measure, bool):
+            bad("ratio_zero_is_measure", "True or False")
         check_name("bilateral_method", BILATERAL_METHODS)
         check_name("bilateral_range_kernel", RANGE_KERNELS)
         if self.bias_reference not in ("px", "image_fraction"):
@@ -350,6 +403,7 @@ class DefocusParams:
             bad("matting_lambda", "> 0")
         if not self.matting_epsilon > 0:
             bad("matting_epsilon", "> 0")
+        check_name("matting_data_weight", MATTING_DATA_WEIGHTS)
         check_name("propagation", PROPAGATION_METHODS)
         if self.propagation == "matting_laplacian" and self.alpha_confidence != "none":
             bad("alpha_confidence", "'none' with propagation='matting_laplacian' (its data term has no per-edge weight)")
@@ -453,11 +507,20 @@ ROBUST_CHANGES: dict = {
     "fusion_straddle_weight": 0.0,
 }
 
-#: Zhuo & Sim 2011 inside the harness: gradient-ratio blur at the (Elder–Zucker) edges, a plain
-#: joint bilateral filter of the sparse map (their Sec. 3.2 error correction; no sharpness bias),
-#: matting-Laplacian propagation (their Sec. 4).
+#: Zhuo & Sim 2011 inside the harness: gradient-ratio blur at Canny edges as their public code
+#: measures it (docs/zhuo-sim.md), a plain joint bilateral filter of the sparse map (their Sec. 3.2
+#: error correction; no sharpness bias), matting-Laplacian propagation (their Sec. 4).
 ZHUO_SIM_CHANGES: dict = {
     "estimator": "gradient_ratio",
+    "edge_detector": "canny",
+    "ratio_gradient_sigma": 1.0,
+    "ratio_reblur_sigma": math.sqrt(1.25),
+    "ratio_max_sigma": 5.0,
+    "ratio_zero_is_measure": False,
+    "matting_lambda": 0.001,
+    "matting_epsilon": 9e-7,
+    "matting_data_weight": "sigma",
+    "refine": False,
     "sharpness_bias": False,
     "propagation": "matting_laplacian",
 }

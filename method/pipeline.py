@@ -25,6 +25,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .blur_estimators import USES_DETECTOR_HESSIANS, estimate_blur_measures
+from .canny_edges import detect_edges_canny
 from .cross_bilateral import biased_cross_bilateral
 from .cue_fusion import fuse_cues
 from .edge_isolation import isolation_weights
@@ -233,12 +234,18 @@ def edges_stage(gray, *, params):
     params : DefocusParams, keyword-only
         ``sigma1_scales``, ``sigma2_scales`` (px), ``noise_std``, ``false_positive_rate``,
         ``estimator`` (the detector keeps its 2nd-derivative responses for the estimators of
-        :data:`method.blur_estimators.USES_DETECTOR_HESSIANS`).
+        :data:`method.blur_estimators.USES_DETECTOR_HESSIANS`). With ``edge_detector="canny"``
+        (beyond the paper: Zhuo & Sim's edge set) Canny edges instead, from ``canny_sigma`` (px),
+        ``canny_low_threshold`` and ``canny_high_threshold``
+        (:func:`method.canny_edges.detect_edges_canny`).
 
     Returns
     -------
     EdgeMap
     """
+    if params.edge_detector == "canny":
+        return detect_edges_canny(gray, sigma=params.canny_sigma, low_threshold=params.canny_low_threshold,
+                                  high_threshold=params.canny_high_threshold)
     return detect_edges(gray, sigma1_scales=params.sigma1_scales, sigma2_scales=params.sigma2_scales,
                         noise_std=params.noise_std, false_positive_rate=params.false_positive_rate,
                         keep_hessians=params.estimator in USES_DETECTOR_HESSIANS)
@@ -336,8 +343,8 @@ def refine_stage(sparse_sigma, rgb, *, params, confidence=None) -> np.ndarray:
     rgb : ndarray, HxWx3, float in [0, 1]
         Guide image.
     params : DefocusParams, keyword-only
-        ``bilateral_*``, ``sharpness_bias``, ``bias_scale`` with ``bias_reference`` (px, or a
-        fraction of max(H, W)), ``refinement_robust_*``.
+        ``refine`` (False: the measures pass unchanged), ``bilateral_*``, ``sharpness_bias``,
+        ``bias_scale`` with ``bias_reference`` (px, or a fraction of max(H, W)), ``refinement_robust_*``.
     confidence : ndarray, HxW, float in (0, 1], or None, keyword-only
         Beyond the paper: per-measure confidence c_q multiplying its Eq. (3) weight (the
         estimator's ``measure_confidence``); None: all 1 (paper; oracle inputs).
@@ -347,6 +354,8 @@ def refine_stage(sparse_sigma, rgb, *, params, confidence=None) -> np.ndarray:
     ndarray, HxW, float64
         Refined σ, px, at the finite pixels of ``sparse_sigma``; NaN elsewhere.
     """
+    if not params.refine:
+        return np.array(sparse_sigma, dtype=np.float64)
     scale = params.bias_scale
     if params.bias_reference == "image_fraction":
         scale = params.bias_scale * max(sparse_sigma.shape)

@@ -8,8 +8,8 @@ Energy (Eq. 4a–4c)::
 with ``α_p = alpha`` at edge pixels (finite BM) and 0 elsewhere. Its minimiser solves the sparse
 symmetric positive (semi-)definite system ``(LᵀL + diag α) B = diag(α) BM`` with ``L = I − W``.
 
-Reading of the paper's "window size 7×7" (the README paragraph says the same)
----------------------------------------------------------------------------
+Reading of the paper's "window size 7×7" (also in docs/choices.md)
+-----------------------------------------------------------------
 The paper attaches "window" to σ_ip: "σ_p is the standard deviation of the intensities and colors of
 neighboring pixels in a window around p. The window size used is 7×7." It never gives the size of
 the affinity neighbourhood N(p); the method it follows (Levin et al. 2004) uses the 8 neighbours of a
@@ -43,8 +43,10 @@ multigrid + CG). Larger ones are solved on a grid coarsened by a power of two, a
 exact full-resolution system (:mod:`method.propagation_galerkin`); the interpolated coarse solution
 starts a CG on the exact full-resolution system, preconditioned by Jacobi plus a coarse-grid
 correction through the same coarse hierarchy (two-level, matrix-free fine level), max(⌈2.5·s⌉, 20)
-iterations. On the astronaut photo the default is 0.0082 px RMS / 0.045 px p99 (512²) and 0.019 px
-RMS / 0.082 px p99 (1024²) from the exact solve (:func:`propagate_defocus`, Notes).
+iterations. On the astronaut photo the default is 0.016 px RMS / 0.069 px p99 (512², 8×) and 0.019 px
+RMS / 0.082 px p99 (1024², 8×) from the exact solve with the paper's measures (:func:`propagate_defocus`,
+Notes). The measurements behind each constant below and the history of the default are in
+docs/performance.md ("Propagation solver history").
 """
 
 from __future__ import annotations
@@ -81,40 +83,33 @@ __all__ = [
 
 
 #: Largest number of pixels solved exactly at full resolution by ``downsample="auto"`` (2¹⁵, ≈ 181²:
-#: the small renders, 160×120, and the 128² hash test stay exact); bigger images take the coarse mode.
-#: At 256² the exact AMG solve took 1.7 s, the Galerkin two-level refinement 0.04–0.1 s (0.005 px RMS).
+#: the small renders, 160×120, and the 128² hash test stay exact); bigger images take the coarse mode,
+#: which is an order of magnitude faster at 256² (docs/performance.md).
 AUTO_MAX_EXACT_PIXELS = 2 ** 15
 
 #: Largest coarse grid of ``downsample="auto"``'s coarse mode, px: the smallest power of two
 #: ≥ 8 bringing the grid under it once 4× is too big (:data:`AUTO_MAX_COARSE_PIXELS_AT_4X`): 8× from
-#: ≈ 362² to 1448² (512², 1 MP and the photo tools' 1.5 MP), 16× at 4 MP. Measured with the Galerkin
-#: refinement on the astronaut photo at 1024² (RMS px from the exact solve after 30 iterations): 8×
-#: (128², V-cycle 8.5 ms) 0.0075; 4× (256², V-cycle 19 ms) slower per iteration and no closer; 16×
-#: (64²) 0.072 — the Jacobi part cannot cover the wider band (20 / 24 / 32 iterations, session 7:
-#: paper preset 0.072 / 0.066 / 0.057 px, robust 0.092 / 0.083 / 0.069 px against 8×'s 0.019 / 0.012 /
-#: 0.0066 and 0.026 / 0.017 / 0.0098).
+#: ≈ 362² to 1448² (512², 1 MP and the photo tools' 1.5 MP), 16× at 4 MP. Why 2¹⁵: at 1 MP the 8×
+#: grid's V-cycle is cheap and strong enough, 4× is slower per iteration and no closer, and at 16× the
+#: Jacobi part cannot cover the wider band of frequencies (several times farther from the exact solve;
+#: docs/performance.md).
 AUTO_MAX_COARSE_PIXELS = 2 ** 15
 
 #: Largest coarse grid at the smallest factor, 4×, px (2¹³: up to ≈ 362²); beyond it "auto" starts at
-#: 8×. At 4× the coarse grid grows with the image, and so do its V-cycle's cost (4–6 ms per iteration
-#: at 128², against ≈ 1 ms at 64²) and its weakness as the coarse inverse. On the astronaut at 512²,
-#: 20 iterations (session 7; RMS / p99 px from the exact solve, propagation wall s): 4× paper 0.0082 /
-#: 0.045 (0.44 s), robust 0.052 / 0.27 (0.45 s); 8× paper 0.016 / 0.069 (0.27 s), robust 0.032 / 0.15
-#: (0.27 s) — robust's sparser, confidence-weighted data term needs the stronger coarse inverse. At
-#: 256² 4× stays: paper 0.0008 vs 0.011 px, robust 0.0027 vs 0.015 px, both ≈ 0.1 s.
+#: 8×. At 4× the coarse grid grows with the image, and so do its V-cycle's cost and its weakness as
+#: the coarse inverse: at 512² the 8× grid is both faster and, for robust's sparser,
+#: confidence-weighted data term, closer to the exact solve; at 256² 4× is closer at the same cost
+#: (measurements in docs/performance.md).
 AUTO_MAX_COARSE_PIXELS_AT_4X = 2 ** 13
 
-#: Smallest coarsening factor of ``downsample="auto"``'s coarse mode. Galerkin two-level PCG on the
-#: astronaut photo, RMS px from the exact solve after 20 iterations: at 512², 4× 0.0082 (0.24 s),
-#: 2× 0.025 (0.39 s: a 4× costlier V-cycle and no fewer iterations), 8× 0.016; at 256², 4× 0.0008,
-#: 2× 0.0073.
+#: Smallest coarsening factor of ``downsample="auto"``'s coarse mode: 2× has a 4× costlier V-cycle,
+#: needs no fewer iterations and ends farther from the exact solve (docs/performance.md).
 AUTO_MIN_COARSENING = 4
 
 #: Relative residual of the coarse solve of the coarse mode when ``coarse_tol`` is None (or ``tol``
-#: if that is looser). The refinement removes what it leaves: on the astronaut photo (paper preset,
-#: Galerkin, 1024², 32 iterations) 1e-3 instead of 1e-5 gives 0.0066 vs 0.0061 px RMS from the exact
-#: solve; with the re-discretised coarse system (4×) 0.0149 vs 0.0140 px, saving ~37 of ~40 AMG-CG
-#: iterations on its 256² grid.
+#: if that is looser). The refinement removes what the looser coarse solve leaves (the distance from
+#: the exact solve grows by < 0.001 px RMS against 1e-5) and most of the coarse AMG-CG iterations are
+#: saved (docs/performance.md).
 DEFAULT_COARSE_TOL = 1e-3
 
 #: Default number of full-resolution CG iterations after a coarse solve, per refinement (keys of
@@ -124,12 +119,8 @@ DEFAULT_COARSE_TOL = 1e-3
 #: covers small s. Galerkin: max(⌈2.5·s⌉, 20) — 20 at 4× and 8× (256² to 1.5 MP), 40 at 16×. On the
 #: astronaut photo (``benchmarks/propagation_accuracy.py``; RMS / p99 px from the exact solve) at 512²
 #: (8×) paper 0.016 / 0.069, robust 0.032 / 0.15; at 1024² (8×) paper 0.019 / 0.082, robust 0.026 /
-#: 0.092 (the targets: ≤ 0.03 px RMS, ≤ 0.15 px p99). Each iteration costs ≈ 26 ms at 1 MP. The
-#: default before session 7 (4× at 512², 24 iterations): 512² paper 0.0059 / 0.030, robust 0.041 /
-#: 0.21 (its coarse inverse too weak for robust's sparser data term); 1024² paper 0.0115 / 0.050,
-#: robust 0.017 / 0.062, for ≈ 0.1 s more per size.
-#: Re-discretised two-level: 20·s (the default before session 4: 0.0024 / 0.0149 px RMS at 512² /
-#: 1024² with s = 4, 80 iterations). Jacobi: the earlier fixed 60 iterations (0.08 / 0.15 px RMS).
+#: 0.092 (the targets: ≤ 0.03 px RMS, ≤ 0.15 px p99). Re-discretised two-level: 20·s; Jacobi: 60.
+#: Earlier defaults and their distances: docs/performance.md.
 DEFAULT_REFINE_ITERATIONS = {"galerkin": (2.5, 20), "two_level": (20, 0), "jacobi": (0, 60)}
 
 
@@ -179,11 +170,9 @@ def _galerkin_start(fine, s, *, solver, coarse_tol, **_):
 
 
 #: Storage of the Galerkin refinement's CG vectors (scalars and per-row sums stay float64). float32
-#: halves their memory traffic — the fine iterations are memory-bound: 1024², 32 iterations 0.87 →
-#: 0.74 s at load 2 — and moves the default map by ≤ 1.2e-5 px against float64 vectors (astronaut
-#: photo; RMS from the exact solve unchanged at 0.0059 px at 512²). Round-off sets a floor near
-#: 5e-4 px RMS (48 iterations: 0.00050 vs 0.00047 px), so the re-discretised comparison, which
-#: runs 80 iterations, keeps float64 (it would end at 0.0034 instead of 0.0024 px).
+#: halves their memory traffic (the fine iterations are memory-bound) and moves the default map by
+#: ≤ 1.2e-5 px against float64 vectors. Round-off sets a floor near 5e-4 px RMS, so the
+#: re-discretised comparison, which runs 80 iterations, keeps float64 (docs/performance.md).
 REFINE_VECTOR_DTYPE = np.float32
 
 
@@ -208,7 +197,7 @@ def _refine_jacobi(fine, x0, *, coarse, scale, s, coarse_shape, maxiter, tol):
 #:   system (:func:`method.propagation_galerkin.galerkin_coarse_operator`), its solution
 #:   interpolated starts a CG preconditioned by Jacobi + that coarse-grid correction
 #:   (:func:`method.propagation_matrix_free.two_level_pcg`, c = 1);
-#: * ``"two_level"`` (the default before): the same CG with the coarse level re-discretised from
+#: * ``"two_level"`` (a comparison): the same CG with the coarse level re-discretised from
 #:   the block-averaged guide (c = s²), whose correction is wrong across colour edges;
 #: * ``"jacobi"``: the re-discretised start and a Jacobi-only CG, which leaves the coarse grid's
 #:   smooth error almost intact.
@@ -286,7 +275,7 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
     refinement : str, keyword-only
         Key of :data:`PROPAGATION_REFINEMENTS` (used when s > 1): ``"galerkin"`` (default; CG
         preconditioned by Jacobi + the Galerkin coarse-grid correction), ``"two_level"`` (the same
-        with the re-discretised coarse system, the default before) or ``"jacobi"`` (Jacobi-only CG).
+        with the re-discretised coarse system, kept as a comparison) or ``"jacobi"`` (Jacobi-only CG).
     refine_iterations : int or None, keyword-only
         Full-resolution CG iterations after a coarse solve (≥ 0; they stop earlier once the relative
         residual reaches ``tol``). None: :data:`DEFAULT_REFINE_ITERATIONS` of ``refinement``
@@ -345,9 +334,8 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
        (``benchmarks/propagation_accuracy.py`` records it; RMS / p99 px, 8× and 20 iterations at
        both sizes): paper's measures 0.016 / 0.069 at 512², 0.019 / 0.082 at 1024²; robust's
        (with their confidence) 0.032 / 0.15 and 0.026 / 0.092 (:data:`DEFAULT_REFINE_ITERATIONS`,
-       :data:`AUTO_MAX_COARSE_PIXELS_AT_4X`). The re-discretised default before session 4: 0.0024 / 0.012 and 0.0149 / 0.070 px with 80 iterations
-       each (4×), at 2.4× the time at 1 MP; from the same 8× grid it needs ~160 iterations for
-       0.028 px RMS. ``tests/test_propagation.py`` bounds the error on a 320² synthetic image.
+       :data:`AUTO_MAX_COARSE_PIXELS_AT_4X`; the other refinements' distances are in
+       docs/performance.md). ``tests/test_propagation.py`` bounds the error on a 320² synthetic image.
     6. Determinism: the AMG setup draws no random numbers (:data:`AMG_PROLONGATION_SMOOTHER`) and
        runs with single-threaded BLAS; the numba kernels are row-parallel without shared writes and
        add per-row partial sums in row order; the coarse-grid correction is single-threaded. Same

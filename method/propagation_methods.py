@@ -44,7 +44,8 @@ def _matting_laplacian(sparse_sigma, reference, *, params, confidence=None, max_
                          "use alpha_confidence='none'")
     from .matting_propagation import propagate_defocus_matting
     return propagate_defocus_matting(sparse_sigma, reference, lam=params.matting_lambda,
-                                     epsilon=params.matting_epsilon, tol=params.propagation_tol)
+                                     epsilon=params.matting_epsilon, tol=params.propagation_tol,
+                                     data_weight=params.matting_data_weight)
 
 
 #: name -> fn(sparse_sigma, reference, *, params, confidence) -> (H, W) float64 σ in px.

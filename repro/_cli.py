@@ -24,6 +24,15 @@ sub-command's module ``repro.<name>`` only when asked for it and runs its ``main
 can cause (``OSError``: unwritable folder, disk full; ``MemoryError``) and prints
 ``PROG: error: MESSAGE`` as a single line, with no traceback; any other exception is a bug and
 propagates.
+
+Optional dependencies: the core install (``pip install -e .``) runs ``method`` and the photo tools
+(``repro.estimate``, ``repro.magnify``); the renderer and the sweep engine are the pip extras of
+:data:`EXTRAS`. A command that needs an extra whatever its flags is listed in :data:`COMMAND_EXTRAS`
+and ``run_cli`` checks it before the command runs (``--help`` and ``--version`` work without it);
+:func:`require_extras` checks one for a flag (``repro.bench --sweep``). A missing extra is one line
+naming it, e.g. ``python -m repro.render: error: repro.render needs the 'render' extra (mitsuba is not
+installed): pip install -e '.[render]'``, and exit status 2; so is a ``ModuleNotFoundError`` of one of
+their modules raised later (a code path the tables do not list).
 """
 
 from __future__ import annotations
@@ -38,9 +47,12 @@ from scenes.backend import VARIANT_ENV, BackendError
 
 __all__ = [
     "COMMANDS",
+    "COMMAND_EXTRAS",
+    "EXTRAS",
     "USER_ERRORS",
     "ArgumentParser",
     "CLIError",
+    "MissingExtraError",
     "add_force_option",
     "add_quiet_option",
     "add_variant_option",
@@ -48,7 +60,9 @@ __all__ = [
     "console_main",
     "float_type",
     "int_type",
+    "missing_extra",
     "parse_resolution",
+    "require_extras",
     "run_cli",
     "version_string",
 ]
@@ -89,8 +103,89 @@ class CLIError(ValueError):
     """A user error detected by a command-line tool (bad flag, unwritable output, ...)."""
 
 
+class MissingExtraError(CLIError):
+    """A command needs a pip extra (:data:`EXTRAS`) that is not installed."""
+
+
 #: Exceptions reported as one line + exit status 2.
 USER_ERRORS: tuple[type[BaseException], ...] = (ValueError, CLIError, BackendError)
+
+
+#: The pip extras of pyproject.toml's ``[project.optional-dependencies]`` (``all`` = every one, ``test``
+#: aside): name -> the top-level modules it installs. The core dependencies install none of them.
+EXTRAS: dict[str, tuple[str, ...]] = {
+    "render": ("mitsuba", "drjit"),                 # Mitsuba 3 renders (scenes.render_scene)
+    "sweep": ("dask", "distributed", "pyarrow"),    # the sweep engine and its Parquet tables
+}
+
+#: Extras a command needs whatever its flags: its module -> extra names (checked by :func:`run_cli`).
+#: ``repro.estimate``, ``repro.magnify``, ``repro.report`` and ``repro.bench`` (without ``--accuracy``
+#: or ``--sweep``) need none.
+COMMAND_EXTRAS: dict[str, tuple[str, ...]] = {
+    "repro.render": ("render",),
+    "repro.evaluate": ("render",),
+    "repro.figures": ("render",),
+    "repro.sweep": ("sweep", "render"),
+}
+
+#: How to install an extra, from the checkout (editable, as the README installs the project).
+INSTALL_HINT = "pip install -e '.[{extra}]'"
+
+
+def _installed(module: str) -> bool:
+    """True when the top-level ``module`` can be imported (found on the path; not imported here)."""
+    import importlib.util
+
+    if module in sys.modules:
+        return sys.modules[module] is not None
+    try:
+        return importlib.util.find_spec(module) is not None
+    except (ImportError, ValueError):
+        return False
+
+
+def missing_extra(module: str | None) -> str | None:
+    """The extra of :data:`EXTRAS` that installs the (dotted) ``module``, or None if no extra does."""
+    top = (module or "").split(".")[0]
+    return next((extra for extra, modules in EXTRAS.items() if top in modules), None)
+
+
+def require_extras(*extras: str, command: str) -> None:
+    """Raise :class:`MissingExtraError` (one line naming the extra) unless every module of ``extras`` imports.
+
+    Parameters
+    ----------
+    *extras : str
+        Keys of :data:`EXTRAS`.
+    command : str, keyword-only
+        What needs them, for the message (``"repro.bench --sweep"``).
+
+    Raises
+    ------
+    ValueError
+        For an extra that is not a key of :data:`EXTRAS`.
+    MissingExtraError
+        ``"COMMAND needs the 'EXTRA' extra (MODULE is not installed): pip install -e '.[EXTRA]'"``.
+    """
+    for extra in extras:
+        if extra not in EXTRAS:
+            raise ValueError(f"unknown extra {extra!r}; allowed: {', '.join(EXTRAS)}")
+        for module in EXTRAS[extra]:
+            if not _installed(module):
+                raise MissingExtraError(_extra_message(command, extra, module))
+
+
+def _command_of(main) -> str | None:
+    """The module name of a command's ``main`` (``repro.render``; also when run as ``python -m``)."""
+    module = getattr(main, "__module__", None)
+    if module == "__main__":
+        spec = getattr(sys.modules.get("__main__"), "__spec__", None)
+        module = getattr(spec, "name", None)
+    return module
+
+
+def _extra_message(command: str, extra: str, module: str) -> str:
+    return f"{command} needs the {extra!r} extra ({module} is not installed): {INSTALL_HINT.format(extra=extra)}"
 
 
 class ArgumentParser(argparse.ArgumentParser):
@@ -126,11 +221,21 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
     Returns
     -------
     int
-        ``main``'s status, 2 on a user error, 130 on Ctrl-C.
+        ``main``'s status, 2 on a user error or a missing extra (:data:`COMMAND_EXTRAS`), 130 on Ctrl-C.
     """
     prog = prog or Path(sys.argv[0]).name or "repro"
+    command = _command_of(main) or prog
+    args = sys.argv[1:] if argv is None else list(argv)
     try:
+        if command in COMMAND_EXTRAS and not {"-h", "--help", "--version"} & set(args):
+            require_extras(*COMMAND_EXTRAS[command], command=command)
         status = main(argv)
+    except ModuleNotFoundError as exc:  # an extra's module imported on a path the tables do not list
+        extra = missing_extra(exc.name)
+        if extra is None:
+            raise
+        print(f"{prog}: error: {_extra_message(command, extra, exc.name.split('.')[0])}", file=sys.stderr)
+        return 2
     except USER_ERRORS as exc:
         print(f"{prog}: error: {_one_line(exc)}", file=sys.stderr)
         return 2

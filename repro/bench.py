@@ -746,7 +746,7 @@ PROG = "python -m repro.bench"
 
 
 def main(argv=None) -> int:
-    from repro._cli import ArgumentParser, add_quiet_option, int_type
+    from repro._cli import ArgumentParser, add_quiet_option, int_type, require_extras
 
     parser = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int_type("--sizes", minimum=16), nargs="+", default=[256, 512, 1024],
@@ -768,10 +768,12 @@ def main(argv=None) -> int:
         print(json.dumps(_worker(args.worker, args.repeat, args.worker_preset)))
         return 0
     if args.accuracy:
+        require_extras("render", command="repro.bench --accuracy")
         run_accuracy(out=args.out)  # a ValueError is one line + exit 2 (repro._cli.run_cli)
         print((args.out / "accuracy.md").read_text(encoding="utf-8"))
         return 0
     if args.sweep:
+        require_extras("sweep", "render", command="repro.bench --sweep")
         from repro.sweep import run_sweep_bench
 
         run_sweep_bench(args.out)

@@ -72,6 +72,36 @@ def scene_set_lines() -> list[tuple[str, str, list[str]]]:
             for name, names in SCENE_SETS.items()]
 
 
+def cell_texts(matrix: dict) -> dict:
+    """``{(column, claim id): (verdict or None, note)}`` of the claims table.
+
+    A cell with its own evaluation shows its verdict, with the claim's :func:`experiments.claims.scope_note`
+    (e.g. "all presets and scene sets") when later cells repeat its evaluation; a cell that repeats
+    an earlier column's evaluation shows no verdict and the note ``"="`` (claims that vary with nothing)
+    or ``"= <column>"``.
+    """
+    from experiments.claims import cell_sources, scope_note
+
+    sources = cell_sources(matrix)
+    repeated = {(src, cid) for (_, cid), src in sources.items() if src is not None}
+    out = {}
+    for col, rows in matrix.items():
+        for claim, v in rows:
+            src = sources.get((col, claim.id))
+            if src is None:
+                out[(col, claim.id)] = (v.verdict, scope_note(claim) if (col, claim.id) in repeated else "")
+            else:
+                out[(col, claim.id)] = (None, "=" if not claim.varies_with else f"= {column_label(*src)}")
+    return out
+
+
+def _md_verdict_cell(text) -> str:
+    verdict, note = text
+    if verdict is None:
+        return note
+    return f"`{_mark(verdict)}` {verdict}" + (f" ({note})" if note else "")
+
+
 def _md_cell(text: str) -> str:
     """Text safe inside a Markdown table cell (pipes escaped)."""
     return str(text).replace("|", "\\|")
@@ -170,19 +200,32 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
     if columns:
         lines += ["| claim | where | " + " | ".join(column_label(*c) for c in columns) + " |",
                   "|---|---|" + "---|" * len(columns)]
+        texts = cell_texts(matrix)
         first = matrix[columns[0]]
-        for i, (claim, _) in enumerate(first):
-            cells = [f"`{_mark(matrix[c][i][1].verdict)}` {matrix[c][i][1].verdict}" for c in columns]
+        for claim, _ in first:
+            cells = [_md_verdict_cell(texts[(c, claim.id)]) for c in columns]
             lines.append(f"| {_md_cell(claim.text)} | {claim.section} ({claim.figure}) | " + " | ".join(cells) + " |")
-        lines.append("")
+        lines += ["", "Every cell is its own evaluation (its figure computed with that preset's parameters on that "
+                  "scene set). A claim that does not depend on the preset or the scene set is computed once per value "
+                  "it does depend on, and its further cells say `=` (the same evaluation): Eq. (5) and Eq. (6) are "
+                  "optics (once in all); Fig. 4's analytic edges have no scene set (once per preset); Fig. 5 tests "
+                  "the paper's Eq. (3) filter with and without its bias (once per scene set). The evaluation of "
+                  "every cell is named in `claims.json`.", ""]
     lines += _md_scene_sets()
+    sources = cell_sources_of(matrix)
     for col in columns:
         rows = matrix[col]
         lines += [f"### Evidence: {column_label(*col)}", "",
                   "| | claim | verdict | evidence |", "|---|---|---|---|"]
         for claim, v in rows:
+            src = sources.get((col, claim.id))
+            if src is not None:
+                lines.append(f"| `{_mark(v.verdict)}` | {_md_cell(claim.text)} | = | same evaluation as "
+                             f"*{column_label(*src)}* (`{v.evaluation}`) |")
+                continue
+            ev = f" <br>Evaluation: `{v.evaluation}`." if v.evaluation else ""
             lines.append(f"| `{_mark(v.verdict)}` | {_md_cell(claim.text)} | **{v.verdict}** | {_md_cell(v.evidence)} "
-                         f"<br>*Rule: {_md_cell(claim.rule)}.* |")
+                         f"{ev}<br>*Rule: {_md_cell(claim.rule)}.* |")
         counts = {k: sum(1 for _, v in rows if v.verdict == k) for k in MARKS}
         lines += ["", "Totals: " + ", ".join(f"{k}: {n}" for k, n in counts.items() if n), ""]
     findings = mismatch_findings(metrics)
@@ -196,8 +239,8 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
     tables = preset_tables(metrics)
     if tables:
         lines += ["## Presets side by side", "",
-                  "`paper` is the reproduction (`DefocusParams()`), `robust` goes beyond the paper (README, "
-                  "*Presets*), `zhuo_sim` is the Zhuo & Sim 2011 baseline. Errors against σ_gt in px: sparse blur "
+                  "`paper` is the reproduction (`DefocusParams()`), `robust` goes beyond the paper ("
+                  "`docs/presets.md`), `zhuo_sim` is the Zhuo & Sim 2011 baseline. Errors against σ_gt in px: sparse blur "
                   "at the edge pixels, dense map over textured pixels (mean signed error in brackets); occlusion "
                   "boundaries and tile seams excluded. From the `stages` figure.", ""]
         for t in tables:
@@ -221,10 +264,18 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
     return "\n".join(lines) + "\n"
 
 
+def cell_sources_of(matrix: dict) -> dict:
+    """:func:`experiments.claims.cell_sources` of a claim matrix (or of a plain verdict list)."""
+    from experiments.claims import cell_sources
+
+    return cell_sources(_as_matrix(matrix))
+
+
 def _md_scene_sets() -> list[str]:
     lines = ["## Scene sets", "",
-             "Figures 5, 6, 7 and 11 are computed on two sets of rendered scenes; the flat metrics and the "
-             "first figure of each are the default set, the second figure (`<fig>_<set>.png`) the stress set.", ""]
+             "Figures 4, 5, 6, 7, 8 and 11 are computed on two sets of rendered scenes; the flat metrics and the "
+             "first figure of each are the figure's default set, the second figure (`<fig>_<set>.png`) the other "
+             "set.", ""]
     for name, what, scenes in scene_set_lines():
         lines += [f"- **{name}** ({what}):"] + [f"  - {_md_cell(x)}" for x in scenes]
     return lines + [""]
@@ -260,29 +311,46 @@ def build_html(metrics: dict, verdicts, *, figures_rel: str, bench: str | None,
     matrix = _as_matrix(verdicts)
     columns = list(matrix)
     rows = ""
+    sources = cell_sources_of(matrix)
     if columns:
         head = "".join(f"<th>{e(column_label(*c))}</th>" for c in columns)
+        texts = cell_texts(matrix)
         body = []
-        for i, (claim, _) in enumerate(matrix[columns[0]]):
-            cells = "".join(
-                f"<td class='{e(matrix[c][i][1].verdict.replace(' ', '-'))}'>{mark_svg(matrix[c][i][1].verdict)} "
-                f"{e(matrix[c][i][1].verdict)}</td>" for c in columns)
+
+        def td(c, claim):
+            verdict, note = texts[(c, claim.id)]
+            if verdict is None:
+                return f"<td class='same'>{e(note)}</td>"
+            return (f"<td class='{e(verdict.replace(' ', '-'))}'>{mark_svg(verdict)} {e(verdict)}"
+                    + (f" <small>({e(note)})</small>" if note else "") + "</td>")
+
+        for claim, _ in matrix[columns[0]]:
+            cells = "".join(td(c, claim) for c in columns)
             body.append(f"<tr><td>{e(claim.text)}</td><td>{e(claim.section)} ({e(claim.figure)})</td>{cells}</tr>")
         rows = (f"<table id='claims' class='claims'><tr><th>claim</th><th>where</th>{head}</tr>\n"
-                + "\n".join(body) + "\n</table>")
+                + "\n".join(body) + "\n</table><p>Every cell is its own evaluation; a claim that does not depend "
+                "on the preset or the scene set is computed once and its further cells say “=” (the same "
+                "evaluation; <code>claims.json</code> names each cell's).</p>")
+
+    def evidence_row(col, c, v):
+        src = sources.get((col, c.id))
+        if src is not None:
+            return (f"<tr class='same'><td>{mark_svg(v.verdict)}</td><td>{e(c.text)}</td><td>=</td>"
+                    f"<td>same evaluation as <i>{e(column_label(*src))}</i> (<code>{e(v.evaluation)}</code>)</td></tr>")
+        ev = f"<br>Evaluation: <code>{e(v.evaluation)}</code>." if v.evaluation else ""
+        return (f"<tr class='{e(v.verdict.replace(' ', '-'))}'><td>{mark_svg(v.verdict)}</td><td>{e(c.text)}</td>"
+                f"<td><b>{e(v.verdict)}</b></td><td>{e(v.evidence)}{ev}<br><i>Rule: {e(c.rule)}.</i></td></tr>")
+
     details = []
     for j, col in enumerate(columns):
-        trs = "\n".join(
-            f"<tr class='{e(v.verdict.replace(' ', '-'))}'><td>{mark_svg(v.verdict)}</td><td>{e(c.text)}</td>"
-            f"<td><b>{e(v.verdict)}</b></td><td>{e(v.evidence)}<br><i>Rule: {e(c.rule)}.</i></td></tr>"
-            for c, v in matrix[col])
+        trs = "\n".join(evidence_row(col, c, v) for c, v in matrix[col])
         details.append(f"<details{' open' if j == 0 else ''}><summary>Evidence: {e(column_label(*col))}</summary>"
                        f"<table class='evidence'><tr><th></th><th>claim</th><th>verdict</th><th>evidence</th></tr>"
                        f"{trs}</table></details>")
     details_html = "\n".join(details)
     legend = " ".join(f"{mark_svg(v)} {e(v)}" for v in MARKS)
-    sets_html = "<h2>Scene sets</h2><p>Figures 5, 6, 7 and 11 are computed on two sets of rendered scenes; the " \
-                "first image of each is the default set, the second the stress set.</p><ul>" + "".join(
+    sets_html = "<h2>Scene sets</h2><p>Figures 4, 5, 6, 7, 8 and 11 are computed on two sets of rendered scenes; " \
+                "the first image of each is the figure's default set, the second the other set.</p><ul>" + "".join(
                     f"<li><b>{e(n)}</b> ({e(w)})<ul>" + "".join(f"<li>{e(x)}</li>" for x in sc) + "</ul></li>"
                     for n, w, sc in scene_set_lines()) + "</ul>"
     figs = "\n".join(
@@ -357,11 +425,13 @@ def claims_block(verdicts, *, report_link: str) -> str:
     rows = ["| claim | where | " + " | ".join(column_label(*c) for c in columns) + " |",
             "|---|---|" + "---|" * len(columns)]
     if columns:
-        for i, (c, _) in enumerate(matrix[columns[0]]):
+        texts = cell_texts(matrix)
+        for c, _ in matrix[columns[0]]:
             rows.append(f"| {_md_cell(c.text)} | {c.section} | "
-                        + " | ".join(f"`{_mark(matrix[k][i][1].verdict)}` {matrix[k][i][1].verdict}" for k in columns)
-                        + " |")
-    legend = "Marks: " + ", ".join(f"`{m}` {v}" for v, m in MARKS.items()) + "."
+                        + " | ".join(_md_verdict_cell(texts[(k, c.id)]) for k in columns) + " |")
+    legend = ("Marks: " + ", ".join(f"`{m}` {v}" for v, m in MARKS.items()) + ". `=`: the same evaluation as "
+              "the cell it names (or, alone, as the claim's first cell: a claim independent of presets and scene "
+              "sets is computed once).")
     return "\n".join([README_START, "", *rows, "", legend + f" Evidence and numbers for every cell: "
                       f"[{report_link}]({report_link}).", "", README_END])
 
@@ -389,7 +459,7 @@ def main(argv=None) -> int:
                         help="README whose marked claims block is refreshed (default: the project's "
                              "README.md, and only when --out is the project's report/ folder)")
     args = parser.parse_args(argv)
-    from experiments.claims import claim_matrix, evaluate_claims
+    from experiments.claims import claim_matrix, claims_document, evaluate_claims
     from defocus_cache import atomic_write_text
 
     if not args.figures.is_dir():
@@ -410,11 +480,10 @@ def main(argv=None) -> int:
     atomic_write_text(args.out / "index.html", build_html(metrics, matrix, figures_rel=rel, bench=bench,
                                                           figures_dir=args.figures))
     summary = {"claims": [{"id": c.id, "section": c.section, "figure": c.figure, "claim": c.text,
-                           "rule": c.rule, "verdict": v.verdict, "evidence": v.evidence}
+                           "rule": c.rule, "varies_with": list(c.varies_with), "verdict": v.verdict,
+                           "evidence": v.evidence, "evaluation": v.evaluation}
                           for c, v in verdicts],
-               "matrix": [{"preset": p, "scene_set": sset,
-                           "verdicts": {c.id: {"verdict": v.verdict, "evidence": v.evidence} for c, v in rows}}
-                          for (p, sset), rows in matrix.items()]}
+               "matrix": claims_document(matrix)}
     atomic_write_text(args.out / "claims.json", json.dumps(summary, indent=1, ensure_ascii=False))
     readme = args.readme
     if readme is None and args.out.resolve() == (_PROJECT_ROOT / "report").resolve():

@@ -7,6 +7,10 @@ cached on disk, keyed by the Mitsuba version, the Python executable and the libL
 
 Override with the environment variable ``DEFOCUS_MITSUBA_VARIANT`` (or a CLI ``--variant`` flag);
 an explicitly requested variant that fails its probe is an error, not a silent fallback.
+
+Mitsuba 3 and Dr.Jit are the ``render`` pip extra (``pip install -e '.[render]'``), not core
+dependencies: importing this module does not import them, and :func:`require_mitsuba` (called before
+any variant is chosen) raises a ``ModuleNotFoundError`` naming the extra when they are missing.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ __all__ = [
     "cache_root",
     "import_mitsuba",
     "probe_variant",
+    "require_mitsuba",
     "select_variant",
 ]
 
@@ -38,6 +43,8 @@ __all__ = [
 VARIANT_ENV = "DEFOCUS_MITSUBA_VARIANT"
 #: Variants in order of preference.
 VARIANT_CANDIDATES = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
+#: The pip extra (pyproject ``[project.optional-dependencies]``) that installs Mitsuba 3 and Dr.Jit.
+RENDER_EXTRA = "render"
 
 
 class BackendError(RuntimeError):
@@ -138,6 +145,8 @@ def select_variant(requested: str | None = None) -> str:
     ------
     BackendError
         If a requested variant is unknown or fails its probe, or no variant works.
+    ModuleNotFoundError
+        Without the ``render`` extra (:func:`require_mitsuba`).
     """
     requested = requested or os.environ.get(VARIANT_ENV) or None
     if requested is not None:
@@ -174,9 +183,30 @@ def _maybe_gpu() -> bool:
     return bool(glob.glob("/dev/nvidia[0-9]*")) or bool(os.environ.get("CUDA_VISIBLE_DEVICES"))
 
 
+def require_mitsuba() -> None:
+    """Import Mitsuba 3 and Dr.Jit, or say which pip extra installs them.
+
+    Raises
+    ------
+    ModuleNotFoundError
+        ``"rendering needs the 'render' extra (mitsuba is not installed): pip install -e '.[render]'"``;
+        its ``name`` is the missing module.
+    """
+    _configure_drjit_cache()  # before the first import of drjit, which reads it
+    try:
+        import mitsuba  # noqa: F401
+        import drjit  # noqa: F401
+    except ModuleNotFoundError as exc:
+        if (exc.name or "").split(".")[0] not in ("mitsuba", "drjit"):
+            raise
+        raise ModuleNotFoundError(
+            f"rendering needs the {RENDER_EXTRA!r} extra ({exc.name} is not installed): "
+            f"pip install -e '.[{RENDER_EXTRA}]'", name=exc.name) from None
+
+
 @functools.lru_cache(maxsize=None)
 def _available_variants() -> tuple[str, ...]:
-    _configure_drjit_cache()
+    require_mitsuba()
     import mitsuba as mi
 
     return tuple(mi.variants())

@@ -1,6 +1,8 @@
 """Shared pytest configuration."""
 
 import os
+import warnings
+from pathlib import Path
 
 import pytest
 
@@ -33,3 +35,95 @@ def goldens(request):
     from tests.golden import Goldens
 
     return Goldens(request.config.getoption("--regen-goldens"))
+
+
+# --- which tests read renders: the `render` marker, checked -------------------------------------------
+#: Set to a file path to append "<nodeid>\t<what>" for every render or figure-cache access of a test
+#: (how the `render` markers were found; see docs/test-suite.md).
+RENDER_LOG_ENV = "DEFOCUS_TEST_RENDER_LOG"
+_current = {"item": None, "figure_depth": [], "fixtures": []}
+
+
+def _render_log(what):
+    item = _current["item"]
+    path = os.environ.get(RENDER_LOG_ENV)
+    if item is None or not path:
+        return
+    with open(path, "a") as fh:
+        fh.write(f"{item.nodeid}\t{what}\n")
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _watch_render_cache():
+    """Wrap defocus_cache.Cache.get_or_build: a test not marked ``render`` that reads the render cache
+    fails in a run that deselects ``render`` (``make test-fast``) and warns in any other run (in-process
+    renders only; CLIs run in subprocesses are marked by hand)."""
+    import defocus_cache
+
+    real = defocus_cache.Cache.get_or_build
+
+    def get_or_build(self, key, build):
+        kind = Path(self.root).name
+        if kind == "renders":
+            _render_log("renders")
+            for name in _current["figure_depth"]:
+                _render_log(f"figure-needs-renders:{name}")
+            for name in _current["fixtures"]:
+                _render_log(f"fixture-needs-renders:{name}")
+            item = _current["item"]
+            if item is not None and item.get_closest_marker("render") is None and not os.environ.get(RENDER_LOG_ENV):
+                msg = f"{item.nodeid} reads renders but is not marked @pytest.mark.render"
+                if "not render" in (item.config.getoption("markexpr") or ""):
+                    pytest.fail(msg, pytrace=False)  # a run that deselects renders must not render
+                warnings.warn(msg, pytest.PytestWarning, stacklevel=2)
+        elif kind in ("figures", "evaluate"):
+            name = key.get("figure", key.get("name", kind)) if isinstance(key, dict) else kind
+            _render_log(f"{kind}:{name}")
+            _current["figure_depth"].append(f"{kind}:{name}")
+            try:
+                return real(self, key, build)
+            finally:
+                _current["figure_depth"].pop()
+        return real(self, key, build)
+
+    defocus_cache.Cache.get_or_build = get_or_build
+    yield
+    defocus_cache.Cache.get_or_build = real
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    _current["item"] = item
+
+
+def pytest_runtest_teardown(item):
+    _current["item"] = None
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_fixture_setup(fixturedef, request):
+    _current["fixtures"].append(fixturedef.argname)
+    try:
+        yield
+    finally:
+        _current["fixtures"].pop()
+
+
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the marks (it appends "@group" to node ids)
+def pytest_collection_modifyitems(config, items):
+    """Keep the tests of one module that share a module-scoped fixture on one pytest-xdist worker
+    (``--dist loadgroup``): the fixture (a mosaic ablation, a quick figure, a render) is then built once
+    instead of once per worker. Other tests are spread one by one."""
+    for item in items:
+        if item.get_closest_marker("xdist_group") is not None:
+            continue
+        info = getattr(item, "_fixtureinfo", None)
+        if info is None:
+            continue
+        shared = False
+        for name in info.names_closure:
+            for fdef in info.name2fixturedefs.get(name, ()):
+                if fdef.scope in ("module", "class") and fdef.baseid and fdef.baseid != "tests":
+                    shared = True
+        if shared:
+            item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::")[0]))

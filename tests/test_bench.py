@@ -35,6 +35,7 @@ def tiny(tmp_path_factory):
     return out, _strict_json(out / "accuracy.json"), rc
 
 
+@pytest.mark.slow  # subprocesses or a benchmark run: in make test, not in make test-fast
 def test_accuracy_report_structure(tiny):
     out, report, rc = tiny
     assert rc == 0
@@ -85,6 +86,7 @@ def _judge_with(monkeypatch, measured, **targets):
     return bench.judge_accuracy(measured)
 
 
+@pytest.mark.slow  # subprocesses or a benchmark run: in make test, not in make test-fast
 def test_analytic_verdict_flips_with_the_targets(tiny, monkeypatch):
     _, report, _ = tiny
     measured = {k: report[k] for k in ("analytic", "rendered", "speed")}
@@ -131,6 +133,7 @@ def test_bias_limit_is_the_larger_of_the_absolute_and_the_relative_one(monkeypat
     assert verdict(2.0, 0.25)["bias_ok"] is True
 
 
+@pytest.mark.slow  # subprocesses or a benchmark run: in make test, not in make test-fast
 def test_targeted_bin_without_pixels_fails(tiny, monkeypatch):
     _, report, _ = tiny
     measured = copy.deepcopy({k: report[k] for k in ("analytic", "rendered", "speed")})

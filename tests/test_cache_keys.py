@@ -43,6 +43,44 @@ def test_source_fingerprint_follows_file_content(tmp_path):
     assert source_fingerprint(pkg) != second
 
 
+def test_source_fingerprint_ignores_docstrings_and_comments(tmp_path):
+    """A docstring or comment edit keeps the fingerprint; a one-token code change does not."""
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    src = '"""Module doc."""\n\ndef f(x):\n    """Doc."""\n    return x + 1  # note\n\nclass C:\n    "doc"\n    y = 2\n'
+    (pkg / "a.py").write_text(src)
+    first = source_fingerprint(pkg)
+    (pkg / "a.py").write_text(src.replace("Module doc.", "Edited.").replace("# note", "# other note")
+                              .replace('"""Doc."""', '"""A longer\n    docstring."""').replace('"doc"', "'x'"))
+    assert source_fingerprint(pkg) == first
+    (pkg / "a.py").write_text(src.replace("x + 1", "x + 2"))
+    assert source_fingerprint(pkg) != first
+    (pkg / "a.py").write_text(src.replace("y = 2", "y = '2'"))
+    assert source_fingerprint(pkg) != first
+
+
+def test_cache_entry_survives_a_docstring_edit(tmp_path):
+    """A cache entry keyed by the fingerprint of a module is found again after its docstring changes."""
+    from defocus_cache import Cache
+
+    mod = tmp_path / "m.py"
+    mod.write_text('def k():\n    """v1"""\n    return 1\n')
+    cache = Cache(tmp_path / "cache")
+    calls = []
+
+    def build(folder):
+        calls.append(1)
+        (folder / "x.txt").write_text("x")
+
+    cache.get_or_build({"code": source_fingerprint(mod)}, build)
+    mod.write_text('def k():\n    """v2, reworded"""\n    return 1  # comment\n')
+    cache.get_or_build({"code": source_fingerprint(mod)}, build)
+    assert len(calls) == 1
+    mod.write_text('def k():\n    """v2, reworded"""\n    return 2\n')
+    cache.get_or_build({"code": source_fingerprint(mod)}, build)
+    assert len(calls) == 2
+
+
 def test_source_fingerprint_of_functions():
     def f(x):
         return x + 1
@@ -215,3 +253,115 @@ def test_render_force_rebuilds_the_entry(tmp_path, monkeypatch):
     import numpy as np
 
     np.testing.assert_array_equal(forced.rgb, first.rgb)  # same key, same pixels
+
+
+# --- fingerprints of meaning: docstrings, comments and layout do not count; code does ------------------
+
+def _docstring_edit(text: str) -> str:
+    """Edit every kind of non-code text of a module: its docstring, a function docstring, comments, blank lines."""
+    import ast
+
+    tree = ast.parse(text)
+    func = next(n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef) and ast.get_docstring(n))
+    doc = func.body[0].value
+    lines = text.splitlines(keepends=True)
+    # a docstring's first line gets more words, a comment line and a blank line are added after it
+    i = doc.lineno - 1
+    lines[i] = lines[i].replace('"""', '"""Edited, and longer. ', 1)
+    lines.insert(doc.end_lineno, "    # a new comment about nothing\n\n")
+    out = "".join(lines)
+    return out.replace('"""', '"""Module docstring edited. ', 1)
+
+
+def _one_token_change(text: str) -> str:
+    """Change one token of code: the first ``return <name>`` becomes ``return -<name>`` (a unary minus)."""
+    import io
+    import tokenize
+
+    toks = list(tokenize.generate_tokens(io.StringIO(text).readline))
+    i = next(i for i, (t, n) in enumerate(zip(toks, toks[1:]))
+             if t.type == tokenize.NAME and t.string == "return" and n.type == tokenize.NAME)
+    row, col = toks[i + 1].start
+    lines = text.splitlines(keepends=True)
+    lines[row - 1] = lines[row - 1][:col] + "-" + lines[row - 1][col:]
+    return "".join(lines)
+
+
+def test_docstring_edit_keeps_cache_entry_code_change_invalidates(tmp_path):
+    """A cache keyed by source_fingerprint of a copy of a real module (method/blur_estimators.py): the entry
+    built before a docstring/comment edit is served after it; a one-token code change misses it."""
+    from defocus_cache import Cache
+
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    src = (ROOT / "method" / "blur_estimators.py").read_text()
+    (pkg / "mod.py").write_text(src)
+    cache = Cache(tmp_path / "cache")
+    builds = []
+
+    def build(folder):
+        builds.append(1)
+        (folder / "out.txt").write_text("built")
+
+    def key():
+        return {"code": source_fingerprint(pkg), "libraries": library_versions()}
+
+    cache.get_or_build(key(), build)
+    assert len(builds) == 1
+    edited = _docstring_edit(src)
+    assert edited != src and edited.count("#") > src.count("#")
+    (pkg / "mod.py").write_text(edited)
+    assert cache.is_valid(key())
+    cache.get_or_build(key(), build)
+    assert len(builds) == 1  # served, not rebuilt
+    (pkg / "mod.py").write_text(_one_token_change(edited))
+    assert not cache.is_valid(key())
+    cache.get_or_build(key(), build)
+    assert len(builds) == 2
+    # and back: the original code's entry is still there
+    (pkg / "mod.py").write_text(src)
+    assert cache.is_valid(key())
+
+
+def test_function_fingerprint_ignores_docstring_and_comments(tmp_path):
+    """A callable's fingerprint (its qualified name + the meaning of its source) keeps through a
+    docstring/comment edit of the function and changes with one token of its code."""
+    import importlib.util
+
+    versions = {
+        "base": 'def f(x):\n    """Add one."""\n    return x + 1  # one\n',
+        "doc": 'def f(x):\n    # a comment\n    """Add one to x (re-worded)."""\n\n    return x + 1\n',
+        "code": 'def f(x):\n    """Add one."""\n    return x - 1  # one\n',
+    }
+    fps = {}
+    for name, text in versions.items():
+        path = tmp_path / name / "fpmod.py"
+        path.parent.mkdir()
+        path.write_text(text)
+        spec = importlib.util.spec_from_file_location("fpmod", path)
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        fps[name] = source_fingerprint(mod.f)
+    assert fps["base"] == fps["doc"]
+    assert fps["base"] != fps["code"]
+
+
+def test_fingerprint_of_project_packages_ignores_docstrings(tmp_path):
+    """Every module of method/ and experiments/: stripping all its docstrings and comments keeps its
+    fingerprint (so the project's caches key on code only)."""
+    import ast
+    import io
+    import tokenize
+
+    for name in ("method", "experiments"):
+        for path in sorted((ROOT / name).rglob("*.py"))[:40]:
+            text = path.read_text()
+            toks = [t for t in tokenize.generate_tokens(io.StringIO(text).readline) if t.type != tokenize.COMMENT]
+            no_comments = tokenize.untokenize(toks)
+            a, b = tmp_path / "a.py", tmp_path / "b.py"
+            a.write_text(text)
+            b.write_text(no_comments)
+            from defocus_cache import _code_meaning
+
+            assert _code_meaning(a.read_text()) == _code_meaning(b.read_text()), path
+            assert ast.dump(ast.parse(text)) == ast.dump(ast.parse(no_comments))

@@ -162,6 +162,26 @@ def test_neighbouring_edges_thresholds_and_exclusions():
     assert _verdict(fig4(cases=_cases(0, 0, both_bad=3)), "neighbouring_edges") == "not evaluated"
 
 
+def test_neighbouring_edges_a_fit_without_any_estimate_fails_the_case():
+    # the robust preset's checked fit rejects every edge pixel of close bars: NaN (stored as null)
+    def with_cases(cases):
+        m = fig4()
+        m["fig4"]["metrics"]["claims"]["neighbouring_edges"] = {
+            k: {"model_fit": a, "zero_crossing": b, "model_fit_better": False} for k, (a, b) in cases.items()}
+        return m
+
+    cases = {f"bar.D={i}": (0.1, 0.3) for i in range(8)}
+    cases.update({"bar.D=a": (None, 0.1), "bar.D=b": (float("nan"), 0.2)})
+    v = _v(with_cases(cases), "neighbouring_edges")
+    assert v.verdict == "reproduced" and v.numbers["judged"] == 10 and v.numbers["model_fit_better"] == 8
+    assert v.numbers["model_fit_no_estimate"] == ["bar.D=a", "bar.D=b"] and "gave no estimate in 2" in v.evidence
+    cases.update({"bar.D=c": (None, 0.1)})
+    assert _verdict(with_cases(cases), "neighbouring_edges") == "partly reproduced"  # 8 of 11
+    # both without estimates: evidence for neither (excluded), not an error
+    v = _v(with_cases({**cases, "bar.D=d": (None, None)}), "neighbouring_edges")
+    assert v.verdict == "partly reproduced" and "bar.D=d" in v.numbers["excluded"]
+
+
 def test_model_fit_real_images_sides():
     assert _verdict(fig4(mf_mae=1.0, zc_mae=2.0, mf_med=0.5, zc_med=0.8), "model_fit_real_images") == "reproduced"
     assert _verdict(fig4(mf_mae=1.0, zc_mae=2.0, mf_med=0.9, zc_med=0.8), "model_fit_real_images") == \

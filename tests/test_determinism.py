@@ -29,6 +29,7 @@ def _run(module, args, cache):
     return proc
 
 
+@pytest.mark.slow  # subprocesses or a benchmark run: in make test, not in make test-fast
 @pytest.mark.parametrize("working", [None, "3000"], ids=["full-res", "working-res"])
 def test_two_processes_bit_identical(tmp_path, working):
     photo = write_photo(tmp_path / "photo.png", textured_photo())

@@ -20,6 +20,7 @@ import textwrap
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -56,12 +57,14 @@ def _map_hash(threads: int) -> str:
     return proc.stdout.strip().splitlines()[-1]
 
 
+@pytest.mark.slow  # subprocesses or a benchmark run: in make test, not in make test-fast
 def test_two_processes_bit_identical_map():
     a = _map_hash(threads=2)
     b = _map_hash(threads=2)
     assert a == b
 
 
+@pytest.mark.slow  # subprocesses or a benchmark run: in make test, not in make test-fast
 def test_map_independent_of_thread_count():
     assert _map_hash(threads=1) == _map_hash(threads=2)
 

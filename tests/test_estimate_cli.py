@@ -368,6 +368,7 @@ def _entries(cache):
     return [p for p in maps.iterdir() if p.is_dir() and not p.name.startswith(".")] if maps.exists() else []
 
 
+@pytest.mark.slow  # subprocesses or a benchmark run: in make test, not in make test-fast
 def test_two_processes_share_one_cache_entry(tmp_path):
     photo = write_photo(tmp_path / "photo.png", textured_photo())
     cache = tmp_path / "cache"
@@ -384,6 +385,7 @@ def test_two_processes_share_one_cache_entry(tmp_path):
     assert not [p for p in (cache / "maps").iterdir() if p.name.endswith(".tmp")]
 
 
+@pytest.mark.slow  # subprocesses or a benchmark run: in make test, not in make test-fast
 def test_truncated_cache_entry_is_rebuilt(tmp_path):
     photo = write_photo(tmp_path / "photo.png", textured_photo())
     cache = tmp_path / "cache"

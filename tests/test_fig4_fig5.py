@@ -58,7 +58,35 @@ def test_fig4_quick_structure(fig4):
 def test_fig4_plot(fig4, tmp_path):
     fig, res = fig4
     paths = fig.plot_function()(res.as_data(), fig.config("quick"), tmp_path / "fig4")
-    assert [p.suffix for p in paths] == [".png", ".pdf"] and all(p.stat().st_size > 10_000 for p in paths)
+    # the default scene set (tabletop_stress, flat keys) and the paper_cameras set (own file)
+    assert [p.name for p in paths] == ["fig4.png", "fig4.pdf", "fig4_paper_cameras.png", "fig4_paper_cameras.pdf"]
+    assert all(p.stat().st_size > 10_000 for p in paths)
+
+
+def test_fig4_every_preset_and_scene_set_is_its_own_evaluation(fig4):
+    """Each preset runs with its own parameters and fit; the rendered comparison runs on both scene sets;
+    the analytic images (no scene set) once per preset."""
+    fig, res = fig4
+    cfg = fig.config("quick")
+    m = res.metrics
+    assert m["scene_set"] == cfg.scene_set == "tabletop_stress" and set(m["scene_sets"]) == {"paper_cameras"}
+    assert set(m["presets"]) == {"robust"} and m["fit_estimator"] == "model_fit"
+    robust = m["presets"]["robust"]
+    assert robust["fit_estimator"] == "model_fit_checked" and robust["estimators"][0] == "model_fit_checked"
+    # the robust fit rejects poor fits (NaN), the paper's never does: different numbers on the same images
+    fail = {p: node["rendered"]["pooled"]["srgb"]["line_spread"][node["fit_estimator"]]["failure_rate"]
+            for p, node in (("paper", m), ("robust", robust))}
+    assert fail["robust"] > fail["paper"], fail
+    zc = [node["analytic"]["straight"]["clean"]["zero_crossing"]["median_ae"] for node in (m, robust)]
+    assert zc[0] != zc[1]  # the robust preset's own edge detector scales
+    pc = m["scene_sets"]["paper_cameras"]
+    stress_scenes = set(m["rendered"]["by_scene"])
+    for node in (pc, pc["presets"]["robust"]):
+        assert "analytic" not in node  # no scene set in analytic images: not repeated here
+        assert set(node["rendered"]["by_scene"]) == set(dict(dict(cfg.other_scene_sets)["paper_cameras"])["scenes"])
+        assert not stress_scenes & set(node["rendered"]["by_scene"])
+        assert node["rendered"]["pooled"]["srgb"]["line_spread"]["zero_crossing"]["n"] > 200
+    assert pc["presets"]["robust"]["fit_estimator"] == "model_fit_checked"
 
 
 def test_fig4_goldens(fig4, goldens):

@@ -211,3 +211,26 @@ def test_fig8_plot_through_cli(tmp_path):
     assert (tmp_path / "fig8.pdf").stat().st_size > 0
     metrics = json.loads((tmp_path / "fig8.metrics.json").read_text())
     assert "images_vs_d2" in json.dumps(metrics)
+
+
+@pytest.mark.render
+def test_fig8_every_preset_and_scene_set_is_its_own_evaluation(fig8):
+    """Each preset refocuses with its own map; the paper_cameras set has its own scene, D2 and click."""
+    from experiments.fig8_refocus import QUICK
+
+    m = fig8["metrics"]
+    assert m["scene_set"] == QUICK.scene_set == "tabletop_stress" and set(m["scene_sets"]) == {"paper_cameras"}
+    pc = m["scene_sets"]["paper_cameras"]
+    overrides = dict(dict(QUICK.other_scene_sets)["paper_cameras"])
+    # the click lands on the D2 plane of the other scene (portrait_garden: the house at 10 m)
+    assert pc["click_depth_m"] == pytest.approx(pc["focus_distance_2_m"], rel=1e-3)
+    assert pc["focus_distance_2_m"] == overrides["focus_distance_2_m"] != m["focus_distance_2_m"]
+    assert fig8["paper_cameras__image_d1"].shape == fig8["image_d1"].shape
+    assert not np.array_equal(fig8["paper_cameras__image_d1"], fig8["image_d1"])
+    for node, prefix in ((m, ""), (pc, "paper_cameras__")):
+        robust = node["presets"]["robust"]
+        assert robust["images_vs_d2"]["unchanged_d1"] == node["images_vs_d2"]["unchanged_d1"]  # same renders
+        assert robust["images_vs_d2"]["refocused_oracle"] == node["images_vs_d2"]["refocused_oracle"]
+        assert robust["map_floor_px"] != node["map_floor_px"]  # its own map
+        assert not np.array_equal(fig8[f"{prefix}robust__map_estimated"], fig8[f"{prefix}map_estimated"])
+        assert robust["images_vs_d2"]["refocused_estimated"] != node["images_vs_d2"]["refocused_estimated"]

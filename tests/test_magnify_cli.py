@@ -308,6 +308,7 @@ def test_largest_allowed_factor_works_and_just_above_is_refused(tmp_path, photo,
     assert not (tmp_path / "no.png").exists()
 
 
+@pytest.mark.slow  # subprocesses or a benchmark run: in make test, not in make test-fast
 def test_huge_factor_subprocess_under_a_memory_limit(tmp_path, photo):
     """In a process limited to 3 GiB of address space the refusal is quick and clean (no MemoryError, no kill)."""
     import resource

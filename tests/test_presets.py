@@ -11,7 +11,6 @@ Run with ``pytest -s`` to see the measured ablation table.
 """
 
 import dataclasses
-import hashlib
 import math
 import warnings
 
@@ -35,20 +34,7 @@ from tests.tolerances import (MOSAIC_ABLATION_MARGIN_PX, MOSAIC_ABLATION_MIN_GAI
 PAPER = DefocusParams()
 ROBUST = DefocusParams.preset("robust")
 
-# --- the paper preset is the literal reproduction, bit for bit ------------------------------------
-
-#: sha256 of the bytes of sparse_sigma / refined_sigma / defocus_map (float64, C order) of
-#: estimate_defocus_map(skimage.data.astronaut()[::4, ::4] / 255, DefocusParams()), computed on the
-#: committed code *before* the presets and the beyond-the-paper switches were added (git worktree of
-#: HEAD e1ae76b): the paper preset must stay bit-identical to it. (Deterministic on one machine and
-#: library stack; a numpy/scipy/pyamg update that changes round-off needs these regenerated from a
-#: checkout of the pre-preset code.)
-PAPER_ASTRONAUT_SHA256 = {
-    "sparse_sigma": "ec70a2799a0877ac41fba3d095e0ab18720607b9ca52763f3bf1572317ab7853",
-    "refined_sigma": "c8605d539555bea2b58f69fb633f8bf7447ecd3c5f7b79f583b59feaf88fe033",
-    "defocus_map": "2b1da1583678ef5e4cf63c258db3fb522768fc2943ac97589282b40787a6ed87",
-}
-
+# --- the paper preset is the literal reproduction ------------------------------------
 
 def test_paper_preset_is_the_default():
     assert DefocusParams.preset("paper") == DefocusParams()
@@ -56,13 +42,51 @@ def test_paper_preset_is_the_default():
     assert DefocusParams.preset("paper").changes_from(DefocusParams()) == {}
 
 
-def test_paper_pipeline_bit_identical_to_pre_preset_code():
-    skimage_data = pytest.importorskip("skimage.data")
-    img = skimage_data.astronaut()[::4, ::4] / 255.0
-    res = estimate_defocus_map(img, DefocusParams.preset("paper"))
-    got = {name: hashlib.sha256(np.ascontiguousarray(getattr(res, name), dtype=np.float64).tobytes()).hexdigest()
-           for name in PAPER_ASTRONAUT_SHA256}
-    assert got == PAPER_ASTRONAUT_SHA256
+#: The paper preset's maps of the astronaut are stored as arrays (tests/golden/paper_astronaut.npz) and
+#: compared at the tolerance measured across CPU code paths (tests/golden_arrays.py, the README in
+#: tests/golden/): a hash of float64 bytes differs between CPUs of one library stack. The arrays were
+#: written on the current code; on that machine the code *before* the presets and the beyond-the-paper
+#: switches were added (e1ae76b) gives the same sparse and refined maps bit for bit and a dense map
+#: within 2.5e-14 px (docs/test-suite.md), far inside the tolerance.
+
+
+@pytest.fixture(scope="module")
+def paper_astronaut():
+    pytest.importorskip("skimage.data")
+    from tests import golden_arrays
+
+    return golden_arrays.compute_paper_astronaut(), golden_arrays.load_golden(), golden_arrays.load_tolerance()
+
+
+def test_paper_pipeline_matches_the_pre_preset_golden_arrays(paper_astronaut):
+    from tests.golden_arrays import compare
+
+    got, golden, atol = paper_astronaut
+    assert compare(got, golden, atol) == []
+    assert np.isfinite(golden["sparse_sigma"]).sum() > 500  # the golden has edges to compare
+
+
+@pytest.mark.parametrize("name", ["sparse_sigma", "refined_sigma", "defocus_map"])
+def test_golden_arrays_comparison_fails_beyond_tolerance(paper_astronaut, name):
+    """The paper output moved by 10 × the tolerance at one pixel, by a NaN at a finite pixel, or by a
+    relative 1e-4 everywhere fails the golden comparison; the golden moved by half the tolerance passes."""
+    from tests.golden_arrays import compare
+
+    got, golden, atol = paper_astronaut
+    assert 0 < atol < 1e-5  # measured: ~1.6e-7 px (round-off, far below any change of the method)
+    finite = np.flatnonzero(np.isfinite(got[name]))
+    i = finite[len(finite) // 2]
+    moved = {k: v.copy() for k, v in got.items()}
+    moved[name].flat[i] += 10 * atol
+    problems = compare(moved, golden, atol)
+    assert len(problems) == 1 and problems[0].startswith(name) and "atol" in problems[0], problems
+    moved[name].flat[i] = np.nan
+    problems = compare(moved, golden, atol)
+    assert len(problems) == 1 and "NaN" in problems[0], problems
+    assert compare({**got, name: got[name] * (1 + 1e-4)}, golden, atol) != []
+    within = {k: v.copy() for k, v in golden.items()}
+    within[name].flat[i] += 0.5 * atol
+    assert compare(within, golden, atol) == []
 
 
 # --- presets, names, validation -------------------------------------------------------------------

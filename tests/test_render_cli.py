@@ -1,4 +1,5 @@
-"""python -m repro.render: --list, a render, and every bad input → one stderr line, exit 2, nothing written."""
+"""python -m repro.render: --list, a render (subprocesses: the real entry point), and every bad input → one
+stderr line, exit 2, nothing written (in process, tests/cli_run.py)."""
 
 import os
 import subprocess
@@ -27,6 +28,13 @@ def env(tmp_path_factory):
 def run(args, env):
     return subprocess.run([sys.executable, "-m", "repro.render", *args], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=300)
+
+
+def run_here(args, env):
+    """The same command in this process (tests/cli_run.py): the bad-input cases need no new interpreter."""
+    from tests.cli_run import run_in_process
+
+    return run_in_process("repro.render", args, env=env)
 
 
 def _renders(env):
@@ -115,7 +123,7 @@ def test_bad_input_one_line_exit_2_nothing_written(env, tmp_path, args, named):
     named = named.replace("{tmp}", str(tmp_path))
     before = sorted(p.name for p in tmp_path.iterdir())
     renders_before = _renders(env)
-    p = run([*args, "--quiet"] if args else args, env)
+    p = run_here([*args, "--quiet"] if args else args, env)
     assert p.returncode == 2, (p.stdout, p.stderr)
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1, p.stderr

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .style import COLORS, add_colorbar, new_figure, plt, save_figure
+from .style import COLORS, add_colorbar, new_figure, plot_scene_sets, plt, save_figure
 
 
 def _dots(sigma, radius=1):
@@ -31,7 +31,13 @@ def _log_ticks(ax, values):
 
 
 def plot(data, config, out_stem):
-    """Draw Fig. 4 from :func:`experiments.fig4_estimators.compute`'s dict; returns the paths."""
+    """Draw the figure for the default scene set (``out_stem``) and each further set
+    (``<out_stem>_<set>``), captioned with the set (:func:`.style.plot_scene_sets`); the paper preset."""
+    return plot_scene_sets(plot_one_set, data, config, out_stem)
+
+
+def plot_one_set(data, config, out_stem):
+    """Draw Fig. 4 for one scene set from :func:`experiments.fig4_estimators.compute`'s dict; returns the paths."""
     ests = [str(e) for e in data["estimators"]]
     encs = [str(e) for e in data["encodings"]]
     convs = [str(c) for c in data["conventions"]]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .style import _RC, COLORS, add_colorbar, plt, save_figure
+from .style import _RC, COLORS, add_colorbar, plot_scene_sets, plt, save_figure
 
 _SWEEP_LABELS = {
     "refocused_estimated_psnr_db": "refocused, estimated maps (vs D2)",
@@ -28,6 +28,12 @@ def _q(title, q):
 
 
 def plot(data, config, out_stem):
+    """Draw the figure for the default scene set (``out_stem``) and each further set
+    (``<out_stem>_<set>``), captioned with the set (:func:`.style.plot_scene_sets`); the paper preset."""
+    return plot_scene_sets(plot_one_set, data, config, out_stem)
+
+
+def plot_one_set(data, config, out_stem):
     """Draw Fig. 8 from :func:`experiments.fig8_refocus.compute`'s dict; returns the paths.
 
     Row 1: the D1 input, the deconvolved input, the three refocused results and the real D2 render

@@ -1,0 +1,280 @@
+"""The README and docs/ stay short, true and linked.
+
+- README.md has at most :data:`MAX_README_LINES` lines and starts with the two commands
+  (``make figures``, ``make test``), both real Makefile targets;
+- the claims block that ``repro.report`` refreshes is present exactly once;
+- every relative link (and ``#anchor``) in README.md and docs/*.md resolves;
+- every ``python -m repro.X --flag`` in README.md and docs/*.md names a flag that the parser of
+  ``repro.X`` accepts (the parser is captured from the tool's own ``main``), and every documented
+  ``--flag a|b`` value is one of its choices (or a name its help lists);
+- no session or issue numbers in README.md, docs/ or the code's comments and docstrings.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+DOCS = ROOT / "docs"
+
+#: The README is for users; measurements live in docs/.
+MAX_README_LINES = 250
+
+#: docs pages written on other branches at the time this test was written: a link to one of them is
+#: skipped while the page is missing, checked as soon as it exists. Empty this set once they landed.
+PAGES_FROM_OTHER_BRANCHES = frozenset({
+    "docs/test-suite.md", "docs/region-blur.md", "docs/zhuo-sim.md", "docs/real-photos.md",
+    "docs/extras.md", "docs/claims.md", "docs/cue-fusion.md",
+})
+
+#: Flags documented ahead of their implementation on another branch: skipped while the parser lacks
+#: them. Empty this set once they landed.
+FLAGS_FROM_OTHER_BRANCHES = frozenset({("evaluate", "--photos")})
+
+#: Files whose comments still carry session/issue numbers and are rewritten on other branches
+#: (their measurements are copied into docs/presets.md and docs/performance.md). Expected to fail
+#: until then; empty this set once they landed.
+SESSION_NUMBERS_PENDING = frozenset({
+    "method/params.py", "repro/bench.py",
+    "tests/test_blur_fit_noise_and_scale.py", "tests/test_presets.py", "tests/test_propagation.py",
+    "tests/test_relaxed_fit_confidence.py", "tests/tolerances.py",
+})
+
+#: Folders whose Python files must not cite session or issue numbers.
+CODE_DIRS = ("method", "scenes", "experiments", "repro", "defocus_cache", "benchmarks", "tests")
+
+SESSION_OR_ISSUE = re.compile(r"\b(?:session|issue)[- ]?#?\d+", re.IGNORECASE)
+LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)\)")
+CLI = re.compile(r"python -m repro\.(\w+)")
+FLAG = re.compile(r"(?:^|(?<=[\s\[(]))(--?[A-Za-z][\w-]*)")
+FENCE = re.compile(r"^```[^\n]*\n(.*?)^```", re.MULTILINE | re.DOTALL)
+INLINE_CODE = re.compile(r"`([^`]+)`")
+ALTERNATIVES = re.compile(r"(--[\w-]+)[ =](\w+(?:\|\w+)+)(?![\w.])")
+
+
+def _markdown_files() -> list[Path]:
+    return [README, *sorted(DOCS.glob("*.md"))]
+
+
+def _rel(path: Path) -> str:
+    return path.relative_to(ROOT).as_posix()
+
+
+# --------------------------------------------------------------------------------------------
+# README shape
+# --------------------------------------------------------------------------------------------
+def test_readme_is_short():
+    n = len(README.read_text(encoding="utf-8").splitlines())
+    assert n <= MAX_README_LINES, f"README.md has {n} lines; at most {MAX_README_LINES} (move details to docs/)"
+
+
+def test_the_two_commands_come_first_and_are_make_targets():
+    text = README.read_text(encoding="utf-8")
+    lines = [ln for ln in text.splitlines() if ln.strip()]
+    assert lines[0].startswith("# "), "README starts with its title"
+    assert lines[1].startswith("```"), "the first thing after the title is the commands' code block"
+    assert lines[2].split("#")[0].split() == ["make", "figures"]
+    assert lines[3].split("#")[0].split() == ["make", "test"]
+    assert lines[4].startswith("```")
+    targets = set(re.findall(r"^([\w-]+):", (ROOT / "Makefile").read_text(), flags=re.MULTILINE))
+    assert {"figures", "test"} <= targets
+
+
+def test_claims_block_is_there_once_for_the_report_to_refresh():
+    from repro.report import README_END, README_START
+
+    text = README.read_text(encoding="utf-8")
+    assert text.count(README_START) == 1 and text.count(README_END) == 1
+    assert text.index(README_START) < text.index(README_END)
+
+
+# --------------------------------------------------------------------------------------------
+# links
+# --------------------------------------------------------------------------------------------
+def _slug(heading: str) -> str:
+    """GitHub's anchor of a Markdown heading: lower case, punctuation dropped, spaces → '-'."""
+    text = re.sub(r"[`*]", "", heading.strip().lower())
+    text = re.sub(r"[^\w\- ]", "", text)
+    return text.replace(" ", "-")
+
+
+def _anchors(path: Path) -> set[str]:
+    text = FENCE.sub("", path.read_text(encoding="utf-8"))
+    return {_slug(m) for m in re.findall(r"^#{1,6}\s+(.*?)\s*#*\s*$", text, flags=re.MULTILINE)}
+
+
+def _links():
+    for md in _markdown_files():
+        text = FENCE.sub("", md.read_text(encoding="utf-8"))
+        for target in LINK.findall(text):
+            if re.match(r"^[a-z]+:", target):  # http:, https:, mailto:
+                continue
+            yield md, target
+
+
+def test_the_slug_rule_matches_github_on_known_headings():
+    assert _slug("The time targets met (2026-12-02, ≈ 02:45 UTC)") == "the-time-targets-met-2026-12-02--0245-utc"
+    assert _slug("Eq. (3) grids and robust's detector scales") == "eq-3-grids-and-robusts-detector-scales"
+    assert _slug("`repro.sweep` on a cluster") == "reprosweep-on-a-cluster"
+
+
+@pytest.mark.parametrize("md,target", list(_links()), ids=lambda v: v if isinstance(v, str) else _rel(v))
+def test_every_relative_link_resolves(md, target):
+    file_part, _, anchor = target.partition("#")
+    dest = (md.parent / file_part).resolve() if file_part else md
+    rel = dest.relative_to(ROOT).as_posix() if dest.is_relative_to(ROOT) else str(dest)
+    if not dest.exists() and rel in PAGES_FROM_OTHER_BRANCHES:
+        pytest.skip(f"{rel} is written on another branch")
+    assert dest.exists(), f"{_rel(md)} links to {target}, which does not exist"
+    if anchor and dest.suffix == ".md":
+        assert anchor in _anchors(dest), f"{_rel(md)} links to {target}: no heading with that anchor"
+
+
+def test_the_link_check_finds_links():
+    found = {(_rel(md), t) for md, t in _links()}
+    assert ("README.md", "docs/README.md") in found and len(found) > 20
+
+
+# --------------------------------------------------------------------------------------------
+# documented CLI flags
+# --------------------------------------------------------------------------------------------
+class _Captured(Exception):
+    def __init__(self, parser):
+        super().__init__("parser captured")
+        self.parser = parser
+
+
+_PARSERS: dict[str, argparse.ArgumentParser] = {}
+
+
+def _parser_of(tool: str) -> argparse.ArgumentParser:
+    """The ``ArgumentParser`` that ``repro.<tool>.main`` builds, captured at its ``parse_args``."""
+    if tool not in _PARSERS:
+        module = importlib.import_module(f"repro.{tool}")
+        original = argparse.ArgumentParser.parse_args
+
+        def capture(self, *args, **kwargs):
+            raise _Captured(self)
+
+        argparse.ArgumentParser.parse_args = capture
+        try:
+            module.main([])
+        except _Captured as c:
+            _PARSERS[tool] = c.parser
+        finally:
+            argparse.ArgumentParser.parse_args = original
+        assert tool in _PARSERS, f"repro.{tool}.main did not build a parser"
+    return _PARSERS[tool]
+
+
+def _accepted(tool: str) -> set[str]:
+    return {s for a in _parser_of(tool)._actions for s in a.option_strings}
+
+
+def _flags_after(text: str) -> set[str]:
+    return set(FLAG.findall(text.split(" #")[0]))
+
+
+def _alternatives_after(text: str) -> set[tuple[str, str]]:
+    """(flag, value) for every ``--flag a|b|c`` (names only) written in ``text``."""
+    out = set()
+    for flag, values in ALTERNATIVES.findall(text.split(" #")[0]):
+        out |= {(flag, v) for v in values.split("|")}
+    return out
+
+
+def _documented_flags():
+    """(file, tool, flag) for every flag written after ``python -m repro.X`` in a command, and in the
+    README's per-tool bullets (``- `repro.X` / `repro.Y`: `--a`, ...``: a flag of any tool named)."""
+    out = set()
+    for md in _markdown_files():
+        text = md.read_text(encoding="utf-8")
+        commands = []
+        for block in FENCE.findall(text):
+            commands += block.replace("\\\n", " ").splitlines()
+        prose = FENCE.sub("", text)
+        commands += [span.replace("\n", " ") for span in INLINE_CODE.findall(prose)]
+        for cmd in commands:
+            parts = CLI.split(cmd)  # [before, tool1, rest1, tool2, rest2, ...]
+            for tool, rest in zip(parts[1::2], parts[2::2]):
+                out |= {(_rel(md), (tool,), f) for f in _flags_after(rest)}
+                out |= {(_rel(md), (tool,), f"{f} {v}") for f, v in _alternatives_after(rest)}
+        for bullet in re.findall(r"^- (`repro\.\w+`(?: / `repro\.\w+`)*:.*?)(?=^- |^\s*$)", prose,
+                                 flags=re.MULTILINE | re.DOTALL):
+            head, _, body = bullet.partition(":")
+            tools = tuple(re.findall(r"repro\.(\w+)", head))
+            for span in INLINE_CODE.findall(body):
+                if not CLI.search(span):
+                    out |= {(_rel(md), tools, f) for f in _flags_after(" " + span)}
+                    out |= {(_rel(md), tools, f"{f} {v}") for f, v in _alternatives_after(" " + span)}
+    return sorted(out)
+
+
+def test_the_flag_check_finds_flags():
+    found = _documented_flags()
+    assert ("README.md", ("evaluate",), "--scene-preset") in found
+    assert any(tools == ("estimate", "magnify") for _, tools, _ in found)
+
+
+@pytest.mark.parametrize("md,tools,flag", _documented_flags())
+def test_every_documented_flag_exists(md, tools, flag):
+    if any(_ok(t, flag) for t in tools):
+        return
+    if any((t, flag.partition(" ")[0]) in FLAGS_FROM_OTHER_BRANCHES for t in tools):
+        pytest.skip(f"{flag} of repro.{tools[0]} is added on another branch")
+    raise AssertionError(f"{md} documents {flag} for {' / '.join('repro.' + t for t in tools)}, "
+                         "which its parser does not accept")
+
+
+def _ok(tool: str, flag: str) -> bool:
+    """``flag`` is an option of ``repro.<tool>``; ``"--flag value"``: also ``value`` is one of its
+    argparse choices or, for options validated later, a word of its help text (registry names)."""
+    flag, _, value = flag.partition(" ")
+    if flag not in _accepted(tool):
+        return False
+    if not value:
+        return True
+    action = next(a for a in _parser_of(tool)._actions if flag in a.option_strings)
+    if action.choices is not None:
+        return value in {str(c) for c in action.choices}
+    return re.search(rf"(?<![\w-]){re.escape(value)}(?![\w-])", action.help or "") is not None
+
+
+def test_a_made_up_flag_is_caught():
+    assert _ok("evaluate", "--scene-preset") and not _ok("evaluate", "--no-such-flag")
+    assert not _ok("render", "--scene-preset") and _ok("render", "--preset")
+    assert _ok("render", "--preset small") and _ok("evaluate", "--scene-preset full")
+    assert _ok("magnify", "--kernel disk") and _ok("estimate", "--preset zhuo_sim")
+    assert not _ok("evaluate", "--preset small") and not _ok("magnify", "--kernel box")
+
+
+# --------------------------------------------------------------------------------------------
+# no session or issue numbers
+# --------------------------------------------------------------------------------------------
+def _texts():
+    files = [README, *sorted(DOCS.glob("*.md"))]
+    for d in CODE_DIRS:
+        files += sorted(p for p in (ROOT / d).rglob("*.py") if ".venv" not in p.parts)
+    return [p for p in files if p.resolve() != Path(__file__).resolve()]
+
+
+@pytest.mark.parametrize(
+    "path",
+    [pytest.param(p, marks=pytest.mark.xfail(reason="rewritten on another branch", strict=False))
+     if _rel(p) in SESSION_NUMBERS_PENDING else p for p in _texts()],
+    ids=_rel)
+def test_no_session_or_issue_numbers(path):
+    hits = [f"{i}: {ln.strip()[:100]}" for i, ln in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+            if SESSION_OR_ISSUE.search(ln)]
+    assert not hits, f"{_rel(path)} cites session/issue numbers (say what and why, dates in docs/):\n" + "\n".join(hits)
+
+
+def test_the_session_check_catches_one():
+    assert SESSION_OR_ISSUE.search("measured in session 7") and SESSION_OR_ISSUE.search("issue 11's targets")
+    assert not SESSION_OR_ISSUE.search("a full test session") and not SESSION_OR_ISSUE.search("start_new_session=True")

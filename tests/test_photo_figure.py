@@ -1,0 +1,72 @@
+"""The ``photos`` report figure and the packaging of the region files."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_region_files_are_package_data():
+    """An installed copy finds the regions: pyproject ships experiments/photos/*.json with the package."""
+    from experiments.photo_regions import PHOTO_DIR, available_photos
+
+    cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    patterns = cfg["tool"]["setuptools"]["package-data"]["experiments"]
+    shipped = {p.name for pat in patterns for p in (ROOT / "experiments").glob(pat)}
+    assert {f"{n}.json" for n in available_photos()} <= shipped
+    assert PHOTO_DIR == ROOT / "experiments" / "photos"
+
+
+def test_photos_figure_is_registered_with_the_scored_presets():
+    from experiments.registry import FIGURES
+    from repro.figures import figure_config
+
+    fig = FIGURES["photos"]
+    assert fig.config("full").presets == ("paper", "robust", "zhuo_sim")
+    assert figure_config(fig, "quick", ("paper",)).presets == ("paper",)
+    assert not fig.renders
+
+
+@pytest.mark.slow
+def test_photos_figure_quick_computes_scores_and_plots(tmp_path):
+    """Quick config (coffee, every preset): arrays, scores equal to score_photo of the stored maps, PNG + PDF."""
+    from experiments.photo_regions import score_photo
+    from experiments.registry import FIGURES, compute_cached
+
+    fig = FIGURES["photos"]
+    config = fig.config("quick")
+    res = compute_cached(fig, config, cache_dir=tmp_path / "cache")
+    data = res.as_data()
+    assert list(data["items"]) == ["coffee"]
+    assert data["coffee__input"].shape == (400, 600, 3) and data["coffee__magnified"].shape == (400, 600, 3)
+    assert data["coffee__in_focus"].dtype == bool and data["coffee__in_focus"].any()
+    for p in config.presets:
+        m = data[f"coffee__{p}__map"]
+        assert m.shape == (400, 600) and np.isfinite(m).all()
+        s = score_photo("coffee", m)
+        assert s["auc"] == pytest.approx(res.metrics["photos"]["coffee"][p]["auc"], abs=1e-6)  # float32 storage
+    assert set(res.metrics["summary"]) == set(config.presets)
+    paths = fig.plot_function()(data, config, tmp_path / "photos")
+    assert [p.suffix for p in paths] == [".png", ".pdf"] and all(p.stat().st_size > 10_000 for p in paths)
+
+
+def test_an_edited_region_file_changes_the_cache_key(tmp_path, monkeypatch):
+    """The code fingerprint covers .py files only; the config's regions digest covers the region files."""
+    import shutil
+
+    from experiments import figS2_photos, photo_regions
+    from experiments.registry import FIGURES, cache_key
+
+    before = cache_key(FIGURES["photos"], figS2_photos.PhotosConfig())
+    for p in photo_regions.PHOTO_DIR.glob("*.json"):
+        shutil.copy(p, tmp_path / p.name)
+    monkeypatch.setattr(photo_regions, "PHOTO_DIR", tmp_path)
+    assert cache_key(FIGURES["photos"], figS2_photos.PhotosConfig()) == before  # same files, same key
+    doc = (tmp_path / "coffee.json").read_text().replace('"why": "the cup', '"why": "The cup')
+    (tmp_path / "coffee.json").write_text(doc)
+    assert cache_key(FIGURES["photos"], figS2_photos.PhotosConfig()) != before

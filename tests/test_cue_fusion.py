@@ -5,14 +5,13 @@
   them once the blur-island factor is on, and does without it (both sides);
 * oracle region measures (σ_gt + noise, constant information) on a blurry texture mosaic lower the
   dense error of the edge-only map;
-* with both new cues off, paper's and robust's maps are bit-identical to the code before the fusion
-  (hashes stored from it: tests/references/cue_fusion_off_hashes.json).
+* with both new cues off, paper's and robust's maps equal those of the code before the fusion (arrays
+  stored from it, tests/references/cue_fusion_off.npz, compared at the paper golden's measured
+  cross-CPU tolerance; on the machine that stored them they were bit-identical).
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
 import warnings
 from pathlib import Path
 
@@ -23,7 +22,11 @@ from method import DefocusParams, estimate_defocus_map
 from method.cue_fusion import ERROR_FLOOR_PX, blur_islands, fuse_measures, region_data_term
 from method.pipeline import STAGES, luminance, propagate_stage
 
-REFERENCE = Path(__file__).parent / "references" / "cue_fusion_off_hashes.json"
+REFERENCE = Path(__file__).parent / "references" / "cue_fusion_off.npz"
+#: Cross-CPU tolerance of stored σ maps, px: the paper golden's (tests/golden/paper_astronaut_tolerance.json,
+#: 10 × the largest deviation over numba/OpenBLAS/numpy-SIMD/thread configurations).
+ATOL_PX = 1.6e-7
+_FIELDS = ("edges", "sparse_sigma", "refined_sigma", "defocus_map", "measure_confidence")
 
 
 # --- inverse-variance fusion, analytic ------------------------------------------------------------
@@ -174,21 +177,44 @@ def _cases():
     yield "astronaut_crop_96", skimage.data.astronaut()[100:196, 150:246].astype(np.float64) / 255.0
 
 
-def test_cues_off_maps_are_bit_identical_to_before_the_fusion():
-    ref = json.loads(REFERENCE.read_text())
+def _cues_off_result(img, preset):
+    params = DefocusParams.preset(preset).replace(edge_isolation=None, region_estimator=None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return estimate_defocus_map(img, params)
+
+
+def test_cues_off_maps_equal_those_before_the_fusion():
+    ref = np.load(REFERENCE)
     for name, img in _cases():
         for preset in ("paper", "robust"):
-            params = DefocusParams.preset(preset).replace(edge_isolation=None)
-            if hasattr(params, "region_estimator"):
-                params = params.replace(region_estimator=None)
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                r = estimate_defocus_map(img, params)
+            r = _cues_off_result(img, preset)
             assert r.region_sigma is None and r.region_information is None
             assert r.timings["region_blur"] == 0.0 and set(STAGES) <= set(r.timings)
-            for field, digest in ref[f"{name}/{preset}"].items():
-                if field.endswith("_mean"):
-                    continue
+            for field in _FIELDS:
+                key = f"{name}/{preset}/{field}"
                 a = getattr(r, field)
-                got = None if a is None else hashlib.sha256(np.ascontiguousarray(a).tobytes()).hexdigest()
-                assert got == digest, (name, preset, field)
+                if key not in ref.files:
+                    assert a is None, key
+                    continue
+                want = ref[key]
+                if want.dtype == bool:
+                    np.testing.assert_array_equal(a, want, err_msg=key)
+                else:
+                    np.testing.assert_array_equal(np.isnan(a), np.isnan(want), err_msg=key)
+                    np.testing.assert_allclose(a, want, rtol=0, atol=ATOL_PX, equal_nan=True, err_msg=key)
+
+
+def _store_reference():  # python -c "import tests.test_cue_fusion as t; t._store_reference()"
+    from defocus_cache import atomic_write_bytes
+
+    arrays = {}
+    for name, img in _cases():
+        for preset in ("paper", "robust"):
+            r = _cues_off_result(img, preset)
+            arrays.update({f"{name}/{preset}/{f}": getattr(r, f) for f in _FIELDS if getattr(r, f) is not None})
+    import io
+
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    atomic_write_bytes(REFERENCE, buf.getvalue())

@@ -23,7 +23,7 @@ class DefocusParams:
     # the detector's FFT bank then needs no 64-px padding level: edge stage 0.81 → 0.47 s at 1 MP).
     sigma2_scales: tuple[float, ...] = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
     # σ2 of the steerable 2nd-derivative filters, px (Sec. 3.1); searched smallest first. Robust:
-    # 0.5 … 8 (session 6): robust fits at min(σ2, fit_max_scale = 2 px), so an edge reliable only at
+    # 0.5 … 8: robust fits at min(σ2, fit_max_scale = 2 px), so an edge reliable only at
     # σ2 ≥ 16 was fitted at a scale 8–16× narrower than its response; without them the accuracy
     # bench's mosaic fails 13 → 12 (dead-leaves σ 6 at 1/255 0.69 → 0.63 px), small renders' mean
     # textured dense MAE 0.370 / 0.209 → 0.369 / 0.209 px, full-preset renders 1.684 / 0.892 →
@@ -89,22 +89,22 @@ class DefocusParams:
     # energy and v_n(σ2) the variance of the steered 2nd-derivative response to white noise of std
     # noise_std (method.blur_model_fit_checked.noise_residual_share): the noise's expected share of
     # ρ, which grows as ~s⁴ with the response width s, so a fixed ρ limit keeps only the narrower
-    # (lower) fits of blurry edges. 0: a fixed limit (fit_max_residual alone; paper). Issue 8: k = 2 alone
+    # (lower) fits of blurry edges. 0: a fixed limit (fit_max_residual alone; paper). k = 2 alone
     # lowers the dead-leaves mosaic's σ 5 / σ 6 dense MAE 0.70 / 1.34 → 0.39 / 0.80 px (2/255, seeds 0–1)
     # but admits fits +0.5–1.3 px too wide of in-focus low-contrast render edges (small tabletop renders
     # 0.44 → 0.48 px, shadow_gloss 0.34/0.45 → 0.39/0.54); robust: k = 2 with relaxed_fit_weight 0.1.
     relaxed_fit_weight: float = 1.0
-    # beyond the paper (issue 8; used only with estimator "model_fit_checked" and fit_residual_noise
+    # beyond the paper (used only with estimator "model_fit_checked" and fit_residual_noise
     # > 0): confidence c_q, dimensionless in (0, 1], of the measures that pass the residual test only
     # thanks to the noise allowance (fit_max_residual < ρ ≤ fit_max_residual + k·share); measures with
     # ρ ≤ fit_max_residual have c_q = 1. c_q multiplies each measure's weight in Eq. (3) (the
     # cross-bilateral sum) and its α_p in Eq. (4), so relaxed measures decide the map only where no
     # strict measure is near. 1: off (every measure counts fully; paper). Robust: 0.02 with
-    # fit_residual_noise 2 (issue 8; robust alone → +both, 2/255 seeds 0–1 dense MAE): dead-leaves σ 6
+    # fit_residual_noise 2 (robust alone → +both, 2/255 seeds 0–1 dense MAE): dead-leaves σ 6
     # 1.34 → 1.23 px (1/255: 0.86 → 0.80), skimage σ 6 1.03 → 0.90 (0.88 → 0.81); small renders' mean
     # dense MAE tabletop_stress 0.401 → 0.393, paper_cameras 0.237 → 0.234, shadow_gloss f/8, f/4 0.340,
     # 0.445 → 0.338, 0.395 px. Larger c gains more on the mosaics but loses on the renders (c = 0.1:
-    # tabletop 0.404, shadow_gloss 0.353/0.460; c = 1: 0.425, 0.390/0.536). Session 5, with
+    # tabletop 0.404, shadow_gloss 0.353/0.460; c = 1: 0.425, 0.390/0.536). Measured with
     # fit_psf="auto" (the renders' disk-blurred edges now fitted by the disk model, so fewer of their
     # measures are relaxed ones): robust 0.1. Accuracy-bench fails (dead-leaves + skimage mosaics, 1/255
     # and 2/255, σ ≤ 6 bins) / small renders' mean dense MAE tabletop, paper_cameras: c = 0.02 14 /
@@ -114,7 +114,7 @@ class DefocusParams:
     fit_scale_ratio: float = 1.0
     # beyond the paper: the Eq. (2c) fit samples the responses at min(σ2(p), max(fit_scale_ratio ·
     # σ2(p), min(sigma2_scales))) px (then capped by fit_max_scale), dimensionless; 1: the detector's
-    # minimum reliable σ2(p) (paper). Measured and not in the robust preset (issue 8): 0.5 lowers the
+    # minimum reliable σ2(p) (paper). Measured and not in the robust preset: 0.5 lowers the
     # edge MAE of edges detected at σ2 = 1–2 px (renders 0.24 → 0.17, 0.51 → 0.34 px) and the
     # tabletop renders' dense mean 0.44 → 0.41 px, but raises the dead-leaves σ 3 tile 0.26 → 0.38 px
     # (2/255) and the paper_cameras renders' mean 0.237 → 0.246 px.
@@ -139,7 +139,7 @@ class DefocusParams:
     # "gaussian" (Eq. 2c, the paper), "disk" (a uniform disk, the thin lens's defocus;
     # method.disk_edge_response), "best" (both, per edge the smaller residual) or "auto" (both, one
     # model per image: method.blur_model_fit.select_psf_model). Every model reports the per-axis std
-    # of its PSF through Eq. (2d) (a disk of diameter c: c/4). Robust: "auto" (session 5: picks Eq. 2c
+    # of its PSF through Eq. (2d) (a disk of diameter c: c/4). Robust: "auto" (picks Eq. 2c
     # on every Gaussian mosaic of the accuracy bench, so those are unchanged; small renders'
     # textured dense MAE tabletop 0.393 → 0.370, paper_cameras 0.234 → 0.208 px; "best" 0.370 / 0.221
     # but dead-leaves σ 3 0.28 → 0.39 px; "disk" 0.383 / 0.208, clutter f/4 0.53 → 0.75 px).

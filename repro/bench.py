@@ -6,7 +6,7 @@ Each (preset, size) runs in a fresh subprocess (so its peak resident memory, ``r
 own) on a textured photo-like image (``skimage.data.astronaut`` resized, shipped with scikit-image),
 with the 1-min load average before and after. Writes ``bench.json`` and ``bench.md`` and prints the
 table; the run it replaces (the previous ``bench.json`` in ``--out``) is kept in the output as
-"before". Targets (issue 11, this 2-core machine kind), for every preset: whole pipeline at 1 MP
+"before". Targets (this 2-core machine kind), for every preset: whole pipeline at 1 MP
 ≤ 2.0 s and ≤ 1.5 GiB, at 512² ≤ 1.0 s; 512² → 1024² cost growth ≤ 4.5×. The machine is shared, so
 each row says how loaded it was; the fastest of ``--repeat`` runs counts.
 

@@ -1,4 +1,4 @@
-"""Beyond-the-paper model-fit switches of issue 8: the noise-aware residual test (``fit_residual_noise``;
+"""Beyond-the-paper model-fit switches: the noise-aware residual test (``fit_residual_noise``;
 in the robust preset with ``relaxed_fit_weight``, see tests/test_relaxed_fit_confidence.py) and the fit
 scale tied to the detector's σ2 (``fit_scale_ratio``; off in every preset)."""
 

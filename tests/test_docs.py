@@ -26,26 +26,6 @@ DOCS = ROOT / "docs"
 #: The README is for users; measurements live in docs/.
 MAX_README_LINES = 250
 
-#: docs pages written on other branches at the time this test was written: a link to one of them is
-#: skipped while the page is missing, checked as soon as it exists. Empty this set once they landed.
-PAGES_FROM_OTHER_BRANCHES = frozenset({
-    "docs/test-suite.md", "docs/region-blur.md", "docs/zhuo-sim.md", "docs/real-photos.md",
-    "docs/extras.md", "docs/claims.md", "docs/cue-fusion.md",
-})
-
-#: Flags documented ahead of their implementation on another branch: skipped while the parser lacks
-#: them. Empty this set once they landed.
-FLAGS_FROM_OTHER_BRANCHES = frozenset({("evaluate", "--photos")})
-
-#: Files whose comments still carry session/issue numbers and are rewritten on other branches
-#: (their measurements are copied into docs/presets.md and docs/performance.md). Expected to fail
-#: until then; empty this set once they landed.
-SESSION_NUMBERS_PENDING = frozenset({
-    "method/params.py", "repro/bench.py",
-    "tests/test_blur_fit_noise_and_scale.py", "tests/test_presets.py", "tests/test_propagation.py",
-    "tests/test_relaxed_fit_confidence.py", "tests/tolerances.py",
-})
-
 #: Folders whose Python files must not cite session or issue numbers.
 CODE_DIRS = ("method", "scenes", "experiments", "repro", "defocus_cache", "benchmarks", "tests")
 
@@ -128,9 +108,6 @@ def test_the_slug_rule_matches_github_on_known_headings():
 def test_every_relative_link_resolves(md, target):
     file_part, _, anchor = target.partition("#")
     dest = (md.parent / file_part).resolve() if file_part else md
-    rel = dest.relative_to(ROOT).as_posix() if dest.is_relative_to(ROOT) else str(dest)
-    if not dest.exists() and rel in PAGES_FROM_OTHER_BRANCHES:
-        pytest.skip(f"{rel} is written on another branch")
     assert dest.exists(), f"{_rel(md)} links to {target}, which does not exist"
     if anchor and dest.suffix == ".md":
         assert anchor in _anchors(dest), f"{_rel(md)} links to {target}: no heading with that anchor"
@@ -226,8 +203,6 @@ def test_the_flag_check_finds_flags():
 def test_every_documented_flag_exists(md, tools, flag):
     if any(_ok(t, flag) for t in tools):
         return
-    if any((t, flag.partition(" ")[0]) in FLAGS_FROM_OTHER_BRANCHES for t in tools):
-        pytest.skip(f"{flag} of repro.{tools[0]} is added on another branch")
     raise AssertionError(f"{md} documents {flag} for {' / '.join('repro.' + t for t in tools)}, "
                          "which its parser does not accept")
 
@@ -264,11 +239,7 @@ def _texts():
     return [p for p in files if p.resolve() != Path(__file__).resolve()]
 
 
-@pytest.mark.parametrize(
-    "path",
-    [pytest.param(p, marks=pytest.mark.xfail(reason="rewritten on another branch", strict=False))
-     if _rel(p) in SESSION_NUMBERS_PENDING else p for p in _texts()],
-    ids=_rel)
+@pytest.mark.parametrize("path", _texts(), ids=_rel)
 def test_no_session_or_issue_numbers(path):
     hits = [f"{i}: {ln.strip()[:100]}" for i, ln in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
             if SESSION_OR_ISSUE.search(ln)]

@@ -225,7 +225,7 @@ REFINEMENT_FIELDS = ("bilateral_sigma_spatial", "bilateral_sigma_range", "bilate
 #:
 #: * helps the dense map: estimator="model_fit_checked" +0.260, fit_max_scale +0.039,
 #:   fit_max_residual +0.028, fit_max_width_ratio +0.082 (+0.013 / +0.234 / 0.000 per seed);
-#: * relaxed_fit_weight (0.1 since session 5; at 0.02 +0.021, +0.039 / +0.020 / +0.007 per seed; at 0.1 +0.017): with it off the
+#: * relaxed_fit_weight (0.1; at 0.02 +0.021, +0.039 / +0.020 / +0.007 per seed; at 0.1 +0.017): with it off the
 #:   measures the noise allowance adds count fully and the in-focus tiles get their too-wide fits;
 DENSE_HELPS = ("estimator", "fit_max_scale", "fit_max_residual", "fit_max_width_ratio")
 #: * relaxed_fit_weight: with the region cue fused into Eq. (4) its gain here fell to +0.013 px (below
@@ -239,7 +239,7 @@ DENSE_HELPS_EDGE_ONLY = ("relaxed_fit_weight",)
 #:   factors keep the region terms from out-voting exact edge measures (step mosaic dense MAE 0.21 px
 #:   with them, 0.54 / 0.77 px without each);
 REGION_CUE = ("region_estimator", "fusion_edge_error_rel", "fusion_island_weight", "fusion_straddle_weight")
-#: * neutral on this σ ≤ 4 mosaic, helps blurry texture (σ 5–8): fit_residual_noise (k = 2, issue 8),
+#: * neutral on this σ ≤ 4 mosaic, helps blurry texture (σ 5–8): fit_residual_noise (k = 2),
 #:   dense −0.004, sparse −0.044 px (it adds measures, ~25 % more here, of poorer fits); its gain is
 #:   on σ ≥ 5 tiles (tests/test_relaxed_fit_confidence.py: σ 6 tile 1.40 → 1.09 px) with the
 #:   relaxed measures at relaxed_fit_weight;
@@ -255,12 +255,12 @@ DENSE_NEUTRAL_SPARSE_HELPS = ("fit_below_scale",)
 #:   tests/test_stage_attribution.py::test_oracle_refine_credits_the_refinement_switches).
 DENSE_HURTS = ("bilateral_range_kernel", "bilateral_sigma_spatial", "sharpness_bias")
 #: * identical on this Gaussian-blurred mosaic (its "auto" model selection picks Eq. 2c there) and
-#:   better on disk-blurred images, the thin lens's defocus: fit_psf (session 5;
+#:   better on disk-blurred images, the thin lens's defocus: fit_psf (
 #:   tests/test_disk_edge_response.py shows both sides of the selection and the disk fit's accuracy).
 GAUSSIAN_IDENTICAL = ("fit_psf",)
 #: * identical on this σ ≤ 4 mosaic (no edge of it needs σ1 > 16 or σ2 > 8), and a faster detector
 #:   (no 64-px FFT padding level): the coarse-scale caps sigma1_scales ≤ 16, sigma2_scales ≤ 8
-#:   (session 6; their accuracy on σ 5–8 tiles and renders: method/params.py, the accuracy bench).
+#:   (their accuracy on σ 5–8 tiles and renders: method/params.py, the accuracy bench).
 SCALE_CAPS_IDENTICAL = ("sigma1_scales", "sigma2_scales")
 
 

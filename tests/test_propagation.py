@@ -163,7 +163,7 @@ def test_default_refinement_close_to_exact_mid_size(mid_size_case, downsample):
     """The default (coarse solve + two-level PCG refinement) is within named bounds of the exact solve.
 
     320² > 2¹⁵ px, so ``"auto"`` takes the coarse path (4×, :data:`AUTO_MIN_COARSENING`: its 80²
-    coarse grid is under 2¹³ px); 2× was the auto factor at 512² before issue 11. The Jacobi-only refinement
+    coarse grid is under 2¹³ px); 2× was the auto factor at 512² earlier. The Jacobi-only refinement
     (an earlier default) is ~60× outside these bounds.
     """
     ref, bm, exact = mid_size_case

@@ -1,4 +1,4 @@
-"""Per-measure confidence of the noise-relaxed model-fit measures (``relaxed_fit_weight``, issue 8).
+"""Per-measure confidence of the noise-relaxed model-fit measures (``relaxed_fit_weight``).
 
 Measures admitted only by the fit's noise allowance (``fit_residual_noise`` > 0) get confidence
 ``relaxed_fit_weight`` in Eq. (3) (their cross-bilateral weight) and Eq. (4) (α_p = α·c_p); strict
@@ -19,7 +19,7 @@ from method.pipeline import luminance, propagate_stage, refine_stage
 from scenes.analytic import texture_mosaic
 
 ROBUST = DefocusParams.preset("robust")
-#: the robust preset without the two issue-8 fields (the strict residual test alone)
+#: the robust preset without its two noise-relaxation fields (the strict residual test alone)
 STRICT = ROBUST.replace(fit_residual_noise=0.0, relaxed_fit_weight=1.0)
 #: the noise allowance with every measure at full weight (the measured-and-dropped setting of 4f90ab4)
 RELAXED_FULL = ROBUST.replace(relaxed_fit_weight=1.0)
@@ -132,7 +132,7 @@ def test_low_confidence_measures_decide_only_where_no_strict_one_is_near():
 def test_relaxed_weight_recovers_blurry_mosaic_better():
     """End to end: on 96×192 dead-leaves mosaics (σ 1 and σ 6 tiles, 8-bit + noise 2/255, seeds 0–2)
     robust (relaxed measures at c = relaxed_fit_weight) recovers the σ 6 tile better than the strict test alone
-    (measured, session 5 with c = 0.1 and fit_psf="auto": seed-mean MAE 1.40 → 1.09 px) and keeps the σ 1
+    (measured with c = 0.1 and fit_psf="auto": seed-mean MAE 1.40 → 1.09 px) and keeps the σ 1
     tile (0.173 → 0.168 px)."""
     err = {"robust": [], "strict": []}
     for seed in (0, 1, 2):

@@ -180,10 +180,10 @@ PIPELINE_TWO_REGION_SIGMA_RTOL = 0.15
 # --- propagation: default (coarse solve + two-level PCG refinement) vs exact solve -----------------
 #: Default ``propagate_defocus`` (auto: coarse 4×, and downsample=2) vs the exact solve (tol 1e-10)
 #: on a 320² textured synthetic image with 1 % of the pixels measured, px. Galerkin refinement
-#: (default since session 4, 24 iterations): measured 4.6e-5 px RMS / 2.1e-4 px p99 (4×) and
+#: (24 iterations, the earlier default): measured 4.6e-5 px RMS / 2.1e-4 px p99 (4×) and
 #: 3.3e-4 / 1.1e-3 px (2×); the re-discretised two-level refinement (80 / 40 iterations) 2.3e-6 /
 #: 9.5e-6 and 3.6e-5 / 1.3e-4 px; the Jacobi-only refinement 2.8e-2 / 1.2e-1 px, so these bounds
-#: fail on it. With 20 iterations (the default since session 7, ≈ 0.1 s less at 1 MP): 1.4e-4 /
+#: fail on it. With 20 iterations (the default, ≈ 0.1 s less at 1 MP): 1.4e-4 /
 #: 6.4e-4 px (4×) and 5.9e-4 / 2.7e-3 px (2×), so the bounds were raised from 5e-4 / 2e-3 (24
 #: iterations) to 8e-4 / 3.5e-3; the Jacobi-only refinement stays ≥ 35× outside them.
 #: On the astronaut photo the default is 0.0082 / 0.019 px RMS from the exact solve at

@@ -161,14 +161,16 @@ def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageO
     Runs the stages of :func:`method.estimate_defocus_map` (the same functions of :mod:`method.pipeline`):
     luminance → :func:`~method.pipeline.edges_stage` → :func:`~method.pipeline.blur_stage` (the blur and,
     for presets that weight their measures — ``relaxed_fit_weight`` — the per-measure confidence used by
-    both later stages) → the refinement (:func:`method.pipeline.refine_stage`; Eq. 3 as ``params``
+    both later stages; the edge-isolation weights and the region cue of Eq. (4) when ``params`` use
+    them) → the refinement (:func:`method.pipeline.refine_stage`; Eq. 3 as ``params``
     configure it) once, then the propagation (:func:`method.pipeline.propagate_stage` with
     ``params.replace(alpha=a)``, clipped to [0, ``params.max_sigma``]) per α. When
     ``params.propagation`` has no α (anything but ``"colorization"``, Eq. 4), it runs once and the
     map is repeated for every α (``timings`` then has one ``"propagation"`` entry).
     """
     from method import DefocusParams, luminance
-    from method.pipeline import blur_stage, edges_stage, propagate_stage, refine_stage
+    from method.pipeline import (blur_stage, edge_psf_family, edges_stage, isolation_stage, propagate_stage,
+                                 refine_stage, region_stage, straddle_edges)
 
     params = DefocusParams() if params is None else params
     alphas = [float(a) for a in alphas]
@@ -178,15 +180,24 @@ def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageO
     gray = luminance(rgb)
     timings = {}
     t0 = time.perf_counter()
-    sparse, confidence, edge_map, _ = blur_stage(gray, edges_stage(gray, params=params), params=params)
+    sparse, confidence, edge_map, psf_disk = blur_stage(gray, edges_stage(gray, params=params), params=params)
     if not np.any(np.isfinite(sparse)):
         raise ValueError("no edge pixel found in the image; the α sweep needs edge measures")
+    if params.edge_isolation is not None:
+        confidence = isolation_stage(gray, edge_map, sparse, params=params, confidence=confidence)
+    region = {}
+    if params.region_estimator is not None:  # the second cue of Eq. (4), as estimate_defocus_map fuses it
+        region_sigma, region_information = region_stage(gray, params=params,
+                                                        edge_psf=edge_psf_family(sparse, psf_disk))
+        has_region = bool(np.any(np.isfinite(region_sigma)))
+        region = dict(region_sigma=region_sigma, region_information=region_information, gray=gray,
+                      isolated_edges=straddle_edges(gray, edge_map, sparse, params=params) if has_region else None)
     refined = refine_stage(sparse, rgb, params=params, confidence=confidence)
     timings["shared"] = time.perf_counter() - t0
 
     def propagate(bm, a):
         dense = propagate_stage(bm, rgb, params=params.replace(alpha=a), sparse_sigma=sparse,
-                                confidence=confidence)
+                                confidence=confidence, **region)
         return np.asarray(dense, dtype=np.float64)
 
     maps, from_sparse = [], []

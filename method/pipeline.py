@@ -35,9 +35,9 @@ from .params import DefocusParams
 from .propagation_methods import propagate_blur_measures
 from .validation import validate_image
 
-__all__ = ["DefocusResult", "NoEdgesWarning", "blur_stage", "edge_confidence", "edges_stage", "estimate_defocus_map",
-           "isolation_stage", "luminance", "propagate_stage", "propagation_confidence", "refine_stage",
-           "region_stage"]
+__all__ = ["DefocusResult", "NoEdgesWarning", "blur_stage", "edge_confidence", "edge_psf_family", "edges_stage",
+           "estimate_defocus_map", "isolation_stage", "luminance", "propagate_stage", "propagation_confidence",
+           "refine_stage", "region_stage", "straddle_edges"]
 
 STAGES = ("edges", "blur_at_edges", "region_blur", "cross_bilateral", "propagation")
 
@@ -167,11 +167,7 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
 
     if getattr(params, "region_estimator", None) is not None:
         t = stage("region_blur")
-        edge_psf = None
-        if psf_disk is not None:
-            n = int(np.count_nonzero(np.isfinite(sparse)))
-            edge_psf = "disk" if n and 2 * int(np.count_nonzero(psf_disk)) > n else "gaussian"
-        region_sigma, region_info = region_stage(gray, params=params, edge_psf=edge_psf)
+        region_sigma, region_info = region_stage(gray, params=params, edge_psf=edge_psf_family(sparse, psf_disk))
         done("region_blur", t)
     else:
         region_sigma = region_info = None
@@ -205,11 +201,7 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
     done("cross_bilateral", t)
 
     t = stage("propagation")
-    isolated = None
-    if has_region and params.fusion_straddle_weight < 1:
-        iso = isolation_weights(gray, edge_map.edges, edge_map.theta, sparse, method="normal",
-                                radius=params.isolation_radius, floor=params.isolation_floor)
-        isolated = np.isfinite(iso) & (iso >= 1.0)
+    isolated = straddle_edges(gray, edge_map, sparse, params=params) if has_region else None
     dense = propagate_stage(refined, rgb, params=params, sparse_sigma=sparse, confidence=confidence,
                             region_sigma=region_sigma, region_information=region_info, gray=gray,
                             isolated_edges=isolated)
@@ -389,6 +381,55 @@ def edge_confidence(sparse_sigma, refined_sigma) -> np.ndarray:
     tau = 0.25 * np.maximum(refined_sigma, 0.0) + 0.5
     with np.errstate(invalid="ignore"):
         return np.exp(-0.5 * ((sparse_sigma - refined_sigma) / tau) ** 2)
+
+
+def edge_psf_family(sparse_sigma, psf_disk) -> str | None:
+    """The PSF family most edge fits chose ("disk" or "gaussian"), for ``region_psf="edges"``.
+
+    Parameters
+    ----------
+    sparse_sigma : ndarray, HxW, float
+        Edge measures, px (NaN where none).
+    psf_disk : ndarray, HxW, bool, or None
+        ``DefocusResult.psf_disk`` (None when the estimator fits no PSF model).
+
+    Returns
+    -------
+    str or None
+        "disk" when more than half of the measures used the disk model, else "gaussian"; None
+        without a PSF model.
+    """
+    if psf_disk is None:
+        return None
+    n = int(np.count_nonzero(np.isfinite(sparse_sigma)))
+    return "disk" if n and 2 * int(np.count_nonzero(psf_disk)) > n else "gaussian"
+
+
+def straddle_edges(gray, edge_map, sparse_sigma, *, params) -> np.ndarray | None:
+    """Isolated edge measures for the fusion's straddle test (``params.fusion_straddle_weight`` < 1).
+
+    Parameters
+    ----------
+    gray : ndarray, HxW, float
+        Luminance.
+    edge_map : EdgeMap
+        The edge detector's output (edges and gradient direction).
+    sparse_sigma : ndarray, HxW, float
+        Edge measures, px (NaN where none).
+    params : DefocusParams, keyword-only
+        ``fusion_straddle_weight``, ``isolation_radius``, ``isolation_floor``.
+
+    Returns
+    -------
+    ndarray, HxW, bool, or None
+        True at measures with full isolation weight (:func:`method.edge_isolation.isolation_weights`,
+        method "normal"); None when the straddle test is off.
+    """
+    if not params.fusion_straddle_weight < 1:
+        return None
+    iso = isolation_weights(gray, edge_map.edges, edge_map.theta, sparse_sigma, method="normal",
+                            radius=params.isolation_radius, floor=params.isolation_floor)
+    return np.isfinite(iso) & (iso >= 1.0)
 
 
 def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None, confidence=None, region_sigma=None,

@@ -18,7 +18,9 @@ from method.elder_zucker_edges import detect_edges
 from method.pipeline import luminance, propagate_stage, refine_stage
 from scenes.analytic import texture_mosaic
 
-ROBUST = DefocusParams.preset("robust")
+#: robust's edge cue alone: these tests are about the edge measures' confidence (the region cue of
+#: Eq. (4), on in robust, is tested in tests/test_cue_fusion.py)
+ROBUST = DefocusParams.preset("robust").replace(region_estimator=None)
 #: the robust preset without its two noise-relaxation fields (the strict residual test alone)
 STRICT = ROBUST.replace(fit_residual_noise=0.0, relaxed_fit_weight=1.0)
 #: the noise allowance with every measure at full weight (the measured-and-dropped setting of 4f90ab4)

@@ -165,7 +165,7 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
         confidence = isolation_stage(gray, edge_map, sparse, params=params, confidence=confidence)
     done("blur_at_edges", t)
 
-    if getattr(params, "region_estimator", None) is not None:
+    if params.region_estimator is not None:
         t = stage("region_blur")
         region_sigma, region_info = region_stage(gray, params=params, edge_psf=edge_psf_family(sparse, psf_disk))
         done("region_blur", t)
@@ -317,7 +317,7 @@ def region_stage(gray, *, params, edge_psf=None):
     information : ndarray, shape (H, W), float64, or None
         Fisher information of σ, px⁻²; None with ``sigma``.
     """
-    if getattr(params, "region_estimator", None) is None:
+    if params.region_estimator is None:
         return None, None
     from .region_estimators import estimate_region_blur
 

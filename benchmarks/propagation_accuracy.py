@@ -75,7 +75,7 @@ def _same(a, b):
 
 
 def main(argv=None):
-    from method.propagation import propagate_defocus
+    from method.propagation.defocus import propagate_defocus
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[512, 1024])

@@ -10,7 +10,7 @@ Notes
 1. Renders: ``render_scene(name, preset, f_number)``, input ``render.image(encoding="srgb",
    quantize_bits=8)``.
 2. Photos: ``skimage.data.<name>()`` (8-bit sRGB) → float in [0, 1]; when its longer side exceeds
-   ``photo_max_side`` it is downscaled with :func:`method.upsampling.downscale_image` (Gaussian
+   ``photo_max_side`` it is downscaled with :func:`method.magnify.upsampling.downscale_image` (Gaussian
    anti-aliasing prefilter) — every σ of a photo is then in px of the *downscaled* image.
 3. :func:`method.estimate_defocus_map` (paper defaults), timed per stage (wall time on a shared
    2-core machine: indicative only).
@@ -99,7 +99,7 @@ def load_photo(name: str, max_side: int = 0) -> tuple[np.ndarray, float]:
     """
     import skimage.data
 
-    from method.upsampling import downscale_image
+    from method.magnify.upsampling import downscale_image
 
     loader = getattr(skimage.data, name, None)
     if loader is None or name.startswith("_"):

@@ -255,7 +255,7 @@ def _alpha_tradeoff(image, stages, alphas, regions, params):
     pixels. ``energy_terms`` is omitted when ``params.propagation`` has no α (not Eq. 4).
     """
     from method import DefocusParams
-    from method.propagation import colorization_matrix
+    from method.propagation.defocus import colorization_matrix
 
     params = DefocusParams() if params is None else params
     lo, hi = int(np.argmin(alphas)), int(np.argmax(alphas))

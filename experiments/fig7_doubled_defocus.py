@@ -147,7 +147,7 @@ def scene_case(name, config) -> tuple[dict, dict, dict]:
         metrics: the paper's keys).
     """
     from method import magnify_defocus
-    from method.magnification import preprocess_defocus_map
+    from method.magnify.magnification import preprocess_defocus_map
     from scenes import render_scene
     from scenes.render import FILTER_SIGMA_PX
 

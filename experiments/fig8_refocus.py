@@ -110,10 +110,10 @@ class Fig8Config:
     quantize_bits: int = 8
     # bits per channel of the images (8 = JPEG-like).
     deconvolution: str = "wiener"
-    # deconvolution filter (method.refocusing.DECONVOLUTION_METHODS).
+    # deconvolution filter (method.magnify.refocusing.DECONVOLUTION_METHODS).
     nsr: float = 1e-2
     # regularisation λ of the deconvolution filter (noise-to-signal power ratio, dimensionless;
-    # method.refocusing.DEFAULT_NSR, chosen there — not tuned on this figure's metrics).
+    # method.magnify.refocusing.DEFAULT_NSR, chosen there — not tuned on this figure's metrics).
     nsr_sweep: tuple[float, ...] = (1e-3, 3e-3, 1e-2, 3e-2, 1e-1)
     # λ values of the sensitivity sweep reported next to the main result (PSNR only).
     kernel: str = "gaussian"
@@ -243,7 +243,7 @@ def compute(config: Fig8Config) -> dict:
 
 def _compute_set(config: Fig8Config, presets: dict) -> tuple[dict, dict]:
     """Renders of ``config.scene`` and the refocusing of every preset's map: (arrays, metrics)."""
-    from method.refocusing import deconvolve_defocus, refocus
+    from method.magnify.refocusing import deconvolve_defocus, refocus
     from scenes import SCENES, render_scene
     from scenes.render import FILTER_SIGMA_PX
 
@@ -319,7 +319,7 @@ def _compute_set(config: Fig8Config, presets: dict) -> tuple[dict, dict]:
 def _refocus_one(shared: dict, params) -> tuple[dict, dict]:
     """Steps 2–7 of the module Notes with one preset's map: (its arrays, its metrics)."""
     from method import estimate_defocus_map, preprocess_defocus_map
-    from method.refocusing import deconvolve_defocus, refocus
+    from method.magnify.refocusing import deconvolve_defocus, refocus
 
     from .metrics import dense_metrics, image_quality
 

@@ -4,22 +4,22 @@
 >>> result = estimate_defocus_map(image, DefocusParams())          # doctest: +SKIP
 >>> out = magnify_defocus(image, result.defocus_map, factor=2.0)  # doctest: +SKIP
 
-Stages (one module each): :mod:`~method.gaussian_derivatives` and :mod:`~method.noise_thresholds`
-(Eq. 7–9), :mod:`~method.elder_zucker_edges` (Sec. 3.1), :mod:`~method.blur_estimators`
-(Sec. 3.2: ``model_fit``, ``zero_crossing``, ``gradient_ratio``), :mod:`~method.cross_bilateral`
-(Eq. 3), :mod:`~method.propagation` (Eq. 4), :mod:`~method.magnification` (Sec. 5),
-:mod:`~method.refocusing` (Sec. 5 / Fig. 8: deconvolution and re-blur).
+Subpackages, in the order of the paper's pipeline (:func:`estimate_defocus_map` runs them):
+:mod:`method.edges` (Sec. 3.1, Eq. 7–9), :mod:`method.blur` (Sec. 3.2: σ at edges and over textured
+regions), :mod:`method.refine` (Eq. 3), :mod:`method.propagation` (Eq. 4 and the cue fusion),
+:mod:`method.magnify` (Sec. 5: magnification, refocusing, working resolution). :mod:`method.params`
+holds :class:`DefocusParams` and the presets; :mod:`method.registry` the registry type every
+name-chosen variant uses.
 """
 
-from .blur_estimators import BLUR_ESTIMATORS, estimate_blur
-from .cross_bilateral import BILATERAL_METHODS, biased_cross_bilateral
-from .elder_zucker_edges import EdgeMap, detect_edges
-from .magnification import MAGNIFICATION_KERNELS, magnify_defocus, preprocess_defocus_map
+from .blur import BLUR_ESTIMATORS, REGION_ESTIMATORS, estimate_blur, estimate_region_blur
+from .edges import EdgeMap, detect_edges
+from .magnify import (DECONVOLUTION_METHODS, MAGNIFICATION_KERNELS, deconvolve_defocus, magnify_defocus,
+                      preprocess_defocus_map, refocus)
 from .params import PRESETS, DefocusParams
 from .pipeline import DefocusResult, NoEdgesWarning, estimate_defocus_map, luminance
-from .propagation import PROPAGATION_SOLVERS, propagate_defocus
-from .propagation_methods import PROPAGATION_METHODS, propagate_blur_measures
-from .refocusing import DECONVOLUTION_METHODS, deconvolve_defocus, refocus
+from .propagation import PROPAGATION_METHODS, PROPAGATION_SOLVERS, propagate_blur_measures, propagate_defocus
+from .refine import BILATERAL_METHODS, biased_cross_bilateral
 
 __all__ = [
     "BILATERAL_METHODS",
@@ -29,6 +29,7 @@ __all__ = [
     "PRESETS",
     "PROPAGATION_METHODS",
     "PROPAGATION_SOLVERS",
+    "REGION_ESTIMATORS",
     "DefocusParams",
     "DefocusResult",
     "EdgeMap",
@@ -38,6 +39,7 @@ __all__ = [
     "detect_edges",
     "estimate_blur",
     "estimate_defocus_map",
+    "estimate_region_blur",
     "luminance",
     "magnify_defocus",
     "preprocess_defocus_map",

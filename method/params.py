@@ -42,7 +42,7 @@ class DefocusParams:
     # --- edge set and gradient ratio of the Zhuo & Sim 2011 baseline (not in Bae & Durand) ----------
     edge_detector: str = "elder_zucker"
     # where the blur is measured: "elder_zucker" (Sec. 3.1, the paper) or "canny" (Canny 1986 via
-    # skimage.feature.canny, as Zhuo & Sim 2011 and their public code; method.canny_edges; only with
+    # skimage.feature.canny, as Zhuo & Sim 2011 and their public code; method.edges.canny; only with
     # estimator "gradient_ratio", the other estimators read the detector's σ2 scales). zhuo_sim: "canny".
     canny_sigma: float = 1.0
     # σ of Canny's Gaussian smoothing, px (edge_detector="canny"; Zhuo & Sim's public code: 1).
@@ -87,7 +87,7 @@ class DefocusParams:
     # beyond the paper (estimator "model_fit_checked"): k, dimensionless; the residual test becomes
     # ρ ≤ fit_max_residual + k · N · v_n(σ2) / ‖r‖², with N the samples in the fit window, ‖r‖² their
     # energy and v_n(σ2) the variance of the steered 2nd-derivative response to white noise of std
-    # noise_std (method.blur_model_fit_checked.noise_residual_share): the noise's expected share of
+    # noise_std (method.blur.model_fit_checked.noise_residual_share): the noise's expected share of
     # ρ, which grows as ~s⁴ with the response width s, so a fixed ρ limit keeps only the narrower
     # (lower) fits of blurry edges. 0: a fixed limit (fit_max_residual alone; paper). k = 2 alone
     # lowers the dead-leaves mosaic's σ 5 / σ 6 dense MAE 0.70 / 1.34 → 0.39 / 0.80 px (2/255, seeds 0–1)
@@ -135,18 +135,18 @@ class DefocusParams:
     # what d/2 ≤ σ2 gives (Eq. 2d has no real root): "zero" (paper: σb = 0) or "nan" (no measure
     # unless σ2 is the finest scale, where it is a sharp edge).
     fit_psf: str = "gaussian"
-    # the blur model whose step response the fit matches (method.blur_model_fit.FIT_PSF_MODELS):
+    # the blur model whose step response the fit matches (method.blur.model_fit.FIT_PSF_MODELS):
     # "gaussian" (Eq. 2c, the paper), "disk" (a uniform disk, the thin lens's defocus;
-    # method.disk_edge_response), "best" (both, per edge the smaller residual) or "auto" (both, one
-    # model per image: method.blur_model_fit.select_psf_model). Every model reports the per-axis std
+    # method.blur.disk_edge_response), "best" (both, per edge the smaller residual) or "auto" (both, one
+    # model per image: method.blur.model_fit.select_psf_model). Every model reports the per-axis std
     # of its PSF through Eq. (2d) (a disk of diameter c: c/4). Robust: "auto" (picks Eq. 2c
     # on every Gaussian mosaic of the accuracy bench, so those are unchanged; small renders'
     # textured dense MAE tabletop 0.393 → 0.370, paper_cameras 0.234 → 0.208 px; "best" 0.370 / 0.221
     # but dead-leaves σ 3 0.28 → 0.39 px; "disk" 0.383 / 0.208, clutter f/4 0.53 → 0.75 px).
 
-    # --- region (spectral) blur, beyond the paper (method.region_estimators) -------------
+    # --- region (spectral) blur, beyond the paper (method.blur.region_estimators) -------------
     region_estimator: str | None = None
-    # key of method.region_estimators.REGION_ESTIMATORS: "local_spectrum" (Zhu et al., IEEE TIP 2013)
+    # key of method.blur.region_estimators.REGION_ESTIMATORS: "local_spectrum" (Zhu et al., IEEE TIP 2013)
     # or "gsm" (Chakrabarti et al., CVPR 2010); None: no region measure (paper).
     region_psf: str = "gaussian"
     # blur kernel of the region likelihood: "gaussian", "disk" (disk ⊗ 1-px box, reports
@@ -221,29 +221,29 @@ class DefocusParams:
     # side of the square window, px, over which σ_ip (per-channel std) is computed (Sec. 4.1: "7×7").
     propagation_neighborhood: int = 3
     # side of the square neighbourhood N(p), px (not given by the paper; 3 = Levin et al. 2004;
-    # 7 = the "one 7×7 window defines both" reading). See method/propagation.py.
+    # 7 = the "one 7×7 window defines both" reading). See method/propagation/defocus/defocus.py.
     propagation_tol: float = 1e-6
     # relative residual at which the preconditioned CG solve of the normal equations stops.
     propagation_solver: str = "amg_pcg"
     # "amg_pcg" (multigrid-preconditioned CG) or "direct" (sparse LU; small images / tests only).
     propagation_downsample: int | str = "auto"
-    # "auto": exact solve up to 2¹⁵ px (≈ 181²; method.propagation.AUTO_MAX_EXACT_PIXELS), else solve
+    # "auto": exact solve up to 2¹⁵ px (≈ 181²; method.propagation.defocus.AUTO_MAX_EXACT_PIXELS), else solve
     # on a grid coarsened 4× while that grid has ≤ 2¹³ px (up to ≈ 362²), else by the smallest power of
     # two s ≥ 8 that brings it to ≤ 2¹⁵ px (8× at 512², 1 MP and the photo tools' 1.5 MP) with the
     # Galerkin coarse operator, interpolate and refine with max(⌈2.5·s⌉, 20) iterations of two-level-
     # preconditioned CG (Jacobi + coarse-grid correction) on the exact full-resolution system: paper
     # 0.016 / 0.019 px RMS, 0.069 / 0.082 px p99, robust 0.032 / 0.026 px RMS, 0.15 / 0.092 px p99 from
-    # the exact solve on a photo at 512² / 1024² (method/propagation.py, docs/performance.md);
+    # the exact solve on a photo at 512² / 1024² (method/propagation/defocus/defocus.py, docs/performance.md);
     # 1 = exact full-resolution solve; 2, 4, … = that coarsening factor.
     propagation_refinement: str = "galerkin"
-    # refinement of the upsampled coarse solution (key of method.propagation.PROPAGATION_REFINEMENTS):
+    # refinement of the upsampled coarse solution (key of method.propagation.defocus.PROPAGATION_REFINEMENTS):
     # "galerkin" (default, above), "two_level" (the same CG with the re-discretised coarse system, the
     # default before: 20·s iterations) or "jacobi" (Jacobi-preconditioned CG, ~0.15 px RMS at 1 MP).
 
     # --- beyond the paper: edge isolation and cue fusion in Eq. (4) -------------------------------
     edge_isolation: str | None = None
     # how much an edge measure is trusted given its neighbours (key of
-    # method.edge_isolation.EDGE_ISOLATION_METHODS, or None: every measure weighs fully, paper):
+    # method.edges.isolation.EDGE_ISOLATION_METHODS, or None: every measure weighs fully, paper):
     # "normal" — weight 1 when no other edge pixel lies within isolation_radius·max(σ̂, 1 px) along the
     # edge's gradient normal (both sides; its own segment runs along the tangent), less when one does
     # (a bar's two edges widen each other's response and bias the fit); "persistence" — weight 1 when
@@ -265,11 +265,11 @@ class DefocusParams:
     # measure of the same σ: α_r = α·W_r·v_e(σ_r)/v_r (a region term stands for a whole window of
     # pixels, an edge term for one).
     fusion_region_placement: str = "centres"
-    # where a region measure enters Eq. (4) (method.cue_fusion.REGION_PLACEMENTS): "centres" — at the
+    # where a region measure enters Eq. (4) (method.propagation.cue_fusion.REGION_PLACEMENTS): "centres" — at the
     # pixels the region estimator gave it (its window centres); "blocks" — spread to the pixels nearest
     # to it (its block of the grid), its weight shared among them.
     fusion_island_weight: float = 1.0
-    # factor in [0, 1] on the weight of a region measure in a "blur island" (method.cue_fusion.blur_islands):
+    # factor in [0, 1] on the weight of a region measure in a "blur island" (method.propagation.cue_fusion.blur_islands):
     # a block without high-frequency texture (fine-scale detail energy ≤ 4× the noise's) that has such
     # texture within fusion_island_radius px, or no texture at its own blur scale either (a smooth
     # in-focus ramp beside sharp edges of the same surface). 1: off; 0: such measures are dropped.
@@ -281,7 +281,7 @@ class DefocusParams:
     fusion_straddle_weight: float = 1.0
     # factor in [0, 1] on the weight of a region measure whose window holds an isolated edge (≥ half
     # its side of edge measures with no other edge within isolation_radius·σ̂ along their normal;
-    # method.cue_fusion.straddled_windows): the edge fit measures such a window's blur better. 1: off.
+    # method.propagation.cue_fusion.straddled_windows): the edge fit measures such a window's blur better. 1: off.
 
     # --- 5 magnification ------------------------------------------------------------------
     map_clip_percent: float = 5.0
@@ -289,7 +289,7 @@ class DefocusParams:
     map_smoothing: float = 0.005
     # Gaussian blur radius (σ) of the map as a fraction of the image size max(H, W) (Sec. 5).
     map_floor: str = "clamp"
-    # how Sec. 5's "clamp its minimum value to 0" is read (key of method.magnification.MAP_FLOOR_MODES;
+    # how Sec. 5's "clamp its minimum value to 0" is read (key of method.magnify.magnification.MAP_FLOOR_MODES;
     # used by magnify_defocus, not by the estimation pipeline): "clamp" = max(σ, 0) px, the literal
     # reading (keeps the in-focus floor σ ≈ 0.3–0.7 px, which magnification then enlarges); "subtract"
     # = remove the lower-percentile value p_lo px in quadrature, √(max(σ² − p_lo², 0)), so sharp
@@ -304,14 +304,14 @@ class DefocusParams:
                 bad(name, sorted(registry))
 
         # The registries define the allowed names (lazy: they import this module's users).
-        from .blur_estimators import BLUR_ESTIMATORS
-        from .blur_model_fit import FIT_PSF_MODELS
-        from .cross_bilateral import BILATERAL_METHODS, RANGE_KERNELS
-        from .magnification import MAP_FLOOR_MODES
-        from .matting_propagation import MATTING_DATA_WEIGHTS
-        from .propagation import PROPAGATION_REFINEMENTS, PROPAGATION_SOLVERS
-        from .propagation_methods import PROPAGATION_METHODS
-        from .region_estimators import REGION_ESTIMATORS, REGION_NOISE_MODELS, REGION_PSFS
+        from .blur.estimators import BLUR_ESTIMATORS
+        from .blur.model_fit import FIT_PSF_MODELS
+        from .refine.cross_bilateral import BILATERAL_METHODS, RANGE_KERNELS
+        from .magnify.magnification import MAP_FLOOR_MODES
+        from .propagation.matting import MATTING_DATA_WEIGHTS
+        from .propagation.defocus import PROPAGATION_REFINEMENTS, PROPAGATION_SOLVERS
+        from .propagation.methods import PROPAGATION_METHODS
+        from .blur.region_estimators import REGION_ESTIMATORS, REGION_NOISE_MODELS, REGION_PSFS
 
         for name in ("sigma1_scales", "sigma2_scales"):
             scales = tuple(float(s) for s in getattr(self, name))
@@ -427,8 +427,8 @@ class DefocusParams:
         if not self.map_smoothing >= 0:
             bad("map_smoothing", ">= 0")
         check_name("map_floor", MAP_FLOOR_MODES)
-        from .cue_fusion import REGION_PLACEMENTS
-        from .edge_isolation import EDGE_ISOLATION_METHODS
+        from .propagation.cue_fusion import REGION_PLACEMENTS
+        from .edges.isolation import EDGE_ISOLATION_METHODS
 
         if self.edge_isolation is not None:
             check_name("edge_isolation", EDGE_ISOLATION_METHODS)

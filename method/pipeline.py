@@ -2,17 +2,17 @@
 
 Stages, each in its own module:
 
-1. :mod:`method.elder_zucker_edges` — multiscale steerable derivatives, Eq. (7)–(9), minimum
+1. :mod:`method.edges.elder_zucker` — multiscale steerable derivatives, Eq. (7)–(9), minimum
    reliable scales and the edge map (Sec. 3.1, Appendix B);
-2. :mod:`method.blur_estimators` — blur σ at edge pixels by the registered estimator
+2. :mod:`method.blur.estimators` — blur σ at edge pixels by the registered estimator
    (``"model_fit"``, Eq. (2); ``"zero_crossing"``; ``"gradient_ratio"``) (Sec. 3.2);
-3. :mod:`method.cross_bilateral` — biased cross-bilateral refinement, Eq. (3) (Sec. 3.3);
-4. :mod:`method.propagation` — propagation to every pixel, Eq. (4) (Sec. 4).
+3. :mod:`method.refine.cross_bilateral` — biased cross-bilateral refinement, Eq. (3) (Sec. 3.3);
+4. :mod:`method.propagation.defocus` — propagation to every pixel, Eq. (4) (Sec. 4).
 
 Beyond the paper, both off in the ``paper`` preset: isolation weights of the edge measures
-(:mod:`method.edge_isolation`, ``params.edge_isolation``) and a region (spectral) blur estimator
+(:mod:`method.edges.isolation`, ``params.edge_isolation``) and a region (spectral) blur estimator
 (``params.region_estimator``, :func:`region_stage`) whose measures are fused with the edge measures
-as data terms of Eq. (4) (:mod:`method.cue_fusion`). Eq. (3) stays edge-only.
+as data terms of Eq. (4) (:mod:`method.propagation.cue_fusion`). Eq. (3) stays edge-only.
 """
 
 from __future__ import annotations
@@ -24,15 +24,15 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .blur_estimators import USES_DETECTOR_HESSIANS, estimate_blur_measures
-from .canny_edges import detect_edges_canny
-from .cross_bilateral import biased_cross_bilateral
-from .cue_fusion import fuse_cues
-from .edge_isolation import isolation_weights
-from .elder_zucker_edges import EdgeMap, detect_edges
+from .blur.estimators import USES_DETECTOR_HESSIANS, estimate_blur_measures
+from .edges.canny import detect_edges_canny
+from .refine.cross_bilateral import biased_cross_bilateral
+from .propagation.cue_fusion import fuse_cues
+from .edges.isolation import isolation_weights
+from .edges.elder_zucker import EdgeMap, detect_edges
 from .luma import LUMA_WEIGHTS, luminance  # noqa: F401 (LUMA_WEIGHTS re-exported)
 from .params import DefocusParams
-from .propagation_methods import propagate_blur_measures
+from .propagation.methods import propagate_blur_measures
 from .validation import validate_image
 
 __all__ = ["DefocusResult", "NoEdgesWarning", "blur_stage", "edge_confidence", "edge_psf_family", "edges_stage",
@@ -66,7 +66,7 @@ class DefocusResult:
     psf_disk: np.ndarray | None = None
     # bool HxW: True at the measures whose edge response was fitted with the disk PSF model of a thin
     # lens (params.fit_psf "disk", "best", or "auto" when it chose the disk), False at the other
-    # pixels; None when params.estimator fits no PSF model (method.blur_estimators.FITS_PSF_MODEL).
+    # pixels; None when params.estimator fits no PSF model (method.blur.estimators.FITS_PSF_MODEL).
     region_sigma: np.ndarray | None = None
     # float64 HxW: blur σ, px, of the region estimator (params.region_estimator; NaN where it has no
     # measure), fused with the edge measures in Eq. (4); None when params.region_estimator is None.
@@ -131,7 +131,7 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
     confidence is multiplied by their isolation weight (:func:`isolation_stage`) after step 3; with
     ``params.region_estimator`` the region estimator runs on the luminance (stage "region_blur",
     :func:`region_stage`) and its measures join the refined edge measures as data terms of Eq. (4)
-    by inverse variance (:func:`method.cue_fusion.fuse_cues`). Eq. (3) stays edge-only.
+    by inverse variance (:func:`method.propagation.cue_fusion.fuse_cues`). Eq. (3) stays edge-only.
     """
     params = DefocusParams() if params is None else params
     if not isinstance(params, DefocusParams):
@@ -226,10 +226,10 @@ def edges_stage(gray, *, params):
     params : DefocusParams, keyword-only
         ``sigma1_scales``, ``sigma2_scales`` (px), ``noise_std``, ``false_positive_rate``,
         ``estimator`` (the detector keeps its 2nd-derivative responses for the estimators of
-        :data:`method.blur_estimators.USES_DETECTOR_HESSIANS`). With ``edge_detector="canny"``
+        :data:`method.blur.estimators.USES_DETECTOR_HESSIANS`). With ``edge_detector="canny"``
         (beyond the paper: Zhuo & Sim's edge set) Canny edges instead, from ``canny_sigma`` (px),
         ``canny_low_threshold`` and ``canny_high_threshold``
-        (:func:`method.canny_edges.detect_edges_canny`).
+        (:func:`method.edges.canny.detect_edges_canny`).
 
     Returns
     -------
@@ -259,12 +259,12 @@ def blur_stage(gray, edge_map, *, params):
     sparse_sigma : ndarray, shape (H, W), float64
         σ in px at edge pixels, NaN elsewhere and where the estimator fails.
     confidence : ndarray, shape (H, W), float64, or None
-        Per-measure confidence (:func:`method.blur_estimators.estimate_blur_with_confidence`).
+        Per-measure confidence (:func:`method.blur.estimators.estimate_blur_with_confidence`).
     edge_map : EdgeMap
         ``edge_map`` without its 2nd-derivative responses (~12 MB per σ2 at 1 MP, not kept).
     psf_disk : ndarray, shape (H, W), bool, or None
         Measures fitted with the disk PSF model (``params.fit_psf``); None when the estimator fits
-        no PSF model (:func:`method.blur_estimators.estimate_blur_measures`).
+        no PSF model (:func:`method.blur.estimators.estimate_blur_measures`).
     """
     sparse, confidence, psf_disk = estimate_blur_measures(gray, edge_map, params=params)
     sparse = np.where(edge_map.edges, np.asarray(sparse, dtype=np.float64), np.nan)
@@ -291,7 +291,7 @@ def isolation_stage(gray, edge_map, sparse_sigma, *, params, confidence=None) ->
     -------
     ndarray, shape (H, W), float64
         c_q · w_q in (0, 1] at the measures, NaN elsewhere
-        (:func:`method.edge_isolation.isolation_weights`).
+        (:func:`method.edges.isolation.isolation_weights`).
     """
     w = isolation_weights(gray, edge_map.edges, edge_map.theta, sparse_sigma, method=params.edge_isolation,
                           radius=params.isolation_radius, floor=params.isolation_floor)
@@ -319,7 +319,7 @@ def region_stage(gray, *, params, edge_psf=None):
     """
     if params.region_estimator is None:
         return None, None
-    from .region_estimators import estimate_region_blur
+    from .blur.region_estimators import estimate_region_blur
 
     sigma, information = estimate_region_blur(gray, params=params, edge_psf=edge_psf)
     return np.asarray(sigma, dtype=np.float64), np.asarray(information, dtype=np.float64)
@@ -422,7 +422,7 @@ def straddle_edges(gray, edge_map, sparse_sigma, *, params) -> np.ndarray | None
     Returns
     -------
     ndarray, HxW, bool, or None
-        True at measures with full isolation weight (:func:`method.edge_isolation.isolation_weights`,
+        True at measures with full isolation weight (:func:`method.edges.isolation.isolation_weights`,
         method "normal"); None when the straddle test is off.
     """
     if not params.fusion_straddle_weight < 1:
@@ -451,7 +451,7 @@ def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None, confidence
     region_sigma, region_information : ndarray, HxW, float, or None, keyword-only
         Beyond the paper: region measures σ_r (px, NaN where none) and their Fisher information
         (px⁻²), fused with the edge measures as data terms of Eq. (4) by inverse variance
-        (:func:`method.cue_fusion.fuse_cues`, ``params.fusion_*``); None: edge measures only.
+        (:func:`method.propagation.cue_fusion.fuse_cues`, ``params.fusion_*``); None: edge measures only.
     gray : ndarray, HxW, float, or None, keyword-only
         Luminance for the fusion's island test (None: :func:`luminance` of ``rgb``).
     isolated_edges : ndarray, HxW, bool, or None, keyword-only

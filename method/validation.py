@@ -142,7 +142,7 @@ def validate_map(defocus_map, shape=None, *, name="defocus_map", allow_negative=
     return defocus_map.astype(np.float64, copy=False)
 
 
-# --- the propagations' inputs (method.propagation_system / method.propagation, method.matting_propagation) ---
+# --- the propagations' inputs (method.propagation.system / method.propagation.defocus, method.propagation.matting) ---
 
 def validate_guide(reference, *, name="reference", min_side=1) -> np.ndarray:
     """Check a propagation guide image and return it as float64 HxWxC (C = 1 or 3).

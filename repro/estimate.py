@@ -107,8 +107,8 @@ def _by_preset(field: str) -> str:
 
 def add_estimation_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by repro.estimate and repro.magnify."""
-    from method.blur_estimators import BLUR_ESTIMATORS
-    from method.upsampling import DEFAULT_MAX_WORKING_PIXELS
+    from method.blur.estimators import BLUR_ESTIMATORS
+    from method.magnify.upsampling import DEFAULT_MAX_WORKING_PIXELS
     from repro.photo_io import DEFAULT_MAX_PIXELS
 
     presets = "; ".join(f"{name} ({_preset_blurb(name)})" for name in _presets())
@@ -144,7 +144,7 @@ def defocus_params(args):
     Raises ``ValueError`` naming the bad value and the allowed ones (an unknown preset lists the
     registry ``method.PRESETS``).
     """
-    from method.blur_estimators import BLUR_ESTIMATORS
+    from method.blur.estimators import BLUR_ESTIMATORS
     from method.params import DefocusParams
 
     presets = _presets()
@@ -353,7 +353,7 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
         ``psf_disk_measures`` (:attr:`method.pipeline.DefocusResult.psf_model`; None when the
         estimator fits no PSF model).
     """
-    from method.upsampling import downscale_image, upsample_defocus_map, working_shape
+    from method.magnify.upsampling import downscale_image, upsample_defocus_map, working_shape
     from scenes.backend import cache_root
     from defocus_cache import Cache
 
@@ -424,7 +424,7 @@ def write_map_preview(path, sigma) -> Path:
     sigma = np.asarray(sigma, dtype=np.float64)
     h, w = sigma.shape
     if h * w > PREVIEW_MAX_PIXELS:  # the figure is ~1200 px wide: plot a downscaled copy
-        from method.upsampling import downscale_image
+        from method.magnify.upsampling import downscale_image
 
         s = (PREVIEW_MAX_PIXELS / (h * w)) ** 0.5
         sigma = downscale_image(sigma, (max(1, int(h * s)), max(1, int(w * s))))

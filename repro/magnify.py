@@ -53,8 +53,8 @@ PROG = "python -m repro.magnify"
 
 
 def _parser() -> ArgumentParser:
-    from method.magnification import MAGNIFICATION_KERNELS, MAP_FLOOR_MODES
-    from method.upsampling import DEFAULT_TILE_PIXELS
+    from method.magnify.magnification import MAGNIFICATION_KERNELS, MAP_FLOOR_MODES
+    from method.magnify.upsampling import DEFAULT_TILE_PIXELS
 
     p = ArgumentParser(
         prog=PROG,
@@ -81,7 +81,7 @@ def _parser() -> ArgumentParser:
                         "sharp regions soften) or subtract (the map's lower-5%% value is removed in "
                         "quadrature, sqrt(max(σ² − floor², 0)): pixels at that floor get no extra "
                         "blur, in-focus pixels estimated above it still get some); shift subtracts "
-                        f"it linearly (method.magnification.MAP_FLOOR_MODES: {', '.join(MAP_FLOOR_MODES)}). "
+                        f"it linearly (method.magnify.magnification.MAP_FLOOR_MODES: {', '.join(MAP_FLOOR_MODES)}). "
                         f"Default: the preset's map_floor, {_by_preset('map_floor')}")
     p.add_argument("--save-map", default=None, metavar="MAP",
                    help="also write the defocus map: .exr (float σ px), .png (preview) or .npy")
@@ -121,8 +121,8 @@ def default_output_path(photo: Path, factor: float) -> Path:
 
 def main(argv=None) -> int:
     """Entry point; returns the exit status (errors raise; see :func:`repro._cli.run_cli`)."""
-    from method.magnification import MAGNIFICATION_KERNELS, MAP_FLOOR_MODES, check_extra_blur, preprocess_defocus_map
-    from method.upsampling import magnify_defocus_tiled
+    from method.magnify.magnification import MAGNIFICATION_KERNELS, MAP_FLOOR_MODES, check_extra_blur, preprocess_defocus_map
+    from method.magnify.upsampling import magnify_defocus_tiled
     from repro.photo_io import OUTPUT_SUFFIXES, output_bit_depth, probe_photo, write_photo
 
     args = _parser().parse_args(argv)

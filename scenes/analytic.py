@@ -20,7 +20,7 @@ Dense ground truth (texture mosaics, for the defocus map):
 
 Conventions: pixel (row, col); x = column (right), y = row (down); an edge's normal angle θ is
 the direction in which intensity increases, u = (cos θ, sin θ) in (x, y) — the same convention as
-``method.gaussian_derivatives``. Images are float64 in [0, 1].
+``method.edges.gaussian_derivatives``. Images are float64 in [0, 1].
 
 This module must not import ``method`` (it is the ground truth the method is tested against).
 """

@@ -8,9 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from method.blur_estimators import BLUR_ESTIMATORS, estimate_blur
-from method.blur_model_fit import blur_from_extrema_distance, response_model
-from method.elder_zucker_edges import detect_edges
+from method.blur.estimators import BLUR_ESTIMATORS, estimate_blur
+from method.blur.model_fit import blur_from_extrema_distance, response_model
+from method.edges.elder_zucker import detect_edges
 from method.params import DefocusParams
 from scenes.analytic import blurred_disk, parallel_edges, step_edge
 from tests import tolerances as tol

@@ -8,11 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from method.blur_estimators import estimate_blur
-from method.blur_model_fit import _model_fit_diagnostics, fit_scales
-from method.blur_model_fit_checked import noise_residual_share, steered_second_noise_variance
-from method.elder_zucker_edges import detect_edges
-from method.gaussian_derivatives import GaussianDerivativeBank, steer_second
+from method.blur.estimators import estimate_blur
+from method.blur.model_fit import _model_fit_diagnostics, fit_scales
+from method.blur.model_fit_checked import noise_residual_share, steered_second_noise_variance
+from method.edges.elder_zucker import detect_edges
+from method.edges.gaussian_derivatives import GaussianDerivativeBank, steer_second
 from method.params import DefocusParams
 from scenes.analytic import step_edge
 

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from method.blur_estimators import BLUR_ESTIMATORS, estimate_blur
-from method.blur_model_fit import _model_fit_with_residual
-from method.elder_zucker_edges import detect_edges
+from method.blur.estimators import BLUR_ESTIMATORS, estimate_blur
+from method.blur.model_fit import _model_fit_with_residual
+from method.edges.elder_zucker import detect_edges
 from method.params import DefocusParams
 from scenes.analytic import parallel_edges, step_edge
 from tests import tolerances as tol

@@ -288,13 +288,13 @@ def _one_token_change(text: str) -> str:
 
 
 def test_docstring_edit_keeps_cache_entry_code_change_invalidates(tmp_path):
-    """A cache keyed by source_fingerprint of a copy of a real module (method/blur_estimators.py): the entry
+    """A cache keyed by source_fingerprint of a copy of a real module (method/blur/estimators.py): the entry
     built before a docstring/comment edit is served after it; a one-token code change misses it."""
     from defocus_cache import Cache
 
     pkg = tmp_path / "pkg"
     pkg.mkdir()
-    src = (ROOT / "method" / "blur_estimators.py").read_text()
+    src = (ROOT / "method" / "blur" / "estimators.py").read_text()
     (pkg / "mod.py").write_text(src)
     cache = Cache(tmp_path / "cache")
     builds = []

@@ -87,7 +87,7 @@ def test_every_command_has_version_and_the_shared_flag_names(name, capsys):
 def test_help_texts_list_registry_names(capsys, monkeypatch):
     from experiments.registry import FIGURES
     from method import BLUR_ESTIMATORS, MAGNIFICATION_KERNELS, PRESETS
-    from method.magnification import MAP_FLOOR_MODES
+    from method.magnify.magnification import MAP_FLOOR_MODES
     from scenes import SCENES
 
     checks = {"figures": [*FIGURES, *PRESETS], "render": list(SCENES), "evaluate": [*BLUR_ESTIMATORS, *PRESETS],

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from method.cross_bilateral import BILATERAL_METHODS, biased_cross_bilateral, sharpness_bias
+from method.refine.cross_bilateral import BILATERAL_METHODS, biased_cross_bilateral, sharpness_bias
 from tests.tolerances import BILATERAL_CONSTANT_ATOL, BILATERAL_GRID_REL_TOL
 
 
@@ -231,7 +231,7 @@ def test_bad_robust_and_kernel_options_raise(rng, bad):
 # --- the product grid's fast kernels against scipy (their oracle) ---------------------------------
 from scipy import ndimage  # noqa: E402
 
-import method.cross_bilateral as cbf  # noqa: E402
+import method.refine.cross_bilateral as cbf  # noqa: E402
 
 
 def _sparse_grid(rng, dims, fill=0.03):

@@ -1,4 +1,4 @@
-"""Fusion of edge and region blur measures in Eq. (4) (method.cue_fusion, method.pipeline).
+"""Fusion of edge and region blur measures in Eq. (4) (method.propagation.cue_fusion, method.pipeline).
 
 * inverse-variance fusion: analytic cases of :func:`fuse_measures` and of the region weights;
 * a wide smooth ramp (in-focus soft shading) beside sharp edges of the same surface cannot out-vote
@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from method import DefocusParams, estimate_defocus_map
-from method.cue_fusion import ERROR_FLOOR_PX, blur_islands, fuse_measures, region_data_term
+from method.propagation.cue_fusion import ERROR_FLOOR_PX, blur_islands, fuse_measures, region_data_term
 from method.pipeline import STAGES, luminance, propagate_stage
 
 REFERENCE = Path(__file__).parent / "references" / "cue_fusion_off.npz"

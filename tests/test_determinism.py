@@ -50,7 +50,7 @@ def test_two_processes_bit_identical(tmp_path, working):
 
 
 def test_in_process_repeat_and_caller_rng_untouched():
-    from method.upsampling import estimate_defocus_map_at_scale
+    from method.magnify.upsampling import estimate_defocus_map_at_scale
 
     img = textured_photo(48, 64)
     np.random.seed(123)

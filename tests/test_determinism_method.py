@@ -78,7 +78,7 @@ def _textured(h=96, w=112, seed=3):
 
 def test_global_rng_neither_used_nor_reseeded():
     from method import estimate_defocus_map
-    from method.propagation import propagate_defocus
+    from method.propagation.defocus import propagate_defocus
 
     img = _textured()
     np.random.seed(2024)

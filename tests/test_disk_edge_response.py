@@ -1,4 +1,4 @@
-"""The disk-blurred step response (method.disk_edge_response) and the model fit's PSF models (fit_psf).
+"""The disk-blurred step response (method.blur.disk_edge_response) and the model fit's PSF models (fit_psf).
 
 Analytic truth: a step blurred by a uniform disk of diameter c (the thin lens's defocus, Eq. 5) has
 per-axis std c/4; the disk model recovers it, the paper's Gaussian model (Eq. 2c) over-estimates it
@@ -17,11 +17,11 @@ from scipy.ndimage import gaussian_filter
 from scipy.signal import fftconvolve
 
 from method import DefocusParams
-from method.blur_estimators import estimate_blur_with_confidence
-from method.blur_model_fit import (FIT_PSF_MODELS, PSF_SELECT_MIN_EDGES, _model_fit_diagnostics, response_model,
+from method.blur.estimators import estimate_blur_with_confidence
+from method.blur.model_fit import (FIT_PSF_MODELS, PSF_SELECT_MIN_EDGES, _model_fit_diagnostics, response_model,
                                    select_psf_model)
-from method.disk_edge_response import DISK_RHO_MAX, disk_line_spread, disk_step_response
-from method.elder_zucker_edges import detect_edges
+from method.blur.disk_edge_response import DISK_RHO_MAX, disk_line_spread, disk_step_response
+from method.edges.elder_zucker import detect_edges
 
 #: Table lookup vs direct integration, relative to the peak |r| (measured ≤ 1.4e-3).
 RESPONSE_RTOL = 2.5e-3
@@ -183,8 +183,8 @@ def test_gaussian_model_is_the_paper_fit_bit_for_bit():
 def test_fit_kernel_disk_score_matches_the_public_response(s_prime, sig_p, t0):
     """The fit's fast template scoring (blur_model_fit._score_disk) against templates from
     disk_step_response: (r·m)²/(m·m) over the window, m(k) = r_disk(k − t0; R', σ')."""
-    from method.blur_model_fit import _score_disk
-    from method.disk_edge_response import _response_table
+    from method.blur.model_fit import _score_disk
+    from method.blur.disk_edge_response import _response_table
 
     K = 20
     rng = np.random.default_rng(3)
@@ -207,7 +207,7 @@ def test_fit_kernel_disk_score_matches_the_public_response(s_prime, sig_p, t0):
 def test_blur_measures_equal_the_plain_estimator_and_mark_the_disk(fit_psf):
     """σ and confidence of estimate_blur_measures are bit-identical to estimate_blur_with_confidence;
     psf_disk marks exactly the measures whose fit used the disk (the fit's own diagnostics)."""
-    from method.blur_estimators import estimate_blur_measures
+    from method.blur.estimators import estimate_blur_measures
 
     img = _blurred_step(3.0, "disk")
     params = DefocusParams.preset("robust", fit_psf=fit_psf)

@@ -1,4 +1,4 @@
-"""Isolation weights of edge measures (method.edge_isolation): a bar's two close edges weigh less
+"""Isolation weights of edge measures (method.edges.isolation): a bar's two close edges weigh less
 than an isolated step's, which weighs fully; the weight enters the pipeline's measure confidence."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from method import DefocusParams, estimate_defocus_map
-from method.edge_isolation import EDGE_ISOLATION_METHODS, isolation_weights
+from method.edges.isolation import EDGE_ISOLATION_METHODS, isolation_weights
 from method.pipeline import edges_stage, luminance
 
 SIGMA = 2.0  # px, blur of both test images

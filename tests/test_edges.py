@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.ndimage as ndi
 
-from method.elder_zucker_edges import EdgeMap, detect_edges
+from method.edges.elder_zucker import EdgeMap, detect_edges
 from scenes.analytic import blurred_disk, step_edge
 from tests import tolerances as tol
 

@@ -160,7 +160,7 @@ def test_default_preset_is_robust_and_says_so(tmp_path, photo, cache_dir, capsys
 def test_presets_paper_and_robust_round_trip(tmp_path, photo, cache_dir, capsys):
     from method import DefocusParams
     from method.pipeline import estimate_defocus_map
-    from method.upsampling import DEFAULT_MAX_WORKING_PIXELS
+    from method.magnify.upsampling import DEFAULT_MAX_WORKING_PIXELS
     from repro.photo_io import read_photo
 
     maps = {}

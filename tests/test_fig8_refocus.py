@@ -43,7 +43,7 @@ def ramp_case():
 # --- method ---------------------------------------------------------------------------------------
 @pytest.mark.parametrize("method", ["wiener", "cls"])
 def test_deconvolution_with_true_map_improves_psnr(ramp_case, method):
-    from method.refocusing import deconvolve_defocus
+    from method.magnify.refocusing import deconvolve_defocus
 
     sharp, blurred, sigma = ramp_case
     out = deconvolve_defocus(blurred, sigma, method=method)
@@ -53,7 +53,7 @@ def test_deconvolution_with_true_map_improves_psnr(ramp_case, method):
 
 
 def test_zero_map_is_the_identity(ramp_case):
-    from method.refocusing import deconvolve_defocus, refocus
+    from method.magnify.refocusing import deconvolve_defocus, refocus
 
     _, blurred, sigma = ramp_case
     rgb = np.stack([blurred, blurred ** 2, 1 - blurred], axis=-1)
@@ -68,7 +68,7 @@ def test_zero_map_is_the_identity(ramp_case):
 
 
 def test_refocus_with_the_same_map_returns_the_input(ramp_case):
-    from method.refocusing import refocus
+    from method.magnify.refocusing import refocus
 
     sharp, blurred, sigma = ramp_case
     assert _psnr(refocus(blurred, sigma, sigma), blurred) > tol.FIG8_SAME_MAP_MIN_PSNR_DB
@@ -80,7 +80,7 @@ def test_refocus_with_the_same_map_returns_the_input(ramp_case):
 
 def test_refocus_moves_the_focus(ramp_case):
     """Swap which side is sharp: the refocused image is closer to the truth blurred by the new map."""
-    from method.refocusing import refocus
+    from method.magnify.refocusing import refocus
 
     sharp, blurred, sigma = ramp_case
     new = sigma[:, ::-1].copy()
@@ -92,7 +92,7 @@ def test_refocus_moves_the_focus(ramp_case):
 
 
 def test_large_sigma_and_extreme_values_stay_finite():
-    from method.refocusing import deconvolve_defocus, refocus
+    from method.magnify.refocusing import deconvolve_defocus, refocus
 
     rng = np.random.default_rng(3)
     img = (rng.random((40, 50, 3)) > 0.5).astype(np.float64)
@@ -114,7 +114,7 @@ def test_large_sigma_and_extreme_values_stay_finite():
     ({"image": np.ones((8, 9, 4))}, "HxW"),
 ])
 def test_deconvolve_rejects_bad_input(kwargs, match):
-    from method.refocusing import deconvolve_defocus
+    from method.magnify.refocusing import deconvolve_defocus
 
     args = {"image": np.full((8, 9), 0.5), "defocus_map": np.ones((8, 9))}
     args.update(kwargs)
@@ -123,7 +123,7 @@ def test_deconvolve_rejects_bad_input(kwargs, match):
 
 
 def test_refocus_rejects_bad_new_map_and_kernel():
-    from method.refocusing import refocus
+    from method.magnify.refocusing import refocus
 
     img, m = np.full((8, 9), 0.5), np.ones((8, 9))
     with pytest.raises(ValueError, match="new_blur_map"):
@@ -137,8 +137,8 @@ def test_refocus_rejects_bad_new_map_and_kernel():
 def test_exported_from_method():
     import method
 
-    assert method.refocus is method.refocusing.refocus
-    assert method.deconvolve_defocus is method.refocusing.deconvolve_defocus
+    assert method.refocus is method.magnify.refocusing.refocus
+    assert method.deconvolve_defocus is method.magnify.refocusing.deconvolve_defocus
     assert set(method.DECONVOLUTION_METHODS) == {"wiener", "cls"}
 
 

@@ -8,7 +8,7 @@ import scipy.fft
 import scipy.ndimage as ndi
 from scipy.special import erfinv
 
-from method.gaussian_derivatives import (
+from method.edges.gaussian_derivatives import (
     GaussianDerivativeBank,
     gaussian_derivative,
     sampled_kernel,
@@ -16,7 +16,7 @@ from method.gaussian_derivatives import (
     steer_second,
     steer_third,
 )
-from method.noise_thresholds import (
+from method.edges.noise_thresholds import (
     first_derivative_threshold,
     per_pixel_false_positive_rate,
     second_derivative_threshold,
@@ -141,7 +141,7 @@ def test_fused_transfer_is_numpys_two_products_byte_for_byte(precision, rng):
     Every order the bank serves (0 … 3, odd orders with their zeroed Nyquist bin), scales on every
     padding level, even and odd FFT sizes; the inverse FFTs of both then agree byte for byte too.
     """
-    from method.gaussian_derivatives import _apply_transfer
+    from method.edges.gaussian_derivatives import _apply_transfer
 
     for shape in ((80, 84), (81, 77)):
         img = np.clip(0.5 + 0.2 * rng.standard_normal(shape), 0, 1)

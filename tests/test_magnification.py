@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from scipy import ndimage
 
-from method.magnification import MAGNIFICATION_KERNELS, MAP_FLOOR_MODES, magnify_defocus, preprocess_defocus_map
+from method.magnify.magnification import MAGNIFICATION_KERNELS, MAP_FLOOR_MODES, magnify_defocus, preprocess_defocus_map
 from tests.tolerances import MAGNIFY_GRADIENT_ENERGY_RTOL, MAGNIFY_SIGMA_RTOL
 
 

@@ -325,8 +325,8 @@ def test_huge_factor_subprocess_under_a_memory_limit(tmp_path, photo):
 
 
 def test_magnify_api_bounds_the_extra_blur():
-    from method.magnification import magnify_defocus
-    from method.upsampling import magnify_defocus_tiled
+    from method.magnify.magnification import magnify_defocus
+    from method.magnify.upsampling import magnify_defocus_tiled
 
     img = textured_photo(48, 64)
     m = np.full((48, 64), 2.0)
@@ -341,7 +341,7 @@ def test_magnify_api_bounds_the_extra_blur():
     with pytest.raises(ValueError, match="too large"):
         magnify_defocus(img, m, factor=k * 1.01, preprocess=False)
     # a tiny image may be blurred past its size, up to MIN_EXTRA_SIGMA_LIMIT
-    from method.magnification import MIN_EXTRA_SIGMA_LIMIT
+    from method.magnify.magnification import MIN_EXTRA_SIGMA_LIMIT
 
     tiny, mt = img[:8, :8], np.full((8, 8), 2.0)
     k_tiny = float(np.sqrt(1 + (MIN_EXTRA_SIGMA_LIMIT / 2.0) ** 2))

@@ -7,7 +7,7 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from method.matting_propagation import (
+from method.propagation.matting import (
     DEFAULT_EPSILON,
     DEFAULT_LAMBDA,
     MATTING_SOLVERS,

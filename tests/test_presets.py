@@ -4,7 +4,7 @@
 * presets, names and the new fields are validated;
 * every robust switch is its own field, and the one-switch-off ablation on a texture mosaic shows
   which switches help the dense map (and, honestly, which do not);
-* the model-fit plausibility rules (:func:`method.blur_model_fit.apply_fit_rules`) do what they say
+* the model-fit plausibility rules (:func:`method.blur.model_fit.apply_fit_rules`) do what they say
   and keep the analytic step-edge accuracy.
 
 Run with ``pytest -s`` to see the measured ablation table.
@@ -20,13 +20,13 @@ import pytest
 from experiments.metrics import region_masks
 from experiments.stage_attribution import ablation_params
 from method import NoEdgesWarning, estimate_defocus_map
-from method.blur_estimators import estimate_blur
-from method.blur_model_fit import _model_fit_diagnostics, apply_fit_rules, estimate_blur_model_fit
-from method.elder_zucker_edges import detect_edges
+from method.blur.estimators import estimate_blur
+from method.blur.model_fit import _model_fit_diagnostics, apply_fit_rules, estimate_blur_model_fit
+from method.edges.elder_zucker import detect_edges
 from method.params import PRESETS, ROBUST_CHANGES, ZHUO_SIM_CHANGES, DefocusParams
 from method.pipeline import luminance
-from method.propagation import propagate_defocus
-from method.propagation_methods import PROPAGATION_METHODS, propagate_blur_measures
+from method.propagation.defocus import propagate_defocus
+from method.propagation.methods import PROPAGATION_METHODS, propagate_blur_measures
 from scenes.analytic import step_edge, texture_mosaic
 from tests.tolerances import (MOSAIC_ABLATION_MARGIN_PX, MOSAIC_ABLATION_MIN_GAIN_PX,
                               MOSAIC_ROBUST_VS_PAPER_MIN_GAIN_PX, MOSAIC_SPARSE_MIN_GAIN_PX, ROBUST_FIT_STEP_RTOL)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from method.propagation import (
+from method.propagation.defocus import (
     PROPAGATION_REFINEMENTS,
     PROPAGATION_SOLVERS,
     colorization_matrix,
@@ -176,7 +176,7 @@ def test_default_refinement_close_to_exact_mid_size(mid_size_case, downsample):
 
 
 def test_auto_downsample_factors():
-    from method.propagation import AUTO_MAX_COARSE_PIXELS, AUTO_MAX_EXACT_PIXELS, _auto_downsample
+    from method.propagation.defocus import AUTO_MAX_COARSE_PIXELS, AUTO_MAX_EXACT_PIXELS, _auto_downsample
 
     assert AUTO_MAX_EXACT_PIXELS >= 160 * 120  # the small renders (CI goldens) are solved exactly
     assert _auto_downsample(181, 181, AUTO_MAX_COARSE_PIXELS) == 1  # up to 2^15 px: exact

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from method import DefocusParams, estimate_defocus_map
-from method.propagation import AUTO_MAX_COARSE_PIXELS, _auto_downsample, propagate_defocus
-from method.upsampling import DEFAULT_MAX_WORKING_PIXELS, working_shape
+from method.propagation.defocus import AUTO_MAX_COARSE_PIXELS, _auto_downsample, propagate_defocus
+from method.magnify.upsampling import DEFAULT_MAX_WORKING_PIXELS, working_shape
 
 
 @pytest.mark.parametrize("photo_shape", [(2000, 3000, 3), (1000, 1500, 3), (3456, 5184, 3)])

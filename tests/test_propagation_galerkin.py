@@ -1,4 +1,4 @@
-"""The Galerkin coarse operator of the two-level propagation (method.propagation_galerkin).
+"""The Galerkin coarse operator of the two-level propagation (method.propagation.galerkin).
 
 Oracle: the matrix-free kernel against the explicit sparse product Pᵀ (LᵀL + diag a) P of the
 assembled Eq. (4) system; the transfer operators against each other and against the start-map
@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from method import propagation as P
-from method import propagation_system as E
-from method.propagation_galerkin import galerkin_coarse_operator, prolong, restrict
-from method.propagation_matrix_free import bilinear_1d
+import method.propagation.defocus as P
+import method.propagation.system as E
+from method.propagation.galerkin import galerkin_coarse_operator, prolong, restrict
+from method.propagation.matrix_free import bilinear_1d
 
 
 def _case(rng, h, w, density=0.2):
@@ -115,7 +115,7 @@ def test_galerkin_refinement_beats_the_rediscretised_one_at_equal_work():
 
 @pytest.mark.parametrize("shape,s", [((50, 61), 4), ((33, 70), 8), ((40, 29), 2)])
 def test_specialised_3x3_kernel_equals_the_generic_one_to_round_off(shape, s):
-    import method.propagation_galerkin as G
+    import method.propagation.galerkin as G
 
     rng = np.random.default_rng(21)
     ref, a = _case(rng, *shape)

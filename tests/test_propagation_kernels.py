@@ -1,12 +1,12 @@
-"""The matrix-free numba kernels (method.propagation_matrix_free) agree with the assembled Eq. (4) system."""
+"""The matrix-free numba kernels (method.propagation.matrix_free) agree with the assembled Eq. (4) system."""
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from method import propagation_matrix_free as MF
-from method import propagation_solvers as S
-from method import propagation_system as E
+import method.propagation.matrix_free as MF
+import method.propagation.solvers as S
+import method.propagation.system as E
 
 
 def _case(rng, h, w):
@@ -81,7 +81,7 @@ def test_bilinear_is_the_start_map_interpolation_and_its_transpose(n, s):
     c = rng.random((nc, nc))  # P₁ ⊗ P₁ makes the start map: bilinear at block-centred coordinates
     from scipy import ndimage
 
-    from method.propagation_galerkin import prolong
+    from method.propagation.galerkin import prolong
 
     pos = (np.arange(n) + 0.5) / s - 0.5  # fine pixel centres in coarse sample units
     oracle = ndimage.map_coordinates(c, np.meshgrid(pos, pos, indexing="ij"), order=1, mode="nearest")

@@ -1,5 +1,5 @@
 """Property-based tests (hypothesis) of the photo-level pipeline, plus unit tests of
-method/upsampling.py (working resolution, downscaling, guided upsampling, tiled magnification).
+method/magnify/upsampling.py (working resolution, downscaling, guided upsampling, tiled magnification).
 
 Properties, for random valid images and parameters:
 
@@ -22,8 +22,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy import ndimage
 
-from method.magnification import MAGNIFICATION_KERNELS, magnify_defocus, preprocess_defocus_map
-from method.upsampling import (
+from method.magnify.magnification import MAGNIFICATION_KERNELS, magnify_defocus, preprocess_defocus_map
+from method.magnify.upsampling import (
     _halo,
     downscale_image,
     estimate_defocus_map_at_scale,
@@ -87,7 +87,7 @@ def smooth_maps(draw, shape, *, max_sigma=6.0):
                                                                             "gradient_ratio"]),
        budget=st.sampled_from([None, 200, 500]))
 def test_map_finite_nonnegative_full_shape(img, alpha, estimator, budget):
-    from method.blur_estimators import BLUR_ESTIMATORS
+    from method.blur.estimators import BLUR_ESTIMATORS
     from method.params import DefocusParams
 
     if estimator not in BLUR_ESTIMATORS:
@@ -193,7 +193,7 @@ def test_working_shape_rejects_bad_input():
 
 
 def test_downscale_matches_filter_then_resample(rng):
-    from method.upsampling import _resize_axis
+    from method.magnify.upsampling import _resize_axis
 
     img = rng.random((123, 171, 3))
     out = downscale_image(img, (40, 57))

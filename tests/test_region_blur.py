@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from scipy.ndimage import convolve
 
-import method.blur_local_spectrum as bls
+import method.blur.local_spectrum as bls
 from method.params import PRESETS, DefocusParams
-from method.region_estimators import REGION_ESTIMATORS, estimate_region_blur
+from method.blur.region_estimators import REGION_ESTIMATORS, estimate_region_blur
 from scenes.analytic import dead_leaves, degrade
 
 #: |median σ̂ − σ| allowed on the Gaussian dead leaves, px: max(GAUSS_TOL_PX, GAUSS_TOL_REL · σ).

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from method import DefocusParams, NoEdgesWarning, estimate_defocus_map
-from method.blur_estimators import estimate_blur, estimate_blur_with_confidence, uses_measure_confidence
-from method.blur_model_fit import _model_fit_diagnostics
-from method.cross_bilateral import biased_cross_bilateral
-from method.elder_zucker_edges import detect_edges
+from method.blur.estimators import estimate_blur, estimate_blur_with_confidence, uses_measure_confidence
+from method.blur.model_fit import _model_fit_diagnostics
+from method.refine.cross_bilateral import biased_cross_bilateral
+from method.edges.elder_zucker import detect_edges
 from method.pipeline import luminance, propagate_stage, refine_stage
 from scenes.analytic import texture_mosaic
 
@@ -177,7 +177,7 @@ def test_cross_bilateral_weights():
 def test_a_registered_confidence_estimator_drives_the_pipeline(monkeypatch, blurry_mosaic):
     """The confidence is a registry capability: an estimator registered in MEASURE_CONFIDENCE (here a
     test one, half of whose measures weigh 0.05) has its confidence reach both later stages."""
-    import method.blur_estimators as be
+    import method.blur.estimators as be
     from method.pipeline import blur_stage, edges_stage
 
     def fit(gray, edge_map, *, params):

@@ -1,6 +1,6 @@
 """Stage attribution with oracle inputs (experiments.stage_attribution), the pipeline's stage hooks
 (method.pipeline.refine_stage / propagate_stage / edge_confidence) and the per-edge confidence of
-the propagation (method.propagation.propagate_defocus(confidence=...)).
+the propagation (method.propagation.defocus.propagate_defocus(confidence=...)).
 """
 
 import numpy as np
@@ -8,11 +8,11 @@ import pytest
 
 from experiments.stage_attribution import INPUTS, SIGMA_BINS, ablation_params, stage_errors, stage_rows
 from method import DefocusParams, estimate_defocus_map
-from method.cross_bilateral import biased_cross_bilateral
+from method.refine.cross_bilateral import biased_cross_bilateral
 from method.params import ROBUST_CHANGES
 from method.pipeline import edge_confidence, propagate_stage, propagation_confidence, refine_stage
-from method.propagation import propagate_defocus
-from method.propagation_methods import propagate_blur_measures
+from method.propagation.defocus import propagate_defocus
+from method.propagation.methods import propagate_blur_measures
 from scenes.analytic import texture_mosaic
 from tests.test_presets import MOSAIC, MOSAIC_SEEDS, REFINEMENT_FIELDS
 from tests.tolerances import (PROPAGATION_CONFIDENCE_ONES_ATOL, PROPAGATION_ZERO_CONFIDENCE_ATOL_PX,

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
-from method.canny_edges import detect_edges_canny
+from method.edges.canny import detect_edges_canny
 from method.params import ZHUO_SIM_CHANGES, DefocusParams
 from method.pipeline import blur_stage, edges_stage
 from scenes.analytic import dead_leaves, step_edge
@@ -197,8 +197,8 @@ def test_gradient_ratio_defaults_are_the_previous_reading():
     """The default ratio fields keep the harness's reading bit for bit (Fig. 4 and the evaluate goldens
     run it): gradients at 0.5 and √1.25 px, σ = √(max(1/(R² − 1) − 0.25, 0)), NaN where R ≤ 1, 0 kept,
     clipped to max_sigma."""
-    from method.elder_zucker_edges import detect_edges
-    from method.gaussian_derivatives import GaussianDerivativeBank
+    from method.edges.elder_zucker import detect_edges
+    from method.edges.gaussian_derivatives import GaussianDerivativeBank
 
     img = dead_leaves((64, 64), sigma=1.5, rng=2)
     em = detect_edges(img)
@@ -247,7 +247,7 @@ def test_zhuo_sim_dense_map_matches_public_code_on_texture(sigma):
 
 def test_matting_data_weight_sigma_builds_the_public_system():
     """D = diag(d̂): the diagonal gains λ·d̂ at a measure, b = λ·d̂²; a 0-px measure adds nothing."""
-    from method.matting_propagation import matting_system
+    from method.propagation.matting import matting_system
 
     rng = np.random.default_rng(3)
     ref = rng.uniform(size=(12, 12, 3))

@@ -28,8 +28,8 @@ CALIB_EDGE_POSITION_PX = 0.1
 #: fig10 quick mode: max relative error of measured c vs Eq. (5) over the plotted points.
 FIG10_MAX_REL_ERR = 0.03
 
-# --- cross-bilateral refinement, propagation, magnification (method/cross_bilateral.py,
-#     method/propagation.py, method/magnification.py) ------------------------------------------
+# --- cross-bilateral refinement, propagation, magnification (method/refine/cross_bilateral.py,
+#     method/propagation/defocus/defocus.py, method/magnify/magnification.py) ------------------------------------------
 #: Bilateral grid vs brute-force oracle, max |difference| as a fraction of the BM value range.
 #: Cells of σ/3 with the tent⊛tent variance compensated measured ≤ 0.9 % over 18 cases.
 BILATERAL_GRID_REL_TOL = 0.02
@@ -70,7 +70,7 @@ SCENE_EMISSION_ATOL = 2e-2
 #: by at least this much (orientation test).
 SCENE_ORIENTATION_MARGIN = 0.2
 
-# --- photo I/O, working resolution, photo CLIs (repro/photo_io.py, method/upsampling.py,
+# --- photo I/O, working resolution, photo CLIs (repro/photo_io.py, method/magnify/upsampling.py,
 #     repro/estimate.py, repro/magnify.py) ------------------------------------------------------
 #: JPEG written at quality 95, 4:4:4, then read back, smooth saturated ramp: max and mean |difference|
 #: (measured 5.4/255 and < 1/255; quantisation of DCT coefficients, worst at saturated corners).
@@ -93,8 +93,8 @@ MAGNIFY_IDENTITY_ATOL = 0.0
 #: of the guide's edge (the filter's window is 2 working px; the jump should sit at the full-res edge).
 GUIDED_EDGE_POSITION_PX = 1
 
-# --- Sec. 3.1/3.2: Gaussian derivatives, edges, blur estimators (method/gaussian_derivatives.py,
-#     method/noise_thresholds.py, method/elder_zucker_edges.py, method/blur_*.py, scenes/analytic.py)
+# --- Sec. 3.1/3.2: Gaussian derivatives, edges, blur estimators (method/edges/gaussian_derivatives.py,
+#     method/edges/noise_thresholds.py, method/edges/elder_zucker.py, method/blur_*.py, scenes/analytic.py)
 #: FFT (analytic transfer) vs direct convolution with the sampled Eq. (7)/(8) kernels, relative to
 #: the response's max, σ >= 1.5 px on a smooth image (sampled-kernel aliasing exp(−2π²σ²)·(2π)^k
 #: and truncation, measured ≤ 4e-5).
@@ -187,7 +187,7 @@ PIPELINE_TWO_REGION_SIGMA_RTOL = 0.15
 #: 6.4e-4 px (4×) and 5.9e-4 / 2.7e-3 px (2×), so the bounds were raised from 5e-4 / 2e-3 (24
 #: iterations) to 8e-4 / 3.5e-3; the Jacobi-only refinement stays ≥ 35× outside them.
 #: On the astronaut photo the default is 0.0082 / 0.019 px RMS from the exact solve at
-#: 512² / 1024² (method/propagation.py, propagate_defocus Notes).
+#: 512² / 1024² (method/propagation/defocus/defocus.py, propagate_defocus Notes).
 PROPAGATION_DEFAULT_VS_EXACT_RMS_PX = 8e-4
 PROPAGATION_DEFAULT_VS_EXACT_P99_PX = 3.5e-3
 #: Restriction is the exact transpose of the bilinear prolongation: |⟨Pᵀu, v⟩ − ⟨u, Pv⟩| relative.
@@ -206,7 +206,7 @@ FIG5_SWEEP_MIN_BLURRY_EDGES = 50
 #: (same calls; the difference is float32 storage of the sweep maps), max |Δσ| px.
 FIG5_SWEEP_PIPELINE_ATOL_PX = 1e-4
 
-# --- model_fit_checked (method/blur_model_fit_checked.py): goodness-of-fit test on Eq. (2c) --------
+# --- model_fit_checked (method/blur/model_fit_checked.py): goodness-of-fit test on Eq. (2c) --------
 #: Fraction of model_fit estimates at analytic step-edge pixels the checked estimator must keep
 #: (DefocusParams.fit_max_residual = 0.05; measured 100 % noise-free and 100 % at noise 2/255 + 8 bits,
 #: max ρ 0.0036 / 0.025).
@@ -232,7 +232,7 @@ REF_DEPTH_RTOL = 1e-5
 #: σ_gt vs the reference, px (float32 round-off).
 REF_SIGMA_ATOL_PX = 1e-5
 
-# --- fig8 refocusing (method/refocusing.py, experiments/fig8_refocus.py) --------------------------
+# --- fig8 refocusing (method/magnify/refocusing.py, experiments/fig8_refocus.py) --------------------------
 #: Minimum PSNR gain of deconvolve_defocus (default λ = 1e-2) with the true σ map over the blurred
 #: input on the analytic test (periodic pattern, σ 0.5–3 px ramp, 8-bit): measured +2.7 dB ("wiener")
 #: and +2.6 dB ("cls") at λ = 1e-2, +4.8 dB at the best λ ≈ 3e-4, dB.
@@ -247,8 +247,8 @@ FIG8_CONSTANT_ROUNDTRIP_ATOL = 0.02
 #: 0.025 including the border, so the test compares the interior.)
 
 # --- presets and the robust preset's switches (method/params.py PRESETS / ROBUST_CHANGES,
-#     method/blur_model_fit.py apply_fit_rules, method/cross_bilateral.py range_kernel="product" /
-#     robust_iterations, method/propagation.py confidence=, experiments/stage_attribution.py) ------
+#     method/blur/model_fit.py apply_fit_rules, method/refine/cross_bilateral.py range_kernel="product" /
+#     robust_iterations, method/propagation/defocus/defocus.py confidence=, experiments/stage_attribution.py) ------
 #: The robust preset's blur estimator (model_fit_checked, ρ ≤ 0.03, with the fit rules and
 #: fit_max_scale = 2 px) on straight step edges (σ = 1, 3, 6 px; 8-bit + noise 1/255; 4 angles),
 #: median |σ_est − σ| at edge pixels ≤ this · σ. Measured 0.016 / 0.043 / 0.072 px (0.016σ, 0.014σ,

@@ -4,11 +4,11 @@
   of CG, deterministic set-up, single-threaded BLAS) and ``"direct"`` (sparse LU, small images), each
   ``solve(A, rhs, *, x0, tol) -> x``;
 * :data:`COARSE_SETUPS`: per solver name, the set-up of the coarse level of
-  :func:`method.propagation.propagate_defocus`'s coarse mode (:class:`CoarseLevel`): the hierarchy or
+  :func:`method.propagation.defocus.propagate_defocus`'s coarse mode (:class:`CoarseLevel`): the hierarchy or
   factorisation built once serves both the coarse solve and the coarse-grid correction of the
   two-level preconditioner (one V-cycle, :func:`amg_vcycle`, or the LU solve).
 
-The system itself comes from :mod:`method.propagation_system`.
+The system itself comes from :mod:`method.propagation.system`.
 """
 
 from __future__ import annotations

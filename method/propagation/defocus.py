@@ -25,13 +25,13 @@ solver is only feasible on small images; the fast solver stays matrix-free at th
 
 Where each part lives (as pymatting splits laplacian / solver / preconditioner)
 ------------------------------------------------------------------------------
-* :mod:`method.propagation_system` — the equation: affinities of Eq. (4c)
-  (:func:`~method.propagation_system.colorization_weights`), L = I − W
-  (:func:`~method.propagation_system.colorization_matrix`), the normal equations
-  (:func:`~method.propagation_system.normal_equations`) and the coarse re-discretisation;
-* :mod:`method.propagation_solvers` — solvers of the assembled system (:data:`PROPAGATION_SOLVERS`:
+* :mod:`method.propagation.system` — the equation: affinities of Eq. (4c)
+  (:func:`~method.propagation.system.colorization_weights`), L = I − W
+  (:func:`~method.propagation.system.colorization_matrix`), the normal equations
+  (:func:`~method.propagation.system.normal_equations`) and the coarse re-discretisation;
+* :mod:`method.propagation.solvers` — solvers of the assembled system (:data:`PROPAGATION_SOLVERS`:
   AMG-PCG, direct) and the coarse level of the coarse mode (AMG hierarchy + V-cycle, or LU);
-* :mod:`method.propagation_matrix_free` — the matrix-free preconditioned CGs at full resolution and
+* :mod:`method.propagation.matrix_free` — the matrix-free preconditioned CGs at full resolution and
   their numba kernels (two-level: Jacobi + coarse-grid correction; Jacobi alone);
 * this module — the driver :func:`propagate_defocus` (validation, exact or coarse mode, refinement).
 
@@ -40,7 +40,7 @@ Solving (see :func:`propagate_defocus`, Notes)
 Images up to 2¹⁵ px (≈ 181²; the small renders) are solved exactly (pyamg smoothed-aggregation
 multigrid + CG). Larger ones are solved on a grid coarsened by a power of two, at least 4× (4× up to
 ≈ 362², 8× at 512², 1 MP and the photo tools' 1.5 MP, 16× at 4 MP), with the *Galerkin* coarse operator PᵀAP of the
-exact full-resolution system (:mod:`method.propagation_galerkin`); the interpolated coarse solution
+exact full-resolution system (:mod:`method.propagation.galerkin`); the interpolated coarse solution
 starts a CG on the exact full-resolution system, preconditioned by Jacobi plus a coarse-grid
 correction through the same coarse hierarchy (two-level, matrix-free fine level), max(⌈2.5·s⌉, 20)
 iterations. On the astronaut photo the default is 0.016 px RMS / 0.069 px p99 (512², 8×) and 0.019 px
@@ -57,10 +57,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .propagation_galerkin import galerkin_coarse_operator, prolong, restrict
-from .propagation_matrix_free import jacobi_pcg, two_level_pcg
-from .propagation_solvers import COARSE_SETUPS, PROPAGATION_SOLVERS
-from .propagation_system import (
+from .galerkin import galerkin_coarse_operator, prolong, restrict
+from .matrix_free import jacobi_pcg, two_level_pcg
+from .solvers import COARSE_SETUPS, PROPAGATION_SOLVERS
+from .system import (
     _assemble,
     _coarse_problem,
     _data_term,
@@ -70,7 +70,7 @@ from .propagation_system import (
     colorization_weights,
     normal_equations,
 )
-from .validation import check_positive, validate_propagation_inputs
+from ..validation import check_positive, validate_propagation_inputs
 
 __all__ = [
     "PROPAGATION_REFINEMENTS",
@@ -194,9 +194,9 @@ def _refine_jacobi(fine, x0, *, coarse, scale, s, coarse_shape, maxiter, tol):
 #: name -> (start: coarse level + start map, refine: full-resolution CG).
 #:
 #: * ``"galerkin"`` (default): the coarse level is the Galerkin operator PᵀAP of the exact fine
-#:   system (:func:`method.propagation_galerkin.galerkin_coarse_operator`), its solution
+#:   system (:func:`method.propagation.galerkin.galerkin_coarse_operator`), its solution
 #:   interpolated starts a CG preconditioned by Jacobi + that coarse-grid correction
-#:   (:func:`method.propagation_matrix_free.two_level_pcg`, c = 1);
+#:   (:func:`method.propagation.matrix_free.two_level_pcg`, c = 1);
 #: * ``"two_level"`` (a comparison): the same CG with the coarse level re-discretised from
 #:   the block-averaged guide (c = s²), whose correction is wrong across colour edges;
 #: * ``"jacobi"``: the re-discretised start and a Jacobi-only CG, which leaves the coarse grid's
@@ -290,7 +290,7 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
         Beyond the paper: per-edge confidence c_p, so α_p = alpha·c_p at edge pixels (None: the
         paper's α_p = alpha). Ignored off edges.
     max_confidence : float, keyword-only
-        Largest accepted c_p (default 1). Fused region measures (:mod:`method.cue_fusion`) stand for a
+        Largest accepted c_p (default 1). Fused region measures (:mod:`method.propagation.cue_fusion`) stand for a
         window of pixels and may weigh more than one edge pixel; the pipeline raises it for them.
 
     Returns
@@ -307,13 +307,13 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
     Notes
     -----
     1. Affinities w_pq (Eq. 4c) with σ_ip from a ``window``-side box and N(p) a ``neighborhood``-side
-       box (:func:`method.propagation_system.colorization_weights`); L = I − W.
+       box (:func:`method.propagation.system.colorization_weights`); L = I − W.
     2. α_p = alpha where BM is finite; system (LᵀL + diag α + λI) B = α·BM + λ·mean(BM), λ = regularization·alpha.
     3. Exact mode (``downsample=1``; ``"auto"`` up to :data:`AUTO_MAX_EXACT_PIXELS`): assemble and
        solve with ``solver`` (AMG-PCG to ``tol``).
     4. Coarse mode (s > 1), ``refinement="galerkin"`` (default): the coarse operator is the Galerkin
        projection A_c = PᵀAP of the exact full-resolution system with the bilinear interpolation P
-       (:func:`method.propagation_galerkin.galerkin_coarse_operator`, formed matrix-free from the
+       (:func:`method.propagation.galerkin.galerkin_coarse_operator`, formed matrix-free from the
        affinities, ~0.1 s at 1 MP). Build its solver once (AMG hierarchy or LU), solve
        A_c B_c = Pᵀ rhs to ``coarse_tol`` (1e-3 by default) and interpolate (P B_c) to get the
        start map. With ``"two_level"`` / ``"jacobi"`` the coarse problem is instead re-discretised:
@@ -327,7 +327,7 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
        :data:`REFINE_VECTOR_DTYPE`), preconditioned by M⁻¹ = D⁻¹ + c·P Ã_c⁻¹ Pᵀ — Jacobi for the
        oscillatory error plus a coarse-grid correction (restriction Pᵀ, one V-cycle of the coarse
        hierarchy, prolongation P) for the smooth error (c = 1 for the Galerkin operator, s² for
-       the re-discretised one; :func:`method.propagation_matrix_free.two_level_pcg`). Cost O(H·W) per
+       the re-discretised one; :func:`method.propagation.matrix_free.two_level_pcg`). Cost O(H·W) per
        iteration plus one V-cycle on the coarse grid; max(⌈2.5·s⌉, 20) iterations by default. The 3×3
        neighbourhood has unrolled kernels (bit-identical to the generic ones, ~5–8× faster).
        Error of the default against the exact solve on the astronaut photo

@@ -1,4 +1,4 @@
-"""Canny edges as an :class:`~method.elder_zucker_edges.EdgeMap` (the edge set of Zhuo & Sim 2011).
+"""Canny edges as an :class:`~method.edges.elder_zucker.EdgeMap` (the edge set of Zhuo & Sim 2011).
 
 Zhuo & Sim ("Defocus map estimation from a single image", Pattern Recognition 44(9), 2011) read
 their gradient ratio at Canny edges (J. Canny, "A computational approach to edge detection", IEEE
@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from .elder_zucker_edges import MIN_IMAGE_SIZE, EdgeMap
+from .elder_zucker import MIN_IMAGE_SIZE, EdgeMap
 from .gaussian_derivatives import GaussianDerivativeBank, _validate_image
 
 __all__ = ["CANNY_HIGH_THRESHOLD", "CANNY_LOW_THRESHOLD", "CANNY_SIGMA", "detect_edges_canny"]
@@ -44,7 +44,7 @@ def detect_edges_canny(gray, *, sigma=CANNY_SIGMA, low_threshold=CANNY_LOW_THRES
     Parameters
     ----------
     gray : ndarray, shape (H, W), float
-        Luminance in [0, 1] (finite; H, W >= :data:`method.elder_zucker_edges.MIN_IMAGE_SIZE`).
+        Luminance in [0, 1] (finite; H, W >= :data:`method.edges.elder_zucker.MIN_IMAGE_SIZE`).
     sigma : float, keyword-only
         σ of the Gaussian smoothing before the Sobel gradient, px (> 0).
     low_threshold, high_threshold : float, keyword-only
@@ -71,7 +71,7 @@ def detect_edges_canny(gray, *, sigma=CANNY_SIGMA, low_threshold=CANNY_LOW_THRES
        scikit-image's border compensation), Sobel gradients, non-maximum suppression along the
        gradient direction, hysteresis between the two thresholds.
     2. At the edge pixels, θ = atan2(I_y, I_x) and |∇I| from the Gaussian-derivative gradient at
-       ``sigma`` (Eq. 7; :class:`method.gaussian_derivatives.GaussianDerivativeBank`).
+       ``sigma`` (Eq. 7; :class:`method.edges.gaussian_derivatives.GaussianDerivativeBank`).
     """
     from skimage.feature import canny  # imported on first use: `import method` stays light
 

@@ -20,7 +20,7 @@ import numba
 import numpy as np
 from scipy import ndimage
 
-from .validation import validate_image, validate_sparse_sigma
+from ..validation import validate_image, validate_sparse_sigma
 
 __all__ = ["BILATERAL_METHODS", "biased_cross_bilateral", "sharpness_bias"]
 

@@ -5,7 +5,7 @@ coefficients of derivative-filtered images as a Gaussian scale mixture: for a ca
 blurred coefficients are zero-mean Gaussians of variance z·|K(ω)|²·S(ω) + noise, with the hidden
 scale z drawn from a mixture, and each kernel is scored by the likelihood with z integrated out.
 
-Here the same windowed ring spectra and exact leakage model as :mod:`method.blur_local_spectrum`
+Here the same windowed ring spectra and exact leakage model as :mod:`method.blur.local_spectrum`
 are used; the difference is the scale: one hidden z per window under a scale-invariant
 (log-uniform) mixture prior, integrated by Laplace's method in log z, instead of maximised. The
 paper's per-coefficient mixture with learned weights is not implemented (a measured variant).
@@ -13,7 +13,7 @@ paper's per-coefficient mixture with learned weights is not implemented (a measu
 
 from __future__ import annotations
 
-from .blur_local_spectrum import PSF_MODELS, local_spectrum_grid, spread_to_pixels
+from .local_spectrum import PSF_MODELS, local_spectrum_grid, spread_to_pixels
 
 __all__ = ["estimate_blur_gsm"]
 
@@ -26,7 +26,7 @@ def estimate_blur_gsm(gray, *, params, edge_psf=None):
     gray : ndarray, HxW, float in [0, 1]
         Luminance of the sRGB input.
     params : DefocusParams, keyword-only
-        The ``region_*`` fields (as :func:`method.blur_local_spectrum.estimate_blur_local_spectrum`).
+        The ``region_*`` fields (as :func:`method.blur.local_spectrum.estimate_blur_local_spectrum`).
     edge_psf : {"gaussian", "disk"} or None, keyword-only
         The edge fit's PSF family, used with ``params.region_psf == "edges"``.
 
@@ -39,7 +39,7 @@ def estimate_blur_gsm(gray, *, params, edge_psf=None):
 
     Notes
     -----
-    1. Ring spectra and model tables as in :func:`~method.blur_local_spectrum.local_spectrum_grid`.
+    1. Ring spectra and model tables as in :func:`~method.blur.local_spectrum.local_spectrum_grid`.
     2. Per σ of the grid: −log p(P | σ) ≈ NLL(σ, ẑ) + ½ log(ẑ² I_zz) (log-uniform prior on z,
        Laplace's method in log z), then the grid minimum, a parabola, and the Fisher information.
     """

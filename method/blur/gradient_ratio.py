@@ -18,8 +18,8 @@ import math
 
 import numpy as np
 
-from .elder_zucker_edges import check_edge_inputs
-from .gaussian_derivatives import GaussianDerivativeBank
+from ..edges.elder_zucker import check_edge_inputs
+from ..edges.gaussian_derivatives import GaussianDerivativeBank
 
 __all__ = ["GRADIENT_SIGMA", "REBLUR_SIGMA", "estimate_blur_gradient_ratio"]
 
@@ -40,7 +40,7 @@ def estimate_blur_gradient_ratio(gray, edge_map, *, params):
     edge_map : EdgeMap
         Only ``edge_map.edges`` is used (the edge set: the Elder–Zucker edges of Sec. 3.1 by
         default, so that all estimators are compared on the same pixels; Zhuo & Sim's Canny edges
-        with ``params.edge_detector="canny"``, :func:`method.canny_edges.detect_edges_canny`).
+        with ``params.edge_detector="canny"``, :func:`method.edges.canny.detect_edges_canny`).
     params : DefocusParams, keyword-only
         Uses ``ratio_gradient_sigma`` σg (px), ``ratio_reblur_sigma`` σ0 (px), ``ratio_max_sigma``
         (px; None: ``max_sigma``) and ``ratio_zero_is_measure``.

@@ -5,9 +5,9 @@ sparse blur σ (px) at edge pixels, NaN elsewhere, and the RGB guide in, the den
 out (not clipped). ``confidence`` is None or an HxW per-edge weight in [0, 1] (α_p = α·c_p).
 
 * ``"colorization"`` — the paper's Eq. (4): Levin et al. 2004 colorization affinities
-  (:func:`method.propagation.propagate_defocus`).
+  (:func:`method.propagation.defocus.propagate_defocus`).
 * ``"matting_laplacian"`` — Zhuo & Sim 2011: the closed-form matting Laplacian of Levin et al.
-  2008 (:func:`method.matting_propagation.propagate_defocus_matting`).
+  2008 (:func:`method.propagation.matting.propagate_defocus_matting`).
 
 Adding a method is one function plus one line in :data:`PROPAGATION_METHODS`.
 """
@@ -18,7 +18,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .propagation import propagate_defocus
+from .defocus import propagate_defocus
 
 __all__ = ["PROPAGATION_METHODS", "propagate_blur_measures"]
 
@@ -42,7 +42,7 @@ def _matting_laplacian(sparse_sigma, reference, *, params, confidence=None, max_
     if confidence is not None:  # D of Zhuo & Sim's data term becomes diag(c_p)
         raise ValueError("propagation='matting_laplacian' does not take a per-edge confidence; "
                          "use alpha_confidence='none'")
-    from .matting_propagation import propagate_defocus_matting
+    from .matting import propagate_defocus_matting
     return propagate_defocus_matting(sparse_sigma, reference, lam=params.matting_lambda,
                                      epsilon=params.matting_epsilon, tol=params.propagation_tol,
                                      data_weight=params.matting_data_weight)
@@ -68,7 +68,7 @@ def propagate_blur_measures(sparse_sigma, reference, *, params, confidence=None,
     confidence : ndarray, HxW, float in [0, 1], or None, keyword-only
         Per-edge confidence (α_p = α·c_p); None: the paper's constant α_p.
     max_confidence : float, keyword-only
-        Largest accepted c_p (1; more for fused region terms, :mod:`method.cue_fusion`).
+        Largest accepted c_p (1; more for fused region terms, :mod:`method.propagation.cue_fusion`).
 
     Returns
     -------

@@ -37,12 +37,12 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .blur_gradient_ratio import estimate_blur_gradient_ratio
-from .blur_model_fit import estimate_blur_model_fit, estimate_blur_model_fit_psf
-from .blur_model_fit_checked import (estimate_blur_model_fit_checked, estimate_blur_model_fit_checked_confidence,
+from .gradient_ratio import estimate_blur_gradient_ratio
+from .model_fit import estimate_blur_model_fit, estimate_blur_model_fit_psf
+from .model_fit_checked import (estimate_blur_model_fit_checked, estimate_blur_model_fit_checked_confidence,
                                      estimate_blur_model_fit_checked_psf, relaxed_confidence_used)
-from .blur_zero_crossing import estimate_blur_zero_crossing
-from .elder_zucker_edges import check_edge_inputs
+from .zero_crossing import estimate_blur_zero_crossing
+from ..edges.elder_zucker import check_edge_inputs
 
 __all__ = ["BLUR_ESTIMATORS", "FITS_PSF_MODEL", "MEASURE_CONFIDENCE", "USES_DETECTOR_HESSIANS", "estimate_blur",
            "estimate_blur_measures", "estimate_blur_with_confidence", "uses_measure_confidence"]
@@ -73,7 +73,7 @@ def _model_fit_with_psf(gray, edge_map, *, params):
 
 #: name -> fn(gray, edge_map, *, params) -> (σ, confidence or None, psf_disk): estimators of
 #: :data:`BLUR_ESTIMATORS` whose fit chooses its PSF model by ``params.fit_psf`` (Eq. 2c's Gaussian or
-#: the disk of :mod:`method.disk_edge_response`); ``psf_disk`` (bool, H x W) marks the measures fitted
+#: the disk of :mod:`method.blur.disk_edge_response`); ``psf_disk`` (bool, H x W) marks the measures fitted
 #: with the disk. σ (and the confidence, when :data:`MEASURE_CONFIDENCE` has one) equal the plain entries'.
 FITS_PSF_MODEL: dict[str, Callable[..., tuple]] = {
     "model_fit": _model_fit_with_psf,
@@ -89,7 +89,7 @@ def estimate_blur(gray, edge_map, *, params, method=None):
     gray : ndarray, shape (H, W), float
         Luminance in [0, 1] (the image given to ``detect_edges``).
     edge_map : EdgeMap
-        Output of :func:`method.elder_zucker_edges.detect_edges` for ``gray``.
+        Output of :func:`method.edges.elder_zucker.detect_edges` for ``gray``.
     params : DefocusParams, keyword-only
         Pipeline parameters (window sizes, max_sigma, default estimator).
     method : str or None, keyword-only
@@ -139,7 +139,7 @@ def estimate_blur_with_confidence(gray, edge_map, *, params):
     gray : ndarray, shape (H, W), float
         Luminance in [0, 1].
     edge_map : EdgeMap
-        Output of :func:`method.elder_zucker_edges.detect_edges` for ``gray``.
+        Output of :func:`method.edges.elder_zucker.detect_edges` for ``gray``.
     params : DefocusParams, keyword-only
 
     Returns
@@ -175,7 +175,7 @@ def estimate_blur_measures(gray, edge_map, *, params):
     gray : ndarray, shape (H, W), float
         Luminance in [0, 1].
     edge_map : EdgeMap
-        Output of :func:`method.elder_zucker_edges.detect_edges` for ``gray``.
+        Output of :func:`method.edges.elder_zucker.detect_edges` for ``gray``.
     params : DefocusParams, keyword-only
 
     Returns

@@ -23,8 +23,8 @@ from collections.abc import Callable
 import numpy as np
 from scipy import ndimage
 
-from .luma import LUMA_WEIGHTS
-from .validation import MIN_IMAGE_SIDE, validate_image, validate_map
+from ..luma import LUMA_WEIGHTS
+from ..validation import MIN_IMAGE_SIDE, validate_image, validate_map
 
 __all__ = [
     "DEFAULT_MAX_WORKING_PIXELS",
@@ -338,7 +338,7 @@ def estimate_defocus_map_at_scale(image, params=None, *, max_working_pixels=DEFA
     3. σ → full-resolution px (÷ s, prefilter removed in quadrature).
     4. Edge-aware upsampling by :func:`guided_upsample` guided by the full photo.
     """
-    from .pipeline import estimate_defocus_map  # imported late: keeps this module light
+    from ..pipeline import estimate_defocus_map  # imported late: keeps this module light
 
     image = validate_image(image)
     (h, w), scale = working_shape(image.shape, max_working_pixels=max_working_pixels)
@@ -391,7 +391,7 @@ def upsample_defocus_map(working_map, working_image, full_image, *, scale, remov
 # ------------------------------------------------------------------------------------------------
 
 #: Default pixel count of one magnification tile, halo included (≈ 4 MP). The blur stack of
-#: :func:`method.magnification.magnify_defocus` needs ≈ 290 B per pixel (measured: 3.4 GiB for a
+#: :func:`method.magnify.magnification.magnify_defocus` needs ≈ 290 B per pixel (measured: 3.4 GiB for a
 #: 12 MP photo with σ ≤ 8 px), so one tile stays near 1.1 GiB whatever the photo's size.
 DEFAULT_TILE_PIXELS = 4_000_000
 
@@ -408,7 +408,7 @@ def _halo(sigma_extra_max: float) -> int:
 def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel="gaussian", clip_percent=5.0,
                           smoothing=0.005, preprocess=True, tile_pixels=DEFAULT_TILE_PIXELS,
                           progress: Callable[[str], None] | None = None) -> np.ndarray:
-    """:func:`method.magnification.magnify_defocus` for large photos, in overlapping tiles.
+    """:func:`method.magnify.magnification.magnify_defocus` for large photos, in overlapping tiles.
 
     Parameters
     ----------
@@ -417,10 +417,10 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel="gaussian", 
     defocus_map : ndarray, HxW, float
         Dense blur σ, px of ``image``.
     factor, kernel, clip_percent, smoothing, preprocess : keyword-only
-        As :func:`method.magnification.magnify_defocus` (factor ≥ 1).
+        As :func:`method.magnify.magnification.magnify_defocus` (factor ≥ 1).
     tile_pixels : int, keyword-only
         Pixels of one tile, halo included; bounds the working memory (≈ 290 B/px). A photo that fits
-        is magnified in one call, exactly as :func:`~method.magnification.magnify_defocus` does.
+        is magnified in one call, exactly as :func:`~method.magnify.magnification.magnify_defocus` does.
     progress : callable, optional, keyword-only
         Called with ``"magnify i/n"`` before each tile.
 

@@ -100,9 +100,9 @@ def isolation_weights(gray, edges, theta, sigma, *, method="normal", radius=3.0,
     gray : ndarray, shape (H, W), float
         Luminance in [0, 1] (used by ``"persistence"``).
     edges : ndarray, shape (H, W), bool
-        Edge pixels (:attr:`method.elder_zucker_edges.EdgeMap.edges`).
+        Edge pixels (:attr:`method.edges.elder_zucker.EdgeMap.edges`).
     theta : ndarray, shape (H, W), float
-        Gradient direction, rad (:attr:`~method.elder_zucker_edges.EdgeMap.theta`).
+        Gradient direction, rad (:attr:`~method.edges.elder_zucker.EdgeMap.theta`).
     sigma : ndarray, shape (H, W), float
         Blur measures σ̂, px, NaN where none.
     method : str, keyword-only

@@ -32,7 +32,7 @@ import numpy as np
 from scipy import fft as sfft
 from scipy import ndimage
 
-from .validation import validate_image, validate_map
+from ..validation import validate_image, validate_map
 
 __all__ = ["MAGNIFICATION_KERNELS", "MAP_FLOOR_MODES", "check_extra_blur", "magnify_defocus", "preprocess_defocus_map"]
 
@@ -190,7 +190,7 @@ def _blur_stack_apply(image, sigma_extra, kernel, *, spectral_filter=None):
     ``image`` is HxWxC float64, ``sigma_extra`` HxW ≥ 0 (px). By default level ℓ is the image blurred
     with ``MAGNIFICATION_KERNELS[kernel](σ_ℓ)``. ``spectral_filter(khat, (fh, fw))``, if given, maps
     the kernel's rfft2 spectrum (fh x fw//2+1, complex) to the filter spectrum applied instead (e.g. a
-    Wiener inverse, :mod:`method.refocusing`); level 0 is always the image itself.
+    Wiener inverse, :mod:`method.magnify.refocusing`); level 0 is always the image itself.
     """
     h, w, c = image.shape
     make = MAGNIFICATION_KERNELS[kernel]

@@ -1,12 +1,12 @@
 """Matrix-free preconditioned CG on the full-resolution propagation system (Eq. 4), numba kernels.
 
-The refinement of :func:`method.propagation.propagate_defocus`'s coarse mode: CG on the exact
+The refinement of :func:`method.propagation.defocus.propagate_defocus`'s coarse mode: CG on the exact
 full-resolution normal equations ``(LᵀL + diag a) x = rhs`` without assembling them (the operator is
-applied from the affinities, :func:`method.propagation_system._padded_weights`), preconditioned by
+applied from the affinities, :func:`method.propagation.system._padded_weights`), preconditioned by
 
 * :func:`two_level_pcg` (default): Jacobi + a coarse-grid correction (bilinear P, Pᵀ and one V-cycle
-  / LU solve of the coarse level of :mod:`method.propagation_solvers`: the Galerkin operator of
-  :mod:`method.propagation_galerkin` by default, or the re-discretised coarse system);
+  / LU solve of the coarse level of :mod:`method.propagation.solvers`: the Galerkin operator of
+  :mod:`method.propagation.galerkin` by default, or the re-discretised coarse system);
 * :func:`jacobi_pcg`: Jacobi alone (the earlier refinement, kept as the comparison).
 
 Vectors live on a grid zero-padded by the neighbourhood radius r so the stencils need no bounds
@@ -156,7 +156,7 @@ def jacobi_pcg(weights, offs, a_diag, rhs, x0, *, maxiter, tol):
     Parameters
     ----------
     weights : ndarray, (K, H+2r, W+2r), float32 or float64
-        Affinities from :func:`method.propagation_system._padded_weights` (zero padding).
+        Affinities from :func:`method.propagation.system._padded_weights` (zero padding).
     offs : ndarray, (K, 2), int64
     a_diag : ndarray, (H, W), float64
         Diagonal data term α_p + λ.
@@ -225,7 +225,7 @@ def bilinear_1d(n, n_c, s):
 
     Fine pixel i sits at coarse coordinate (i + 0.5)/s − 0.5; it takes (1 − f) of the coarse sample
     below and f of the one above, indices clamped to [0, n_c − 1] (edge replication, as
-    :func:`method.propagation._upsample`).
+    :func:`method.propagation.defocus._upsample`).
 
     Returns
     -------
@@ -319,7 +319,7 @@ def _direction_and_apply(z, p_old, beta, weights, offs, a_diag, p_new, q, rowdot
             rowdot[y] = acc
 
 
-#: The 3×3 neighbourhood's offsets in the raster order of :func:`method.propagation_system._offsets`:
+#: The 3×3 neighbourhood's offsets in the raster order of :func:`method.propagation.system._offsets`:
 #: the order the unrolled kernels below hard-code.
 _OFFSETS_3X3 = np.array([(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)], dtype=np.int64)
 
@@ -534,13 +534,13 @@ def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, ma
     Parameters
     ----------
     weights : ndarray, (K, H+2r, W+2r), float32 or float64
-        Affinities from :func:`method.propagation_system._padded_weights` (zero padding).
+        Affinities from :func:`method.propagation.system._padded_weights` (zero padding).
     offs : ndarray, (K, 2), int64
     a_diag : ndarray, (H, W), float64
         Diagonal data term α_p + λ.
     rhs, x0 : ndarray, (H, W), float64
         Right-hand side α·BM + λ·mean(BM) and starting map (σ, px).
-    coarse : method.propagation_solvers.CoarseLevel
+    coarse : method.propagation.solvers.CoarseLevel
         Coarse system A_c (the re-discretised Eq. 4 on the s-times coarser grid) with its
         approximate inverse (one AMG V-cycle, or the LU solve).
     s : int
@@ -557,7 +557,7 @@ def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, ma
     coarse_scale : float or None, keyword-only
         Factor c of the coarse correction c·P Ã_c⁻¹ Pᵀ: None = s², for the re-discretised coarse
         system (A_c ≈ s²·PᵀAP); 1 for the Galerkin operator A_c = PᵀAP
-        (:func:`method.propagation_galerkin.galerkin_coarse_operator`).
+        (:func:`method.propagation.galerkin.galerkin_coarse_operator`).
 
     Returns
     -------
@@ -574,7 +574,7 @@ def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, ma
        (:func:`bilinear_1d`, separable);
     3. Ã_c⁻¹: the coarse approximate inverse. Either the Galerkin operator A_c = PᵀAP (c = 1), or the
        re-discretised coarse system built with α_c = s²·Σ_block α, so A_c ≈ s²·PᵀAP (see
-       :func:`method.propagation.propagate_defocus`, Notes) and s²·P A_c⁻¹ Pᵀ ≈ P (PᵀAP)⁻¹ Pᵀ;
+       :func:`method.propagation.defocus.propagate_defocus`, Notes) and s²·P A_c⁻¹ Pᵀ ≈ P (PᵀAP)⁻¹ Pᵀ;
     4. prolongation P and the sum with step 1.
 
     M is symmetric positive definite and the same linear map at every iteration, so plain

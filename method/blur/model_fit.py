@@ -11,7 +11,7 @@ around the edge pixel, along the gradient direction, using both the bright and t
 
 Beyond the paper, ``DefocusParams.fit_psf`` (:data:`FIT_PSF_MODELS`) can also fit, on the same
 window and with the same search, the response of a step blurred by a uniform disk — a thin lens's
-defocus, :mod:`method.disk_edge_response` — whose second moment gives σb through the same Eq. (2d).
+defocus, :mod:`method.blur.disk_edge_response` — whose second moment gives σb through the same Eq. (2d).
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ import numba
 import numpy as np
 
 from .disk_edge_response import DISK_RHO_MAX, _response_table, _rho_row
-from .elder_zucker_edges import check_edge_inputs, edge_pixels_by_scale
-from .gaussian_derivatives import GaussianDerivativeBank
+from ..edges.elder_zucker import check_edge_inputs, edge_pixels_by_scale
+from ..edges.gaussian_derivatives import GaussianDerivativeBank
 
 __all__ = [
     "FIT_KAPPA",
@@ -132,7 +132,7 @@ def _score(r, a, b, K, table, cum, i, j):
 def _score_disk(r, a, b, K, s_prime, t0, sig_p, dvalues, doffsets, dlengths, dsteps):
     """As :func:`_score` for the disk-blurred template of width s' at filter scale σ' (sampling steps).
 
-    The template m(k) = G((k − t0)/R'; σ'/R') with R' = 2√(s'² − σ'²) (method.disk_edge_response),
+    The template m(k) = G((k − t0)/R'; σ'/R') with R' = 2√(s'² − σ'²) (method.blur.disk_edge_response),
     linear in log ρ between two table rows and linear in v within each (the same interpolation as
     ``disk_edge_response._disk_value``, with the per-row index scale hoisted out of the loop).
     """
@@ -238,7 +238,7 @@ def _best_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, coarse
 #: The edge-blur models the fit can use (``DefocusParams.fit_psf``): name -> what it fits.
 FIT_PSF_MODELS = {
     "gaussian": "Eq. (2c): a Gaussian-blurred step (the paper)",
-    "disk": "a step blurred by a uniform disk, the thin lens's defocus (method.disk_edge_response)",
+    "disk": "a step blurred by a uniform disk, the thin lens's defocus (method.blur.disk_edge_response)",
     "best": "both on the same window; per edge pixel the one with the smaller residual",
     "auto": "both on the same window; one model for the whole image (select_psf_model)",
 }
@@ -258,7 +258,7 @@ def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
     # NaN). All three are only written, never read: out_s does not depend on them. Where
     # disk_min_width ≥ 0 and the Gaussian width exceeds disk_min_width · sigma2, out_sd / out_resd
     # are the width and residual of the disk-blurred templates (same window and search;
-    # :mod:`method.disk_edge_response`) at filter scale σ' = sigma2 / proj (NaN otherwise).
+    # :mod:`method.blur.disk_edge_response`) at filter scale σ' = sigma2 / proj (NaN otherwise).
     # Edge pixels are independent: chunks of _FIT_CHUNK run in parallel, each with its own sample
     # buffer r (only r[kmin..kmax] of the current pixel is ever read), so the results are the same
     # bytes for any thread count.
@@ -366,7 +366,7 @@ def estimate_blur_model_fit(gray, edge_map, *, params):
     Parameters
     ----------
     gray : ndarray, shape (H, W), float
-        Luminance in [0, 1] (the image given to :func:`method.elder_zucker_edges.detect_edges`).
+        Luminance in [0, 1] (the image given to :func:`method.edges.elder_zucker.detect_edges`).
     edge_map : EdgeMap
         Edges, θ and minimum reliable σ2 from ``detect_edges(gray, ...)``.
     params : DefocusParams, keyword-only
@@ -384,7 +384,7 @@ def estimate_blur_model_fit(gray, edge_map, *, params):
 
     0. The 2nd-derivative responses at each σ2 come from ``edge_map.hessians`` when the detector
        kept them (``detect_edges(..., keep_hessians=True)``, as the pipeline does), else from a
-       single-precision FFT bank (:class:`~method.gaussian_derivatives.GaussianDerivativeBank`) set
+       single-precision FFT bank (:class:`~method.edges.gaussian_derivatives.GaussianDerivativeBank`) set
        up like the detector's (largest σ of ``params.sigma1_scales``/``sigma2_scales``, hence the
        same padding), so both paths give bit-identical responses.
     1. Sampling along θ: r(k) = ∂²_θ I at σ2(p) (Eq. 8d, steered with θ(p)) at the pixels

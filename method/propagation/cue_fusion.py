@@ -148,7 +148,7 @@ def straddled_windows(isolated_edges, sigma, *, window_scale=9.0, window_min=16,
     ----------
     isolated_edges : ndarray, shape (H, W), bool
         Edge measures with no other edge within their isolation radius
-        (:func:`method.edge_isolation.isolation_weights` = 1).
+        (:func:`method.edges.isolation.isolation_weights` = 1).
     sigma : ndarray, shape (H, W), float
         Region σ_r, px (NaN: not tested).
     window_scale, window_min, window_max : keyword-only

@@ -1,6 +1,6 @@
 """Registry of region (spectral) blur estimators, chosen by ``DefocusParams.region_estimator``.
 
-The edge estimators of :mod:`method.blur_estimators` measure σ at edge pixels with a confidence in
+The edge estimators of :mod:`method.blur.estimators` measure σ at edge pixels with a confidence in
 (0, 1]; a region estimator measures σ over windows of texture and weighs each measure by its Fisher
 information. Every entry has the signature ``fn(gray, *, params, edge_psf=None) -> (sigma,
 information)``, both float64 HxW: σ in px (NaN where there is no measure: flat or noise-only
@@ -13,8 +13,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .blur_gsm import estimate_blur_gsm
-from .blur_local_spectrum import NOISE_MODELS, PSF_MODELS, estimate_blur_local_spectrum
+from .gsm import estimate_blur_gsm
+from .local_spectrum import NOISE_MODELS, PSF_MODELS, estimate_blur_local_spectrum
 
 __all__ = ["REGION_ESTIMATORS", "REGION_NOISE_MODELS", "REGION_PSFS", "estimate_region_blur"]
 
@@ -60,7 +60,7 @@ def estimate_region_blur(gray, *, params, edge_psf=None):
     2. Dispatch to ``REGION_ESTIMATORS[params.region_estimator]``.
     3. Check the contract: shapes, NaN/0 agreement, information ≥ 0.
     """
-    from .luma import luminance
+    from ..luma import luminance
 
     name = params.region_estimator
     if name is None or not isinstance(name, str) or name not in REGION_ESTIMATORS:

@@ -3,7 +3,7 @@
 The distance d between the two extrema (of opposite sign) of the 2nd-derivative response across a
 blurred step gives σb = √((d/2)² − σ2²) (Eq. 2d). Elder & Zucker locate the extrema as zero
 crossings of the 3rd derivative along the gradient direction; the paper (Fig. 4) shows this is
-fragile near neighbouring edges, which motivates the model fit (:mod:`method.blur_model_fit`).
+fragile near neighbouring edges, which motivates the model fit (:mod:`method.blur.model_fit`).
 """
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from .blur_model_fit import blur_from_extrema_distance
-from .elder_zucker_edges import check_edge_inputs, edge_pixels_by_scale
-from .gaussian_derivatives import GaussianDerivativeBank
+from .model_fit import blur_from_extrema_distance
+from ..edges.elder_zucker import check_edge_inputs, edge_pixels_by_scale
+from ..edges.gaussian_derivatives import GaussianDerivativeBank
 
 __all__ = ["estimate_blur_zero_crossing"]
 

@@ -420,7 +420,7 @@ def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=
         White-noise variance, image units²; None: :func:`estimate_noise_variance`.
     likelihood : {"profile", "gsm"}, keyword-only
         "profile": the scale s maximised out (Zhu et al.); "gsm": s marginalised under a
-        log-uniform scale-mixture prior (:mod:`method.blur_gsm`).
+        log-uniform scale-mixture prior (:mod:`method.blur.gsm`).
 
     Returns
     -------

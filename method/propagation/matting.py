@@ -1,7 +1,7 @@
 """Propagation of sparse defocus to a dense map with the closed-form matting Laplacian (Zhuo & Sim 2011).
 
 The propagation step of S. Zhuo and T. Sim, "Defocus map estimation from a single image", Pattern
-Recognition 44(9):1852–1858, 2011, an alternative to Bae & Durand's Eq. (4) (:mod:`method.propagation`).
+Recognition 44(9):1852–1858, 2011, an alternative to Bae & Durand's Eq. (4) (:mod:`method.propagation.defocus`).
 The dense map d minimises::
 
     E(d) = dᵀ L d + λ (d − d̂)ᵀ D (d − d̂)
@@ -81,7 +81,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .validation import check_positive, validate_propagation_inputs
+from ..validation import check_positive, validate_propagation_inputs
 
 __all__ = [
     "MATTING_DATA_WEIGHTS",
@@ -125,7 +125,7 @@ def _check_int(name, value, minimum) -> int:
 
 
 def _validate(sparse_sigma, reference, lam, epsilon, radius):
-    """The same input rules as :mod:`method.propagation` (:func:`validate_propagation_inputs`); the
+    """The same input rules as :mod:`method.propagation.defocus` (:func:`validate_propagation_inputs`); the
     guide as an HxWx3 float64 C-contiguous array (a grey / HxWx1 guide repeated to 3 channels)."""
     sparse_sigma, ref = validate_propagation_inputs(sparse_sigma, reference)
     if ref.shape[2] == 1:
@@ -223,7 +223,7 @@ def _pcg(A, b, x0, tol, max_iterations, M):
     BLAS thread against 7.8–9.5 s with OpenBLAS's default threads (the worker thread competes for
     the second core and the main thread waits on it); one thread also makes the reductions, hence
     the result, independent of the thread count. Only the BLAS API is limited (as in
-    :mod:`method.propagation`), not numba's.
+    :mod:`method.propagation.defocus`), not numba's.
     """
     from threadpoolctl import threadpool_limits
 

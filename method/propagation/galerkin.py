@@ -1,12 +1,12 @@
 """Galerkin coarse operator Pᵀ A P of the full-resolution Eq. (4) system (a preconditioner's coarse level).
 
-The two-level refinement of :func:`method.propagation.propagate_defocus` corrects the smooth part of
+The two-level refinement of :func:`method.propagation.defocus.propagate_defocus` corrects the smooth part of
 the CG residual on an s-times coarser grid. Its first form used the *re-discretised* coarse problem
-(Eq. 4 rebuilt from the block-averaged guide, :func:`method.propagation_system._coarse_problem`):
+(Eq. 4 rebuilt from the block-averaged guide, :func:`method.propagation.system._coarse_problem`):
 cheap, but across colour edges it is a different operator from the fine one, so the coarse
 correction is wrong exactly where the map has to change, and CG needed 20·s iterations. The
 *Galerkin* operator ``A_c = Pᵀ A P`` with the same bilinear interpolation P (separable,
-:func:`method.propagation_matrix_free.bilinear_1d`) is the projection of the fine operator itself:
+:func:`method.propagation.matrix_free.bilinear_1d`) is the projection of the fine operator itself:
 the two-grid theory (e.g. Trottenberg, Oosterlee & Schüller, *Multigrid*, 2001, Sec. 3.2) makes the
 coarse correction A-orthogonal to the coarse space, and the convergence then no longer depends on how
 well a coarse guide describes the fine edges. Measured on the astronaut photo at 1024², paper
@@ -26,7 +26,7 @@ import numba
 import numpy as np
 import scipy.sparse as sp
 
-from .propagation_matrix_free import bilinear_1d
+from .matrix_free import bilinear_1d
 
 __all__ = ["galerkin_coarse_operator", "prolong", "restrict"]
 
@@ -209,7 +209,7 @@ def galerkin_coarse_operator(weights, offs, a_diag, *, s, coarse_shape) -> sp.cs
     ----------
     weights : ndarray, (K, H+2r, W+2r), float32 or float64
         Affinities w_pq of Eq. (4c) on the zero-padded grid
-        (:func:`method.propagation_system._padded_weights`); L = I − W.
+        (:func:`method.propagation.system._padded_weights`); L = I − W.
     offs : ndarray, (K, 2), int64
         Neighbour offsets (dy, dx) of the K weights.
     a_diag : ndarray, (H, W), float64
@@ -223,7 +223,7 @@ def galerkin_coarse_operator(weights, offs, a_diag, *, s, coarse_shape) -> sp.cs
     -------
     scipy.sparse.csr_matrix, (H_c·W_c, H_c·W_c), float64
         Pᵀ A P with P = P_y ⊗ P_x the bilinear interpolation of
-        :func:`method.propagation_matrix_free.bilinear_1d` (row-major coarse index cy·W_c + cx);
+        :func:`method.propagation.matrix_free.bilinear_1d` (row-major coarse index cy·W_c + cx);
         symmetric positive (semi-)definite, sorted indices, explicit zeros removed.
 
     Notes
@@ -286,7 +286,7 @@ def _p1(n, n_c, s):
 def prolong(coarse, *, s, shape) -> np.ndarray:
     """P e: bilinear interpolation of a block-centred (H_c, W_c) map onto the (H, W) fine grid.
 
-    The P of :func:`galerkin_coarse_operator` (P_y e P_xᵀ, :func:`method.propagation_matrix_free.bilinear_1d`).
+    The P of :func:`galerkin_coarse_operator` (P_y e P_xᵀ, :func:`method.propagation.matrix_free.bilinear_1d`).
     """
     h, w = shape
     hc, wc = coarse.shape

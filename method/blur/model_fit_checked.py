@@ -1,6 +1,6 @@
 """The paper's model fit (Sec. 3.2, Eq. 2) with a goodness-of-fit test: poor fits give no measure.
 
-Not in the paper. :func:`method.blur_model_fit.estimate_blur_model_fit` always returns the d of the
+Not in the paper. :func:`method.blur.model_fit.estimate_blur_model_fit` always returns the d of the
 best template of Eq. (2c), even when no template explains the sampled 2nd-derivative response
 (a window dominated by texture or by a neighbouring edge). At coarse minimum reliable scales σ2 the
 conversion σb = √((d/2)² − σ2²) (Eq. 2d) amplifies any error in d, so such fits can give σb far too
@@ -15,7 +15,7 @@ import functools
 
 import numpy as np
 
-from .blur_model_fit import _model_fit_diagnostics, _paper_rules, apply_fit_rules
+from .model_fit import _model_fit_diagnostics, _paper_rules, apply_fit_rules
 
 __all__ = ["estimate_blur_model_fit_checked", "estimate_blur_model_fit_checked_confidence",
            "estimate_blur_model_fit_checked_psf", "noise_residual_share", "relaxed_confidence_used",
@@ -48,7 +48,7 @@ def steered_second_noise_variance(sigma2, noise_std):
     Notes
     -----
     The responses are computed with the transfer function (iω_u)² exp(−σ2²|ω|²/2)
-    (:mod:`method.gaussian_derivatives`), so for unit white noise the variance is the mean of
+    (:mod:`method.edges.gaussian_derivatives`), so for unit white noise the variance is the mean of
     ω_u⁴ exp(−σ2²|ω|²) over the DFT frequency grid [−π, π)²; averaged over θ, ω_u⁴ → (3/8)|ω|⁴.
     For σ2 ≳ 1 px this is the continuous value 3/(16π σ2⁶) (tested).
     """
@@ -67,7 +67,7 @@ def noise_residual_share(diagnostics, *, noise_std):
     Parameters
     ----------
     diagnostics : dict of ndarray, (H, W)
-        Output of :func:`method.blur_model_fit._model_fit_diagnostics` (``window``: samples N,
+        Output of :func:`method.blur.model_fit._model_fit_diagnostics` (``window``: samples N,
         ``sigma2``: px, ``energy``: ‖r‖² over the window).
     noise_std : float, keyword-only
         Noise std, image units (the pipeline's ``params.noise_std``).
@@ -99,11 +99,11 @@ def estimate_blur_model_fit_checked(gray, edge_map, *, params):
     Parameters
     ----------
     gray : ndarray, shape (H, W), float
-        Luminance in [0, 1] (the image given to :func:`method.elder_zucker_edges.detect_edges`).
+        Luminance in [0, 1] (the image given to :func:`method.edges.elder_zucker.detect_edges`).
     edge_map : EdgeMap
         Edges, θ and minimum reliable σ2 from ``detect_edges(gray, ...)``.
     params : DefocusParams, keyword-only
-        Uses everything :func:`~method.blur_model_fit.estimate_blur_model_fit` uses
+        Uses everything :func:`~method.blur.model_fit.estimate_blur_model_fit` uses
         (``fit_window_min``, ``fit_window_max``, px; ``max_sigma``, px) and ``fit_max_residual``
         (dimensionless, in [0, 1]).
 
@@ -127,7 +127,7 @@ def estimate_blur_model_fit_checked(gray, edge_map, *, params):
        does not depend on the edge contrast.
     2. With any of the model fit's plausibility rules switched on (``fit_max_scale``,
        ``fit_min_samples``, ``fit_max_width_ratio``, ``fit_below_scale``; the robust preset), apply
-       them (:func:`~method.blur_model_fit.apply_fit_rules`).
+       them (:func:`~method.blur.model_fit.apply_fit_rules`).
     3. Keep σb where ρ ≤ ``params.fit_max_residual``; NaN elsewhere.
     4. ``params.fit_residual_noise`` = k > 0 (beyond the paper; robust preset: k = 2): the limit is
        ``fit_max_residual`` + k · :func:`noise_residual_share` (per pixel), i.e. the residual the
@@ -186,7 +186,7 @@ def estimate_blur_model_fit_checked_psf(gray, edge_map, *, params):
         As :func:`estimate_blur_model_fit_checked_confidence`.
     psf_disk : ndarray, shape (H, W), bool
         True at the measures (finite ``sigma_b``) whose edge response was fitted with the disk model
-        (``params.fit_psf``: :func:`method.blur_model_fit.select_psf_model`); False elsewhere.
+        (``params.fit_psf``: :func:`method.blur.model_fit.select_psf_model`); False elsewhere.
     """
     diagnostics = _model_fit_diagnostics(gray, edge_map, params=params)
     sigma_b, confidence = _checked(diagnostics, params)

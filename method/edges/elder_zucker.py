@@ -6,7 +6,7 @@ gradient direction θ there, the smallest scale at which its 2nd derivative alon
 along θ at the minimum reliable σ2, localised to one pixel across the edge.
 
 Angle convention: x = column index (right), y = row index (down), θ = gradient direction =
-atan2(I_y, I_x); see :mod:`method.gaussian_derivatives`.
+atan2(I_y, I_x); see :mod:`method.edges.gaussian_derivatives`.
 """
 
 from __future__ import annotations

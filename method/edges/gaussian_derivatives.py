@@ -40,7 +40,7 @@ import numba
 import numpy as np
 import scipy.fft
 
-from .validation import validate_image
+from ..validation import validate_image
 
 __all__ = [
     "GaussianDerivativeBank",

@@ -5,7 +5,7 @@ photo looks focused elsewhere. It gives no algorithm for either step; this modul
 
 1. :func:`deconvolve_defocus` — non-blind, spatially varying deconvolution by a σ-stack: the image is
    deconvolved with a Gaussian of each σ level (levels and kernels of the magnification blur stack,
-   :mod:`method.magnification`) in the Fourier domain, and each pixel blends the two levels whose
+   :mod:`method.magnify.magnification`) in the Fourier domain, and each pixel blends the two levels whose
    kernel variances bracket its σ² (linear in variance, as the blur stack does).
 2. :func:`refocus` — deconvolve to an (approximately) all-in-focus image, then blur it with the
    spatially varying σ of a new ("virtual focus") map with the magnification blur stack.
@@ -31,7 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from .magnification import MAGNIFICATION_KERNELS, _blur_stack_apply
-from .validation import validate_image, validate_map
+from ..validation import validate_image, validate_map
 
 __all__ = ["DECONVOLUTION_METHODS", "DEFAULT_NSR", "deconvolve_defocus", "refocus"]
 
@@ -130,7 +130,7 @@ def deconvolve_defocus(image, defocus_map, *, method="wiener", nsr=DEFAULT_NSR, 
 
     Notes
     -----
-    1. σ levels 0, 0.5, 0.5·√2, … px up to max σ (:mod:`method.magnification`'s blur stack) with
+    1. σ levels 0, 0.5, 0.5·√2, … px up to max σ (:mod:`method.magnify.magnification`'s blur stack) with
        their sampled, normalised Gaussian kernels K_ℓ.
     2. Level ℓ ≥ 1: the image (symmetrically padded by the largest kernel radius) filtered in the
        Fourier domain with H_ℓ = K_ℓ* / (|K_ℓ|² + λ) (``"wiener"``) or K_ℓ* / (|K_ℓ|² + λ|L|²)
@@ -163,7 +163,7 @@ def refocus(image, defocus_map, new_blur_map, *, method="wiener", nsr=DEFAULT_NS
     method, nsr : keyword-only
         Deconvolution filter and λ, see :func:`deconvolve_defocus`.
     kernel : str, keyword-only
-        Key of :data:`method.magnification.MAGNIFICATION_KERNELS` for the re-blur (``"gaussian"``
+        Key of :data:`method.magnify.magnification.MAGNIFICATION_KERNELS` for the re-blur (``"gaussian"``
         or ``"disk"`` of radius 2σ).
 
     Returns

@@ -7,14 +7,14 @@ Energy (Eq. 4a–4c)::
 
 with ``α_p = alpha`` at edge pixels (finite BM) and 0 elsewhere. Its minimiser solves the sparse
 symmetric positive (semi-)definite system ``(LᵀL + diag α + λI) B = diag(α) BM + λ·mean(BM)`` with
-``L = I − W`` (λ: the guard term of :func:`method.propagation.propagate_defocus`).
+``L = I − W`` (λ: the guard term of :func:`method.propagation.defocus.propagate_defocus`).
 
 This module builds the equation only: the affinities (:func:`colorization_weights`, numba kernels),
 L (:func:`colorization_matrix`), the assembled system (:func:`normal_equations`), the affinities on
 the zero-padded grid of the matrix-free solver and the re-discretised coarse problem of the coarse
-mode. The solvers are in :mod:`method.propagation_solvers` (assembled systems, coarse level) and
-:mod:`method.propagation_matrix_free` (matrix-free PCG at full resolution); the driver is
-:func:`method.propagation.propagate_defocus` (its module docstring explains the reading of the
+mode. The solvers are in :mod:`method.propagation.solvers` (assembled systems, coarse level) and
+:mod:`method.propagation.matrix_free` (matrix-free PCG at full resolution); the driver is
+:func:`method.propagation.defocus.propagate_defocus` (its module docstring explains the reading of the
 paper's "window size 7×7").
 """
 
@@ -24,7 +24,7 @@ import numba
 import numpy as np
 import scipy.sparse as sp
 
-from .validation import check_odd, check_positive, validate_guide, validate_propagation_inputs
+from ..validation import check_odd, check_positive, validate_guide, validate_propagation_inputs
 
 __all__ = [
     "colorization_matrix",

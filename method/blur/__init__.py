@@ -1,0 +1,14 @@
+"""Blur estimation (Sec. 3.2): σ at edge pixels (the paper's model fit of Eq. 2c and baselines) and σ
+over textured regions from the local spectrum (the second cue), each family in one registry.
+
+Edge estimators (:data:`BLUR_ESTIMATORS`, :mod:`.estimators`): :mod:`.model_fit` (Eq. 2c),
+:mod:`.model_fit_checked`, :mod:`.zero_crossing` (Elder & Zucker), :mod:`.gradient_ratio` (Zhuo & Sim);
+:mod:`.disk_edge_response` (the disk PSF's step response). Region estimators
+(:data:`REGION_ESTIMATORS`, :mod:`.region_estimators`): :mod:`.local_spectrum`, :mod:`.gsm`.
+"""
+
+from .estimators import BLUR_ESTIMATORS, estimate_blur, estimate_blur_measures, estimate_blur_with_confidence
+from .region_estimators import REGION_ESTIMATORS, estimate_region_blur
+
+__all__ = ["BLUR_ESTIMATORS", "REGION_ESTIMATORS", "estimate_blur", "estimate_blur_measures",
+           "estimate_blur_with_confidence", "estimate_region_blur"]

@@ -15,8 +15,8 @@ def _parser():
     from repro._cli import ArgumentParser, add_quiet_option, add_variant_option, float_type
 
     p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
-    sub = p.add_subparsers(dest="command", required=True)
-    e = sub.add_parser("export", help="write the renders and their ground truth to DIR")
+    p.add_argument("command", choices=("export",), help="export: write the renders and their ground truth to DIR")
+    e = p
     add_variant_option(e)
     e.add_argument("--scenes", nargs="+", default=None, metavar="NAME", help="scenes (default: all)")
     e.add_argument("--fnumber", nargs="+", type=float_type("--fnumber"), default=[8.0, 4.0], metavar="N",

@@ -51,20 +51,10 @@ def is_complete(root, name: str) -> bool:
 
 
 def _png_bytes(image_u, bits) -> bytes:
-    """Encode an HxWx3 (or HxW) integer array as an 8- or 16-bit PNG (zlib; big-endian samples)."""
-    import struct
-    import zlib
+    """An HxWx3 (or HxW) integer array as 8- or 16-bit PNG bytes (imagecodecs; Pillow cannot write 16-bit RGB)."""
+    import imagecodecs
 
-    a = np.asarray(image_u).astype(">u1" if bits == 8 else ">u2")
-    h, w = a.shape[:2]
-    color = 2 if a.ndim == 3 else 0
-    raw = b"".join(b"\x00" + row.tobytes() for row in a.reshape(h, -1))
-
-    def chunk(tag, data):
-        return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
-
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, bits, color, 0, 0, 0))
-            + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
+    return imagecodecs.png_encode(np.ascontiguousarray(np.asarray(image_u).astype(np.uint8 if bits == 8 else np.uint16)))
 
 
 def _write_png(path, image_u, bits):

@@ -1,0 +1,77 @@
+"""Export the rendered scenes as a versioned dataset (see :mod:`experiments.dataset` and docs/dataset.md).
+
+``python -m repro.dataset export [--scenes NAME ...] [--fnumber N ...] [--scene-preset small|full] --out DIR [-q]``
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+PROG = "python -m repro.dataset"
+
+
+def _parser():
+    from repro._cli import ArgumentParser, add_quiet_option, add_variant_option, float_type
+
+    p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
+    p.add_argument("command", choices=("export",), help="export: write the renders and their ground truth to DIR")
+    e = p
+    add_variant_option(e)
+    e.add_argument("--scenes", nargs="+", default=None, metavar="NAME", help="scenes (default: all)")
+    e.add_argument("--fnumber", nargs="+", type=float_type("--fnumber"), default=[8.0, 4.0], metavar="N",
+                   help="apertures (default: 8 4)")
+    e.add_argument("--scene-preset", default="small", choices=("small", "full"),
+                   help="render resolution preset (default small)")
+    e.add_argument("--out", type=Path, required=True, metavar="DIR", help="dataset folder")
+    add_quiet_option(e, what="no progress display")
+    return p
+
+
+def main(argv=None) -> int:
+    """Entry point; returns the exit status."""
+    args = _parser().parse_args(argv)
+    from tqdm import tqdm
+
+    from experiments import dataset as ds
+    from experiments.registry import code_fingerprint, library_versions
+    from repro._cli import require_extras, version_string
+    from scenes import SCENES
+    from scenes.render import validate_render_options
+
+    scenes = list(dict.fromkeys(args.scenes or list(SCENES)))
+    bad = [s for s in scenes if s not in SCENES]
+    if bad:
+        raise ValueError(f"unknown scene(s) {', '.join(map(repr, bad))}; allowed: {sorted(SCENES)}")
+    f_numbers = list(dict.fromkeys(float(n) for n in args.fnumber))
+    for s in scenes:
+        for n in f_numbers:
+            validate_render_options(s, preset=args.scene_preset, f_number=n)
+    if args.out.exists() and not args.out.is_dir():
+        raise ValueError(f"--out {str(args.out)!r} is a file; allowed: a folder")
+    combos = [(s, n) for s in scenes for n in f_numbers]
+    entries = []
+    with tqdm(combos, desc="export", unit="image", file=sys.stderr, disable=args.quiet) as bar:
+        for s, n in bar:
+            name = ds.image_name(s, n, args.scene_preset)
+            if ds.is_complete(args.out, name):
+                import json
+
+                entries.append(json.loads((args.out / "done" / f"{name}.json").read_text()))
+                continue
+            require_extras("render", command="repro.dataset export (renders not yet exported)")
+            from scenes import render_scene
+
+            render = render_scene(s, preset=args.scene_preset, f_number=n, variant=args.variant, progress=False)
+            entries.append(ds.export_image(args.out, name, render))
+    path = ds.write_manifest(args.out, entries, render_settings={"scene_preset": args.scene_preset},
+                             harness={"version": version_string(), "code": code_fingerprint(),
+                                      "libraries": library_versions()})
+    print(f"  {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    from repro._cli import run_cli
+
+    sys.exit(run_cli(main, prog=PROG))

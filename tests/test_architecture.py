@@ -69,3 +69,46 @@ def test_the_checker_sees_imports(tmp_path):
     f = tmp_path / "m.py"
     f.write_text("import os\nfrom scenes.camera import X\nfrom . import y\ndef f():\n    import repro.cli\n")
     assert _imports(f) == {"os", "scenes", "repro"}
+
+
+#: The paper's stages, one subpackage each (CONTRIBUTING.md, "Layout").
+METHOD_SUBPACKAGES = ("edges", "blur", "refine", "propagation", "magnify")
+
+
+def _private_imports(path: Path) -> list[str]:
+    """``from <a method module> import _name`` in ``path``: another module's private name."""
+    pkg = path.relative_to(ROOT).with_suffix("").parts[:-1]
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom):
+            module = (".".join(pkg[:len(pkg) - node.level + 1] + ((node.module,) if node.module else ()))
+                      if node.level else node.module or "")
+            found += [f"{module}.{a.name}" for a in node.names
+                      if module.split(".")[0] == "method" and a.name.startswith("_") and not a.name.startswith("__")]
+    return found
+
+
+def test_method_modules_import_no_private_names():
+    bad = {str(p.relative_to(ROOT)): _private_imports(p) for pkg in ("method", "experiments", "repro")
+           for p in sorted((ROOT / pkg).rglob("*.py")) if _private_imports(p)}
+    assert not bad, f"imports of another module's private names: {bad}"
+
+
+def test_private_import_checker_sees_relative_and_absolute(tmp_path):
+    folder = ROOT / "method" / "blur"
+    probe = folder / "_probe_private_import.py"
+    probe.write_text("from .model_fit import _x, y\nfrom ..edges.canny import _z\nfrom method.luma import _w\n")
+    try:
+        assert _private_imports(probe) == ["method.blur.model_fit._x", "method.edges.canny._z", "method.luma._w"]
+    finally:
+        probe.unlink()
+
+
+@pytest.mark.parametrize("name", METHOD_SUBPACKAGES)
+def test_method_stage_subpackages_export_public_names(name):
+    import importlib
+
+    package = importlib.import_module(f"method.{name}")
+    assert package.__all__ and all(not n.startswith("_") and hasattr(package, n) for n in package.__all__)
+    flat = sorted(p.name for p in (ROOT / "method").glob("*.py"))
+    assert flat == ["__init__.py", "luma.py", "params.py", "pipeline.py", "validation.py"], flat

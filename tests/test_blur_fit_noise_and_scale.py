@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from method.blur.estimators import estimate_blur
-from method.blur.model_fit import _model_fit_diagnostics, fit_scales
+from method.blur.model_fit import model_fit_diagnostics, fit_scales
 from method.blur.model_fit_checked import noise_residual_share, steered_second_noise_variance
 from method.edges.elder_zucker import detect_edges
 from method.edges.gaussian_derivatives import GaussianDerivativeBank, steer_second
@@ -59,8 +59,8 @@ def test_noise_share_predicts_the_residual_the_noise_adds(sigma):
         inner[16:-16, 16:-16] = True
         sel = em.edges & inner & (np.abs(noisy.edge_distance) < 1.0)
         p = ROBUST.replace(noise_std=noise)
-        dn = _model_fit_diagnostics(noisy.image, em, params=p)
-        dc = _model_fit_diagnostics(clean.image, em, params=p)
+        dn = model_fit_diagnostics(noisy.image, em, params=p)
+        dc = model_fit_diagnostics(clean.image, em, params=p)
         share = noise_residual_share(dc, noise_std=noise)
         ok = sel & np.isfinite(dn["residual"]) & np.isfinite(dc["residual"]) & (share > 0)
         ratios.append((dn["residual"][ok] - dc["residual"][ok]) / share[ok])
@@ -102,7 +102,7 @@ def test_residual_noise_off_is_the_fixed_limit():
     em = detect_edges(sc.image, keep_hessians=True)
     off = ROBUST.replace(fit_residual_noise=0.0)
     a = estimate_blur(sc.image, em, params=off)
-    rho = _model_fit_diagnostics(sc.image, em, params=off)["residual"]
+    rho = model_fit_diagnostics(sc.image, em, params=off)["residual"]
     with np.errstate(invalid="ignore"):
         np.testing.assert_array_equal(np.isfinite(a), em.edges & (rho <= off.fit_max_residual) & np.isfinite(a))
     b = estimate_blur(sc.image, em, params=ROBUST)
@@ -137,7 +137,7 @@ def test_fit_scale_ratio_recovers_step_sigma(sigma):
         inner[12:-12, 12:-12] = True
         sel = em.edges & inner & (np.abs(sc.edge_distance) < 1.5)
         errs.append(estimate_blur(sc.image, em, params=p)[sel] - sigma)
-        used.append(_model_fit_diagnostics(sc.image, em, params=p)["sigma2"][sel] / em.sigma2[sel])
+        used.append(model_fit_diagnostics(sc.image, em, params=p)["sigma2"][sel] / em.sigma2[sel])
     e = np.concatenate(errs)
     assert np.mean(np.isfinite(e)) > 0.8
     assert np.median(np.abs(e[np.isfinite(e)])) <= 0.05 * sigma

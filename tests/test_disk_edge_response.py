@@ -18,7 +18,7 @@ from scipy.signal import fftconvolve
 
 from method import DefocusParams
 from method.blur.estimators import estimate_blur_with_confidence
-from method.blur.model_fit import (FIT_PSF_MODELS, PSF_SELECT_MIN_EDGES, _model_fit_diagnostics, response_model,
+from method.blur.model_fit import (FIT_PSF_MODELS, PSF_SELECT_MIN_EDGES, model_fit_diagnostics, response_model,
                                    select_psf_model)
 from method.blur.disk_edge_response import DISK_RHO_MAX, disk_line_spread, disk_step_response
 from method.edges.elder_zucker import detect_edges
@@ -129,8 +129,8 @@ def test_auto_selects_the_blurring_model(psf):
     robust = DefocusParams.preset("robust")
     assert robust.fit_psf == "auto"
     em = detect_edges(img, noise_std=robust.noise_std)
-    g = _model_fit_diagnostics(img, em, params=robust.replace(fit_psf="gaussian"))
-    d = _model_fit_diagnostics(img, em, params=robust.replace(fit_psf="disk"))
+    g = model_fit_diagnostics(img, em, params=robust.replace(fit_psf="gaussian"))
+    d = model_fit_diagnostics(img, em, params=robust.replace(fit_psf="disk"))
     assert select_psf_model(g, d["width"], d["residual"]) == psf
     # and "auto" gives exactly that model's measures
     auto, _ = estimate_blur_with_confidence(img, em, params=robust)
@@ -143,8 +143,8 @@ def test_auto_keeps_the_paper_model_without_evidence():
     img = _blurred_step(3.0, "disk")
     robust = DefocusParams.preset("robust")
     em = detect_edges(img, noise_std=robust.noise_std)
-    g = _model_fit_diagnostics(img, em, params=robust.replace(fit_psf="gaussian"))
-    d = _model_fit_diagnostics(img, em, params=robust.replace(fit_psf="disk"))
+    g = model_fit_diagnostics(img, em, params=robust.replace(fit_psf="gaussian"))
+    d = model_fit_diagnostics(img, em, params=robust.replace(fit_psf="disk"))
     keep = np.flatnonzero(np.isfinite(d["residual"]).ravel())[:PSF_SELECT_MIN_EDGES - 1]
     few = np.full(d["residual"].size, np.nan)
     few[keep] = d["residual"].ravel()[keep]
@@ -155,9 +155,9 @@ def test_best_takes_the_smaller_residual_per_edge():
     img = _blurred_step(2.0, "disk")
     robust = DefocusParams.preset("robust")
     em = detect_edges(img, noise_std=robust.noise_std)
-    g = _model_fit_diagnostics(img, em, params=robust.replace(fit_psf="gaussian"))
-    d = _model_fit_diagnostics(img, em, params=robust.replace(fit_psf="disk"))
-    b = _model_fit_diagnostics(img, em, params=robust.replace(fit_psf="best"))
+    g = model_fit_diagnostics(img, em, params=robust.replace(fit_psf="gaussian"))
+    d = model_fit_diagnostics(img, em, params=robust.replace(fit_psf="disk"))
+    b = model_fit_diagnostics(img, em, params=robust.replace(fit_psf="best"))
     ok = np.isfinite(g["residual"]) & np.isfinite(d["residual"])
     np.testing.assert_array_equal(b["residual"][ok], np.minimum(g["residual"], d["residual"])[ok])
     assert b["disk"][ok].any()  # on a disk-blurred step the disk fits some edges better
@@ -170,9 +170,9 @@ def test_gaussian_model_is_the_paper_fit_bit_for_bit():
     paper = DefocusParams()
     assert paper.fit_psf == "gaussian" and set(FIT_PSF_MODELS) == {"gaussian", "disk", "best", "auto"}
     em = detect_edges(img, noise_std=paper.noise_std)
-    g = _model_fit_diagnostics(img, em, params=paper)
+    g = model_fit_diagnostics(img, em, params=paper)
     assert not g["disk"].any()
-    d = _model_fit_diagnostics(img, em, params=paper.replace(fit_psf="disk"))
+    d = model_fit_diagnostics(img, em, params=paper.replace(fit_psf="disk"))
     # the disk fit runs on the same windows (same samples and energy) and differs in width
     np.testing.assert_array_equal(g["window"], d["window"])
     np.testing.assert_array_equal(g["energy"], d["energy"])
@@ -184,7 +184,7 @@ def test_fit_kernel_disk_score_matches_the_public_response(s_prime, sig_p, t0):
     """The fit's fast template scoring (blur_model_fit._score_disk) against templates from
     disk_step_response: (r·m)²/(m·m) over the window, m(k) = r_disk(k − t0; R', σ')."""
     from method.blur.model_fit import _score_disk
-    from method.blur.disk_edge_response import _response_table
+    from method.blur.disk_edge_response import response_table
 
     K = 20
     rng = np.random.default_rng(3)
@@ -195,9 +195,9 @@ def test_fit_kernel_disk_score_matches_the_public_response(s_prime, sig_p, t0):
     m = disk_step_response(k - t0, radius=radius, sigma2=sig_p)
     dot = float(np.dot(r[k.astype(int) + K], m))
     want = dot * dot / float(np.dot(m, m)) if dot > 0 else 0.0
-    got = _score_disk(r, a, b, K, s_prime, t0, sig_p, *_response_table())
+    got = _score_disk(r, a, b, K, s_prime, t0, sig_p, *response_table())
     assert got == pytest.approx(want, rel=1e-9, abs=1e-12)
-    got_neg = _score_disk(-r, a, b, K, s_prime, t0, sig_p, *_response_table())  # A > 0 constraint
+    got_neg = _score_disk(-r, a, b, K, s_prime, t0, sig_p, *response_table())  # A > 0 constraint
     assert (got_neg == 0.0) == (dot > 0)
 
 
@@ -216,7 +216,7 @@ def test_blur_measures_equal_the_plain_estimator_and_mark_the_disk(fit_psf):
     want_s, want_c = estimate_blur_with_confidence(img, em, params=params)
     np.testing.assert_array_equal(sigma, want_s)
     np.testing.assert_array_equal(conf, want_c)
-    diag = _model_fit_diagnostics(img, em, params=params)
+    diag = model_fit_diagnostics(img, em, params=params)
     np.testing.assert_array_equal(disk, diag["disk"] & np.isfinite(sigma))
     assert disk.dtype == bool and not disk[~np.isfinite(sigma)].any()
     if fit_psf in ("disk", "auto"):  # "auto" chooses the disk on this disk-blurred step

@@ -21,7 +21,7 @@ from experiments.metrics import region_masks
 from experiments.stage_attribution import ablation_params
 from method import NoEdgesWarning, estimate_defocus_map
 from method.blur.estimators import estimate_blur
-from method.blur.model_fit import _model_fit_diagnostics, apply_fit_rules, estimate_blur_model_fit
+from method.blur.model_fit import model_fit_diagnostics, apply_fit_rules, estimate_blur_model_fit
 from method.edges.elder_zucker import detect_edges
 from method.params import PRESETS, ROBUST_CHANGES, ZHUO_SIM_CHANGES, DefocusParams
 from method.pipeline import luminance
@@ -445,7 +445,7 @@ def mosaic_diagnostics():
     m = texture_mosaic(**MOSAIC, rng=0)
     gray = luminance(m.image)
     em = detect_edges(gray, keep_hessians=True)
-    return gray, em, _model_fit_diagnostics(gray, em, params=PAPER)
+    return gray, em, model_fit_diagnostics(gray, em, params=PAPER)
 
 
 def test_fit_rules_default_params_bit_identical_to_model_fit(mosaic_diagnostics):
@@ -480,7 +480,7 @@ def test_fit_rules_on_real_diagnostics(mosaic_diagnostics):
 def test_estimator_applies_the_rules_of_its_params(mosaic_diagnostics):
     """estimate_blur_model_fit with robust params = apply_fit_rules on the robust diagnostics."""
     gray, em, _ = mosaic_diagnostics
-    d = _model_fit_diagnostics(gray, em, params=ROBUST)
+    d = model_fit_diagnostics(gray, em, params=ROBUST)
     got = estimate_blur_model_fit(gray, em, params=ROBUST)
     np.testing.assert_array_equal(got, apply_fit_rules(d, params=ROBUST))
     # fit_max_scale: the responses fitted are at min(σ2, 2 px)
@@ -505,7 +505,7 @@ def test_robust_model_fit_on_step_edges(sigma):
         est = estimate_blur(sc.image, em, params=ROBUST)
         errs.append(est[sel] - sigma)
         detector_s2.append(em.sigma2[sel])
-        used_s2.append(_model_fit_diagnostics(sc.image, em, params=ROBUST)["sigma2"][sel])
+        used_s2.append(model_fit_diagnostics(sc.image, em, params=ROBUST)["sigma2"][sel])
     e = np.concatenate(errs)
     assert e.size > 100
     assert np.mean(np.isnan(e)) <= 0.05  # the rules reject (almost) nothing on clean edges

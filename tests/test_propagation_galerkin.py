@@ -41,7 +41,7 @@ def _explicit(ref, a, s, neighborhood):
 def test_matrix_free_galerkin_operator_equals_explicit_product(shape, s, neighborhood):
     rng = np.random.default_rng(3)
     ref, a = _case(rng, *shape)
-    weights, offs = E._padded_weights(ref, 7, neighborhood, 1e-6, dtype=np.float64)
+    weights, offs = E.padded_weights(ref, 7, neighborhood, 1e-6, dtype=np.float64)
     expected, _, coarse_shape = _explicit(ref, a, s, neighborhood)
     got = galerkin_coarse_operator(weights, offs, a, s=s, coarse_shape=coarse_shape)
     np.testing.assert_allclose(got.toarray(), expected, rtol=0, atol=1e-12 * np.abs(expected).max())
@@ -53,8 +53,8 @@ def test_matrix_free_galerkin_operator_equals_explicit_product(shape, s, neighbo
 def test_galerkin_operator_is_deterministic_and_float32_weights_close():
     rng = np.random.default_rng(5)
     ref, a = _case(rng, 50, 61)
-    w64, offs = E._padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
-    w32, _ = E._padded_weights(ref, 7, 3, 1e-6)
+    w64, offs = E.padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
+    w32, _ = E.padded_weights(ref, 7, 3, 1e-6)
     shape = (-(-50 // 4), -(-61 // 4))
     g1 = galerkin_coarse_operator(w32, offs, a, s=4, coarse_shape=shape)
     g2 = galerkin_coarse_operator(w32, offs, a, s=4, coarse_shape=shape)
@@ -84,7 +84,7 @@ def test_transfer_operators_are_transposes_and_match_the_explicit_kronecker_prod
 def test_galerkin_operator_rejects_mismatched_shapes():
     rng = np.random.default_rng(1)
     ref, a = _case(rng, 20, 24)
-    weights, offs = E._padded_weights(ref, 7, 3, 1e-6)
+    weights, offs = E.padded_weights(ref, 7, 3, 1e-6)
     with pytest.raises(ValueError, match="coarse_shape"):
         galerkin_coarse_operator(weights, offs, a, s=4, coarse_shape=(6, 6))
     with pytest.raises(ValueError, match="weights"):
@@ -119,7 +119,7 @@ def test_specialised_3x3_kernel_equals_the_generic_one_to_round_off(shape, s):
 
     rng = np.random.default_rng(21)
     ref, a = _case(rng, *shape)
-    weights, offs = E._padded_weights(ref, 7, 3, 1e-6)
+    weights, offs = E.padded_weights(ref, 7, 3, 1e-6)
     h, w = shape
     hc, wc = -(-h // s), -(-w // s)
     (pyp, pyi, pyv), _ = bilinear_1d(h, hc, s)

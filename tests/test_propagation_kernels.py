@@ -22,8 +22,8 @@ def test_matrix_free_operator_matches_assembled(neighborhood, shape):
     h, w = shape
     ref, bm = _case(rng, h, w)
     A, _ = E.normal_equations(bm, ref, neighborhood=neighborhood)
-    a, _, lam, _ = E._data_term(bm, 0.5, 1e-6)
-    weights, offs = E._padded_weights(ref, 7, neighborhood, 1e-6, dtype=np.float64)
+    a, _, lam, _ = E.data_term(bm, 0.5, 1e-6)
+    weights, offs = E.padded_weights(ref, 7, neighborhood, 1e-6, dtype=np.float64)
     r = neighborhood // 2
     x = rng.standard_normal((h, w))
     xp = np.zeros((h + 2 * r, w + 2 * r))
@@ -46,8 +46,8 @@ def test_matrix_free_cg_solves_the_system():
     h, w = 40, 45
     ref, bm = _case(rng, h, w)
     A, rhs = E.normal_equations(bm, ref)
-    a, _, lam, _ = E._data_term(bm, 0.5, 1e-6)
-    weights, offs = E._padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
+    a, _, lam, _ = E.data_term(bm, 0.5, 1e-6)
+    weights, offs = E.padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
     x, res = MF.jacobi_pcg(weights, offs, (a + lam).reshape(h, w), rhs.reshape(h, w),
                                        np.zeros((h, w)), maxiter=5000, tol=1e-9)
     assert res <= 1e-9
@@ -58,8 +58,8 @@ def test_float32_weights_close_to_float64():
     """The refinement stores the affinities in float32 (half the memory traffic); they round to 6e-8."""
     rng = np.random.default_rng(2)
     ref, _ = _case(rng, 50, 60)
-    w32, _ = E._padded_weights(ref, 7, 3, 1e-6)
-    w64, _ = E._padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
+    w32, _ = E.padded_weights(ref, 7, 3, 1e-6)
+    w64, _ = E.padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
     assert w32.dtype == np.float32
     np.testing.assert_allclose(w32, w64, rtol=1e-7, atol=1e-8)
 
@@ -95,9 +95,9 @@ def test_fused_direction_and_apply_bit_identical(neighborhood, shape):
     rng = np.random.default_rng(4)
     h, w = shape
     ref, bm = _case(rng, h, w)
-    a, _, lam, _ = E._data_term(bm, 0.5, 1e-6)
+    a, _, lam, _ = E.data_term(bm, 0.5, 1e-6)
     a_diag = (a + lam).reshape(h, w)
-    weights, offs = E._padded_weights(ref, 7, neighborhood, 1e-6)
+    weights, offs = E.padded_weights(ref, 7, neighborhood, 1e-6)
     r = neighborhood // 2
     pad = lambda v: np.pad(v, r)
     z, p_old = pad(rng.standard_normal((h, w))), pad(rng.standard_normal((h, w)))
@@ -118,9 +118,9 @@ def test_unrolled_3x3_kernels_bit_identical_to_generic(shape):
     rng = np.random.default_rng(8)
     h, w = shape
     ref, bm = _case(rng, h, w)
-    a, _, lam, _ = E._data_term(bm, 0.5, 1e-6)
+    a, _, lam, _ = E.data_term(bm, 0.5, 1e-6)
     a_diag = (a + lam).reshape(h, w)
-    weights, offs = E._padded_weights(ref, 7, 3, 1e-6)
+    weights, offs = E.padded_weights(ref, 7, 3, 1e-6)
     assert MF._operator_kernels(offs) == (MF._apply_normal_3x3, MF._direction_and_apply_3x3)
     assert MF._operator_kernels(E._offsets(5)) == (MF._apply_normal, MF._direction_and_apply)
     z, p_old = np.pad(rng.standard_normal((h, w)), 1), np.pad(rng.standard_normal((h, w)), 1)
@@ -184,10 +184,10 @@ def test_two_level_cg_solves_the_system(setup):
     h, w, s = 60, 75, 4
     ref, bm = _case(rng, h, w)
     A, rhs = E.normal_equations(bm, ref)
-    a, _, lam, _ = E._data_term(bm, 0.5, 1e-6)
-    weights, offs = E._padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
-    ref_c, bm_c, a_c = E._coarse_problem(bm, ref, s, 0.5)
-    A_c = E._assemble(E.colorization_matrix(ref_c), a_c.ravel(), 1e-6 * 0.5 * s * s)
+    a, _, lam, _ = E.data_term(bm, 0.5, 1e-6)
+    weights, offs = E.padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
+    ref_c, bm_c, a_c = E.coarse_problem(bm, ref, s, 0.5)
+    A_c = E.assemble_system(E.colorization_matrix(ref_c), a_c.ravel(), 1e-6 * 0.5 * s * s)
     coarse = S.COARSE_SETUPS[setup](A_c)
     x, res = MF.two_level_pcg(weights, offs, (a + lam).reshape(h, w), rhs.reshape(h, w),
                                           np.zeros((h, w)), coarse=coarse, s=s,

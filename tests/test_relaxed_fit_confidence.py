@@ -12,7 +12,7 @@ import pytest
 
 from method import DefocusParams, NoEdgesWarning, estimate_defocus_map
 from method.blur.estimators import estimate_blur, estimate_blur_with_confidence, uses_measure_confidence
-from method.blur.model_fit import _model_fit_diagnostics
+from method.blur.model_fit import model_fit_diagnostics
 from method.refine.cross_bilateral import biased_cross_bilateral
 from method.edges.elder_zucker import detect_edges
 from method.pipeline import luminance, propagate_stage, refine_stage
@@ -61,7 +61,7 @@ def test_strict_relaxed_split_from_one_fit(blurry_mosaic):
     np.testing.assert_array_equal(conf == 1.0, np.isfinite(strict))
     np.testing.assert_array_equal(sigma[conf == 1.0], strict[conf == 1.0])
     # the relaxed ones are exactly those with fit_max_residual < ρ (they passed the noise allowance)
-    rho = _model_fit_diagnostics(gray, em, params=ROBUST)["residual"]
+    rho = model_fit_diagnostics(gray, em, params=ROBUST)["residual"]
     assert np.all(rho[conf < 1] > ROBUST.fit_max_residual)
     assert (conf < 1).sum() > 0.2 * fin.sum()  # the blurry tiles do get relaxed measures
 

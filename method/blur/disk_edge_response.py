@@ -95,7 +95,7 @@ def _table_row(rho):
 
 
 @functools.lru_cache(maxsize=1)
-def _response_table():
+def response_table():
     """(values, offsets, lengths, steps): the concatenated rows of G on the geometric ρ grid."""
     n_rows = int(math.ceil(math.log(DISK_RHO_MAX / DISK_RHO_MIN) / math.log(_RHO_RATIO))) + 1
     rhos = DISK_RHO_MIN * _RHO_RATIO ** np.arange(n_rows)
@@ -125,7 +125,7 @@ def _row_value(values, offsets, lengths, steps, row, v):
 
 
 @numba.njit(cache=True, nogil=True)
-def _rho_row(lengths, rho):
+def rho_row(lengths, rho):
     """(row i, weight w) of ρ: G(·; ρ) = (1 − w) G_i + w G_{i+1} (clamped to the table's ρ range)."""
     n_rows = lengths.shape[0]
     f = math.log(max(rho, DISK_RHO_MIN) / DISK_RHO_MIN) / math.log(_RHO_RATIO)
@@ -137,7 +137,7 @@ def _rho_row(lengths, rho):
 
 @numba.njit(cache=True, nogil=True, inline="always")
 def _disk_value_rows(values, offsets, lengths, steps, i, w, v):
-    """G(v; ρ) from the row pair (i, w) of :func:`_rho_row`."""
+    """G(v; ρ) from the row pair (i, w) of :func:`rho_row`."""
     return ((1.0 - w) * _row_value(values, offsets, lengths, steps, i, v)
             + w * _row_value(values, offsets, lengths, steps, i + 1, v))
 
@@ -145,7 +145,7 @@ def _disk_value_rows(values, offsets, lengths, steps, i, w, v):
 @numba.njit(cache=True, nogil=True)
 def _disk_value(values, offsets, lengths, steps, rho, v):
     """G(v; ρ) for ρ < DISK_RHO_MAX (clamped to DISK_RHO_MIN below), linear in log ρ between rows."""
-    i, w = _rho_row(lengths, rho)
+    i, w = rho_row(lengths, rho)
     return _disk_value_rows(values, offsets, lengths, steps, i, w, v)
 
 
@@ -195,5 +195,5 @@ def disk_step_response(t, *, radius, sigma2, amplitude=1.0):
     t = np.asarray(t, dtype=np.float64)
     flat = np.ascontiguousarray(t.reshape(-1))
     out = np.empty_like(flat)
-    _response_kernel(flat, float(radius), float(sigma2), *_response_table(), out)
+    _response_kernel(flat, float(radius), float(sigma2), *response_table(), out)
     return float(amplitude) * out.reshape(t.shape)

@@ -23,7 +23,7 @@ import math
 import numba
 import numpy as np
 
-from .disk_edge_response import DISK_RHO_MAX, _response_table, _rho_row
+from .disk_edge_response import DISK_RHO_MAX, response_table, rho_row
 from ..edges.elder_zucker import check_edge_inputs, edge_pixels_by_scale
 from ..edges.gaussian_derivatives import GaussianDerivativeBank
 
@@ -137,7 +137,7 @@ def _score_disk(r, a, b, K, s_prime, t0, sig_p, dvalues, doffsets, dlengths, dst
     ``disk_edge_response._disk_value``, with the per-row index scale hoisted out of the loop).
     """
     radius = 2.0 * math.sqrt(s_prime * s_prime - sig_p * sig_p)
-    row, wt = _rho_row(dlengths, sig_p / radius)
+    row, wt = rho_row(dlengths, sig_p / radius)
     o0, o1 = doffsets[row], doffsets[row + 1]
     n0, n1 = dlengths[row] - 1, dlengths[row + 1] - 1
     c0 = 1.0 / (radius * dsteps[row])  # table index per sample
@@ -416,9 +416,9 @@ def estimate_blur_model_fit(gray, edge_map, *, params):
        residual per edge, "auto" one model per image (:func:`select_psf_model`, decided on a sample
        of at most :data:`PSF_SELECT_SAMPLE` resolved edges; the disk is then fitted on the rest).
     """
-    if _paper_rules(params):
+    if paper_rules(params):
         return _model_fit_with_residual(gray, edge_map, params=params)[0]
-    return apply_fit_rules(_model_fit_diagnostics(gray, edge_map, params=params), params=params)
+    return apply_fit_rules(model_fit_diagnostics(gray, edge_map, params=params), params=params)
 
 
 def estimate_blur_model_fit_psf(gray, edge_map, *, params):
@@ -432,12 +432,12 @@ def estimate_blur_model_fit_psf(gray, edge_map, *, params):
         True at the measures (finite ``sigma_b``) fitted with the disk-blurred step
         (``params.fit_psf``); False elsewhere (all False for ``fit_psf="gaussian"``, the paper).
     """
-    diagnostics = _model_fit_diagnostics(gray, edge_map, params=params)
+    diagnostics = model_fit_diagnostics(gray, edge_map, params=params)
     sigma_b = apply_fit_rules(diagnostics, params=params)
     return sigma_b, diagnostics["disk"] & np.isfinite(sigma_b)
 
 
-def _paper_rules(params) -> bool:
+def paper_rules(params) -> bool:
     """True when every beyond-the-paper model-fit switch of ``params`` is off."""
     return (getattr(params, "fit_max_scale", None) is None and getattr(params, "fit_min_samples", 3) <= 3
             and getattr(params, "fit_scale_ratio", 1.0) == 1.0
@@ -451,7 +451,7 @@ def apply_fit_rules(diagnostics, *, params) -> np.ndarray:
     Parameters
     ----------
     diagnostics : dict of ndarray, (H, W)
-        Output of :func:`_model_fit_diagnostics` (``sigma_b``, ``window``, ``width``, ``sigma2``).
+        Output of :func:`model_fit_diagnostics` (``sigma_b``, ``window``, ``width``, ``sigma2``).
     params : DefocusParams, keyword-only
         ``fit_min_samples`` (samples), ``fit_max_width_ratio`` (dimensionless),
         ``fit_below_scale`` ("zero" | "nan") and ``sigma2_scales`` (px).
@@ -520,13 +520,13 @@ def _model_fit_with_residual(gray, edge_map, *, params):
     Returns
     -------
     sigma_b, residual : ndarray, shape (H, W), float64
-        See :func:`_model_fit_diagnostics`.
+        See :func:`model_fit_diagnostics`.
     """
-    d = _model_fit_diagnostics(gray, edge_map, params=params)
+    d = model_fit_diagnostics(gray, edge_map, params=params)
     return d["sigma_b"], d["residual"]
 
 
-def _model_fit_diagnostics(gray, edge_map, *, params):
+def model_fit_diagnostics(gray, edge_map, *, params):
     """Private hook: :func:`estimate_blur_model_fit`'s σb map plus per-pixel fit diagnostics.
 
     Returns
@@ -562,7 +562,7 @@ def _model_fit_diagnostics(gray, edge_map, *, params):
     psf = getattr(params, "fit_psf", "gaussian")
     if psf not in FIT_PSF_MODELS:
         raise ValueError(f"fit_psf={psf!r} is invalid; allowed: {list(FIT_PSF_MODELS)}")
-    disk_table = _response_table() if psf != "gaussian" else _EMPTY_DISK_TABLE
+    disk_table = response_table() if psf != "gaussian" else _EMPTY_DISK_TABLE
     disk_width = np.full(img.shape, np.nan) if psf != "gaussian" else None
     disk_res = np.full(img.shape, np.nan) if psf != "gaussian" else None
     edge_map = fit_scales(edge_map, params=params)
@@ -680,7 +680,7 @@ def select_psf_model(diag, disk_width, disk_res) -> str:
     Parameters
     ----------
     diag : dict of ndarray, (H, W)
-        The Gaussian fit's diagnostics (:func:`_model_fit_diagnostics` with ``fit_psf="gaussian"``:
+        The Gaussian fit's diagnostics (:func:`model_fit_diagnostics` with ``fit_psf="gaussian"``:
         ``residual``, ``width``, px, ``sigma2``, px).
     disk_width, disk_res : ndarray, (H, W)
         Width s (px) and normalised residual of the disk model's fit on the same windows.

@@ -15,7 +15,7 @@ import functools
 
 import numpy as np
 
-from .model_fit import _model_fit_diagnostics, _paper_rules, apply_fit_rules
+from .model_fit import model_fit_diagnostics, paper_rules, apply_fit_rules
 
 __all__ = ["estimate_blur_model_fit_checked", "estimate_blur_model_fit_checked_confidence",
            "estimate_blur_model_fit_checked_psf", "noise_residual_share", "relaxed_confidence_used",
@@ -67,7 +67,7 @@ def noise_residual_share(diagnostics, *, noise_std):
     Parameters
     ----------
     diagnostics : dict of ndarray, (H, W)
-        Output of :func:`method.blur.model_fit._model_fit_diagnostics` (``window``: samples N,
+        Output of :func:`method.blur.model_fit.model_fit_diagnostics` (``window``: samples N,
         ``sigma2``: px, ``energy``: ‖r‖² over the window).
     noise_std : float, keyword-only
         Noise std, image units (the pipeline's ``params.noise_std``).
@@ -174,7 +174,7 @@ def estimate_blur_model_fit_checked_confidence(gray, edge_map, *, params):
     so the relaxed measures (fits of blurry edges, but also of in-focus low-contrast edges fitted
     too wide) decide the map only where no strict measure is near. The fit runs once.
     """
-    return _checked(_model_fit_diagnostics(gray, edge_map, params=params), params)
+    return _checked(model_fit_diagnostics(gray, edge_map, params=params), params)
 
 
 def estimate_blur_model_fit_checked_psf(gray, edge_map, *, params):
@@ -188,7 +188,7 @@ def estimate_blur_model_fit_checked_psf(gray, edge_map, *, params):
         True at the measures (finite ``sigma_b``) whose edge response was fitted with the disk model
         (``params.fit_psf``: :func:`method.blur.model_fit.select_psf_model`); False elsewhere.
     """
-    diagnostics = _model_fit_diagnostics(gray, edge_map, params=params)
+    diagnostics = model_fit_diagnostics(gray, edge_map, params=params)
     sigma_b, confidence = _checked(diagnostics, params)
     return sigma_b, confidence, diagnostics["disk"] & np.isfinite(sigma_b)
 
@@ -196,7 +196,7 @@ def estimate_blur_model_fit_checked_psf(gray, edge_map, *, params):
 def _checked(diagnostics, params):
     """(σb, confidence) of the checked fit from the model fit's diagnostics (Notes of the estimator)."""
     sigma_b, residual = diagnostics["sigma_b"], diagnostics["residual"]
-    if not _paper_rules(params):  # the beyond-the-paper plausibility rules (robust preset) first
+    if not paper_rules(params):  # the beyond-the-paper plausibility rules (robust preset) first
         sigma_b = apply_fit_rules(diagnostics, params=params)
     strict_limit = float(params.fit_max_residual)
     limit = strict_limit

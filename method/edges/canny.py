@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from .elder_zucker import MIN_IMAGE_SIZE, EdgeMap
-from .gaussian_derivatives import GaussianDerivativeBank, _validate_image
+from .gaussian_derivatives import GaussianDerivativeBank, check_gray_image
 
 __all__ = ["CANNY_HIGH_THRESHOLD", "CANNY_LOW_THRESHOLD", "CANNY_SIGMA", "detect_edges_canny"]
 
@@ -75,7 +75,7 @@ def detect_edges_canny(gray, *, sigma=CANNY_SIGMA, low_threshold=CANNY_LOW_THRES
     """
     from skimage.feature import canny  # imported on first use: `import method` stays light
 
-    img = _validate_image(gray, "gray", MIN_IMAGE_SIZE)
+    img = check_gray_image(gray, "gray", MIN_IMAGE_SIZE)
     s, lo, hi = _check_options(sigma, low_threshold, high_threshold)
     edges = np.asarray(canny(img, sigma=s, low_threshold=lo, high_threshold=hi), dtype=bool)
     theta = np.zeros(img.shape)

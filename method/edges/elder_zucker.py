@@ -16,7 +16,7 @@ import dataclasses
 import numba
 import numpy as np
 
-from .gaussian_derivatives import GaussianDerivativeBank, _validate_image
+from .gaussian_derivatives import GaussianDerivativeBank, check_gray_image
 from .noise_thresholds import (
     first_derivative_threshold,
     per_pixel_false_positive_rate,
@@ -220,7 +220,7 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
     6. With ``keep_hessians``, the (I_xx, I_xy, I_yy) of each σ2 that produced edges are kept on the
        EdgeMap for the blur estimators (Sec. 3.2 samples the same responses).
     """
-    img = _validate_image(gray, "gray", MIN_IMAGE_SIZE)
+    img = check_gray_image(gray, "gray", MIN_IMAGE_SIZE)
     s1 = _scales(sigma1_scales, "sigma1_scales")
     s2 = _scales(sigma2_scales, "sigma2_scales")
     h, w = img.shape
@@ -266,7 +266,7 @@ def check_edge_inputs(gray, edge_map):
         ``gray`` is not a finite 2-D float image, ``edge_map`` is not an :class:`EdgeMap`, or the
         shapes differ.
     """
-    img = _validate_image(gray, "gray", MIN_IMAGE_SIZE)
+    img = check_gray_image(gray, "gray", MIN_IMAGE_SIZE)
     if not isinstance(edge_map, EdgeMap):
         raise ValueError(f"edge_map must be an EdgeMap (from detect_edges); got {type(edge_map).__name__}")
     for name in ("edges", "theta", "gradient_magnitude", "sigma1", "sigma2"):

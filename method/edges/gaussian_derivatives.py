@@ -59,7 +59,7 @@ TAPER_PX = 8
 MAX_ORDER = 3
 
 
-def _validate_image(image, name="image", min_size=2):
+def check_gray_image(image, name="image", min_size=2):
     # a grey HxW float image, any finite values (derivatives are linear): method.validation's rules
     return validate_image(np.asarray(image), name=name, min_side=min_size, channels=(), check_range=False)
 
@@ -105,7 +105,7 @@ class GaussianDerivativeBank:
     """
 
     def __init__(self, image, max_sigma, *, pad_sigmas=PAD_SIGMAS, precision="double", workers=2):
-        img = _validate_image(image)
+        img = check_gray_image(image)
         max_sigma = _validate_sigma(max_sigma, "max_sigma")
         if not pad_sigmas > 0:
             raise ValueError(f"pad_sigmas={pad_sigmas!r} is invalid; allowed: > 0")

@@ -184,7 +184,7 @@ def _levels(max_sigma):
     return levels
 
 
-def _blur_stack_apply(image, sigma_extra, kernel, *, spectral_filter=None):
+def blur_stack_apply(image, sigma_extra, kernel, *, spectral_filter=None):
     """Per-pixel filtering by interpolating, in variance, between the two nearest blur-stack levels.
 
     ``image`` is HxWxC float64, ``sigma_extra`` HxW ≥ 0 (px). By default level ℓ is the image blurred
@@ -345,7 +345,7 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel="gaussian", clip_p
     if factor == 1.0 or not np.any(sigma_extra > 0):
         return image64.copy()
     img3 = image64 if image64.ndim == 3 else image64[..., None]
-    out = _blur_stack_apply(img3, sigma_extra, kernel)
+    out = blur_stack_apply(img3, sigma_extra, kernel)
     out = np.where((sigma_extra == 0)[..., None], img3, out)
     out = np.clip(out, 0.0, 1.0)
     return out if image.ndim == 3 else out[..., 0]

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .magnification import MAGNIFICATION_KERNELS, _blur_stack_apply
+from .magnification import MAGNIFICATION_KERNELS, blur_stack_apply
 from ..validation import validate_image, validate_map
 
 __all__ = ["DECONVOLUTION_METHODS", "DEFAULT_NSR", "deconvolve_defocus", "refocus"]
@@ -97,7 +97,7 @@ def _deconvolve(img3, sigma, method, nsr):
     if not np.any(sigma > 0):
         return img3.copy()
     filt = DECONVOLUTION_METHODS[method]
-    out = _blur_stack_apply(img3, sigma, "gaussian", spectral_filter=lambda khat, shape: filt(khat, shape, nsr))
+    out = blur_stack_apply(img3, sigma, "gaussian", spectral_filter=lambda khat, shape: filt(khat, shape, nsr))
     return np.where((sigma == 0)[..., None], img3, out)
 
 
@@ -194,7 +194,7 @@ def refocus(image, defocus_map, new_blur_map, *, method="wiener", nsr=DEFAULT_NS
     img3 = img if img.ndim == 3 else img[..., None]
     sharp = np.clip(_deconvolve(img3, m, method, nsr), 0.0, 1.0)
     if np.any(m_new > 0):
-        out = _blur_stack_apply(sharp, m_new, kernel)
+        out = blur_stack_apply(sharp, m_new, kernel)
         out = np.where((m_new == 0)[..., None], sharp, out)
     else:
         out = sharp

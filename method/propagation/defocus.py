@@ -61,11 +61,11 @@ from .galerkin import galerkin_coarse_operator, prolong, restrict
 from .matrix_free import jacobi_pcg, two_level_pcg
 from .solvers import COARSE_SETUPS, PROPAGATION_SOLVERS
 from .system import (
-    _assemble,
-    _coarse_problem,
-    _data_term,
-    _padded_weights,
-    _validate_options,
+    assemble_system,
+    coarse_problem,
+    data_term,
+    padded_weights,
+    validate_options,
     colorization_matrix,
     colorization_weights,
     normal_equations,
@@ -146,12 +146,12 @@ def _rediscretised_start(fine, s, *, alpha, regularization, confidence, window, 
                          solver, coarse_tol):
     """Coarse Eq. (4) rebuilt from the block-averaged guide (α_c = s²·Σ α); its solve, interpolated."""
     h, w = fine.sparse_sigma.shape
-    ref_c, bm_c, a_c = _coarse_problem(fine.sparse_sigma, fine.ref, s, alpha, confidence)
+    ref_c, bm_c, a_c = coarse_problem(fine.sparse_sigma, fine.ref, s, alpha, confidence)
     hc, wc = bm_c.shape
     L_c = colorization_matrix(ref_c, window=window, neighborhood=neighborhood, eps=eps)
     lam_c = regularization * alpha * s * s
     target = float(np.sum(a_c * bm_c) / np.sum(a_c))
-    level = COARSE_SETUPS[solver](_assemble(L_c, a_c.ravel(), lam_c))
+    level = COARSE_SETUPS[solver](assemble_system(L_c, a_c.ravel(), lam_c))
     del L_c
     rhs_c = (a_c * bm_c).ravel() + lam_c * target
     coarse = level.solve(rhs_c, np.full(hc * wc, target), coarse_tol).reshape(hc, wc)
@@ -343,7 +343,7 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
        neither used nor reseeded.
     """
     sparse_sigma, ref = validate_propagation_inputs(sparse_sigma, reference, min_side=2)
-    window, neighborhood, eps, alpha, regularization = _validate_options(
+    window, neighborhood, eps, alpha, regularization = validate_options(
         window, neighborhood, eps, alpha, regularization)
     if solver not in PROPAGATION_SOLVERS:
         raise ValueError(f"solver={solver!r} is unknown; allowed: {sorted(PROPAGATION_SOLVERS)}")
@@ -389,15 +389,15 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
     solve = PROPAGATION_SOLVERS[solver]
     if s == 1:
         L = colorization_matrix(ref, window=window, neighborhood=neighborhood, eps=eps)
-        a, rhs, lam, _ = _data_term(sparse_sigma, alpha, regularization, confidence)
-        A = _assemble(L, a, lam)
+        a, rhs, lam, _ = data_term(sparse_sigma, alpha, regularization, confidence)
+        A = assemble_system(L, a, lam)
         x0 = np.full(h * w, fill)
         return solve(A, rhs, x0=x0, tol=tol).reshape(h, w)
 
     # --- coarse solve + full-resolution refinement --------------------------------------------
     start, refine = PROPAGATION_REFINEMENTS[refinement]
-    weights, offs = _padded_weights(ref, window, neighborhood, eps)
-    a, rhs, lam, _ = _data_term(sparse_sigma, alpha, regularization, confidence)
+    weights, offs = padded_weights(ref, window, neighborhood, eps)
+    a, rhs, lam, _ = data_term(sparse_sigma, alpha, regularization, confidence)
     fine = _FineSystem(sparse_sigma, ref, weights, offs, (a + lam).reshape(h, w), rhs.reshape(h, w), fill)
     x0, coarse_level, scale = start(fine, s, alpha=alpha, regularization=regularization,
                                     confidence=confidence, window=window, neighborhood=neighborhood,

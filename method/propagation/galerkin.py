@@ -2,7 +2,7 @@
 
 The two-level refinement of :func:`method.propagation.defocus.propagate_defocus` corrects the smooth part of
 the CG residual on an s-times coarser grid. Its first form used the *re-discretised* coarse problem
-(Eq. 4 rebuilt from the block-averaged guide, :func:`method.propagation.system._coarse_problem`):
+(Eq. 4 rebuilt from the block-averaged guide, :func:`method.propagation.system.coarse_problem`):
 cheap, but across colour edges it is a different operator from the fine one, so the coarse
 correction is wrong exactly where the map has to change, and CG needed 20·s iterations. The
 *Galerkin* operator ``A_c = Pᵀ A P`` with the same bilinear interpolation P (separable,
@@ -209,7 +209,7 @@ def galerkin_coarse_operator(weights, offs, a_diag, *, s, coarse_shape) -> sp.cs
     ----------
     weights : ndarray, (K, H+2r, W+2r), float32 or float64
         Affinities w_pq of Eq. (4c) on the zero-padded grid
-        (:func:`method.propagation.system._padded_weights`); L = I − W.
+        (:func:`method.propagation.system.padded_weights`); L = I − W.
     offs : ndarray, (K, 2), int64
         Neighbour offsets (dy, dx) of the K weights.
     a_diag : ndarray, (H, W), float64

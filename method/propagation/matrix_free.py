@@ -2,7 +2,7 @@
 
 The refinement of :func:`method.propagation.defocus.propagate_defocus`'s coarse mode: CG on the exact
 full-resolution normal equations ``(LᵀL + diag a) x = rhs`` without assembling them (the operator is
-applied from the affinities, :func:`method.propagation.system._padded_weights`), preconditioned by
+applied from the affinities, :func:`method.propagation.system.padded_weights`), preconditioned by
 
 * :func:`two_level_pcg` (default): Jacobi + a coarse-grid correction (bilinear P, Pᵀ and one V-cycle
   / LU solve of the coarse level of :mod:`method.propagation.solvers`: the Galerkin operator of
@@ -156,7 +156,7 @@ def jacobi_pcg(weights, offs, a_diag, rhs, x0, *, maxiter, tol):
     Parameters
     ----------
     weights : ndarray, (K, H+2r, W+2r), float32 or float64
-        Affinities from :func:`method.propagation.system._padded_weights` (zero padding).
+        Affinities from :func:`method.propagation.system.padded_weights` (zero padding).
     offs : ndarray, (K, 2), int64
     a_diag : ndarray, (H, W), float64
         Diagonal data term α_p + λ.
@@ -534,7 +534,7 @@ def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, ma
     Parameters
     ----------
     weights : ndarray, (K, H+2r, W+2r), float32 or float64
-        Affinities from :func:`method.propagation.system._padded_weights` (zero padding).
+        Affinities from :func:`method.propagation.system.padded_weights` (zero padding).
     offs : ndarray, (K, 2), int64
     a_diag : ndarray, (H, W), float64
         Diagonal data term α_p + λ.

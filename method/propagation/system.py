@@ -38,7 +38,7 @@ def _as_reference(reference) -> np.ndarray:
     return validate_guide(reference, min_side=2)
 
 
-def _validate_options(window, neighborhood, eps, alpha, regularization):
+def validate_options(window, neighborhood, eps, alpha, regularization):
     return (check_odd("window", window, 1), check_odd("neighborhood", neighborhood, 3),
             check_positive("eps", eps), check_positive("alpha", alpha),
             check_positive("regularization", regularization, allow_zero=True))
@@ -307,7 +307,7 @@ def colorization_matrix(reference, *, window=7, neighborhood=3, eps=1e-6) -> sp.
 # --------------------------------------------------------------------------------------------
 # system assembly
 # --------------------------------------------------------------------------------------------
-def _data_term(sparse_sigma, alpha, regularization, confidence=None):
+def data_term(sparse_sigma, alpha, regularization, confidence=None):
     """α per pixel (× confidence where given), right-hand side and the regulariser's target (mean BM)."""
     edge = np.isfinite(sparse_sigma)
     a = (np.where(edge, alpha, 0.0) if confidence is None else np.where(edge, alpha * confidence, 0.0)).ravel()
@@ -335,21 +335,21 @@ def normal_equations(sparse_sigma, reference, *, alpha=0.5, window=7, neighborho
     rhs : ndarray, H·W
     """
     sparse_sigma, ref = validate_propagation_inputs(sparse_sigma, reference, min_side=2)
-    window, neighborhood, eps, alpha, regularization = _validate_options(
+    window, neighborhood, eps, alpha, regularization = validate_options(
         window, neighborhood, eps, alpha, regularization)
     L = colorization_matrix(ref, window=window, neighborhood=neighborhood, eps=eps)
-    a, rhs, lam, _ = _data_term(sparse_sigma, alpha, regularization)
-    return _assemble(L, a, lam), rhs
+    a, rhs, lam, _ = data_term(sparse_sigma, alpha, regularization)
+    return assemble_system(L, a, lam), rhs
 
 
-def _assemble(L, a, lam):
+def assemble_system(L, a, lam):
     A = (L.T @ L).tocsr()
     A = A + sp.diags(a + lam, format="csr")
     A.sort_indices()
     return A
 
 
-def _padded_weights(ref, window, neighborhood, eps, dtype=np.float32):
+def padded_weights(ref, window, neighborhood, eps, dtype=np.float32):
     """Affinities on a grid zero-padded by the neighbourhood radius: (K, H+2r, W+2r) of ``dtype``."""
     h, w = ref.shape[:2]
     r = neighborhood // 2
@@ -360,7 +360,7 @@ def _padded_weights(ref, window, neighborhood, eps, dtype=np.float32):
 
 
 
-def _coarse_problem(sparse_sigma, ref, s, alpha, confidence=None):
+def coarse_problem(sparse_sigma, ref, s, alpha, confidence=None):
     """Block-average the guide, α-weighted block mean of BM, α_c = s²·Σ_block α (see Notes)."""
     h, w = sparse_sigma.shape
     hc, wc = -(-h // s), -(-w // s)

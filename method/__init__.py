@@ -8,8 +8,7 @@ Subpackages, in the order of the paper's pipeline (:func:`estimate_defocus_map` 
 :mod:`method.edges` (Sec. 3.1, Eq. 7–9), :mod:`method.blur` (Sec. 3.2: σ at edges and over textured
 regions), :mod:`method.refine` (Eq. 3), :mod:`method.propagation` (Eq. 4 and the cue fusion),
 :mod:`method.magnify` (Sec. 5: magnification, refocusing, working resolution). :mod:`method.params`
-holds :class:`DefocusParams` and the presets; :mod:`method.registry` the registry type every
-name-chosen variant uses.
+holds :class:`DefocusParams` and the presets.
 """
 
 from .blur import BLUR_ESTIMATORS, REGION_ESTIMATORS, estimate_blur, estimate_region_blur

@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -16,15 +17,14 @@ def _parser():
 
     p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     p.add_argument("command", choices=("export",), help="export: write the renders and their ground truth to DIR")
-    e = p
-    add_variant_option(e)
-    e.add_argument("--scenes", nargs="+", default=None, metavar="NAME", help="scenes (default: all)")
-    e.add_argument("--fnumber", nargs="+", type=float_type("--fnumber"), default=[8.0, 4.0], metavar="N",
+    add_variant_option(p)
+    p.add_argument("--scenes", nargs="+", default=None, metavar="NAME", help="scenes (default: all)")
+    p.add_argument("--fnumber", nargs="+", type=float_type("--fnumber"), default=[8.0, 4.0], metavar="N",
                    help="apertures (default: 8 4)")
-    e.add_argument("--scene-preset", default="small", choices=("small", "full"),
+    p.add_argument("--scene-preset", default="small", choices=("small", "full"),
                    help="render resolution preset (default small)")
-    e.add_argument("--out", type=Path, required=True, metavar="DIR", help="dataset folder")
-    add_quiet_option(e, what="no progress display")
+    p.add_argument("--out", type=Path, required=True, metavar="DIR", help="dataset folder")
+    add_quiet_option(p, what="no progress display")
     return p
 
 
@@ -55,8 +55,6 @@ def main(argv=None) -> int:
         for s, n in bar:
             name = ds.image_name(s, n, args.scene_preset)
             if ds.is_complete(args.out, name):
-                import json
-
                 entries.append(json.loads((args.out / "done" / f"{name}.json").read_text()))
                 continue
             require_extras("render", command="repro.dataset export (renders not yet exported)")

@@ -110,5 +110,8 @@ def test_method_stage_subpackages_export_public_names(name):
 
     package = importlib.import_module(f"method.{name}")
     assert package.__all__ and all(not n.startswith("_") and hasattr(package, n) for n in package.__all__)
+
+
+def test_method_top_level_keeps_only_the_shared_modules():
     flat = sorted(p.name for p in (ROOT / "method").glob("*.py"))
     assert flat == ["__init__.py", "luma.py", "params.py", "pipeline.py", "validation.py"], flat

@@ -105,3 +105,17 @@ def test_export_round_trip_and_interruption(tmp_path, monkeypatch):
 
     png = iio.imread(tmp_path / "images" / f"{name}.png") / 255.0
     assert np.array_equal(png, render.image(encoding="srgb", quantize_bits=8))
+
+
+def test_cli_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys):
+    from repro.dataset import PROG, main
+    from tests.photo_cli import cli_runner
+
+    run, assert_one_line_error = cli_runner(main, PROG)
+    out = tmp_path / "data"
+    status, _, err = run(["export", "--scenes", "no_such_scene", "--out", out], capsys)
+    assert_one_line_error(status, err, "no_such_scene", "planes")
+    assert not out.exists()
+    (tmp_path / "file").write_text("x")
+    status, _, err = run(["export", "--scenes", "planes", "--out", tmp_path / "file"], capsys)
+    assert_one_line_error(status, err, "is a file")

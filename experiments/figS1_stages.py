@@ -88,7 +88,7 @@ def _targets(errs: dict) -> dict:
 def compute(config: StagesConfig) -> dict:
     """Stage attribution for every preset on mosaics and renders; see the module Notes."""
     from method import DefocusParams, NoEdgesWarning
-    from method.params import ROBUST_CHANGES
+    from method.presets import ROBUST_CHANGES
     from scenes import render_scene
     from scenes.analytic import texture_mosaic
 

@@ -159,7 +159,7 @@ def ablation_params(base, changes: dict) -> dict:
     base : DefocusParams
         The preset (e.g. ``DefocusParams.preset("robust")``).
     changes : dict
-        Its departures from the paper (:data:`method.params.ROBUST_CHANGES`): each ablation row
+        Its departures from the paper (:data:`method.presets.ROBUST_CHANGES`): each ablation row
         resets one of them to the paper's value.
 
     Returns

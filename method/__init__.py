@@ -8,17 +8,20 @@ Subpackages, in the order of the paper's pipeline (:func:`estimate_defocus_map` 
 :mod:`method.edges` (Sec. 3.1, Eq. 7–9), :mod:`method.blur` (Sec. 3.2: σ at edges and over textured
 regions), :mod:`method.refine` (Eq. 3), :mod:`method.propagation` (Eq. 4 and the cue fusion),
 :mod:`method.magnify` (Sec. 5: magnification, refocusing, working resolution). :mod:`method.params`
-holds :class:`DefocusParams` and the presets.
+holds :class:`DefocusParams`, :mod:`method.presets` the named parameter sets (:data:`PRESETS`), and
+:mod:`method.registry` the :class:`~method.registry.Registry` type every choice by name is a key of.
 """
 
 from .blur import BLUR_ESTIMATORS, REGION_ESTIMATORS, estimate_blur, estimate_region_blur
 from .edges import EdgeMap, detect_edges
 from .magnify import (DECONVOLUTION_METHODS, MAGNIFICATION_KERNELS, deconvolve_defocus, magnify_defocus,
                       preprocess_defocus_map, refocus)
-from .params import PRESETS, DefocusParams
+from .params import DefocusParams
+from .presets import PRESETS
 from .pipeline import DefocusResult, NoEdgesWarning, estimate_defocus_map, luminance
 from .propagation import PROPAGATION_METHODS, PROPAGATION_SOLVERS, propagate_blur_measures, propagate_defocus
 from .refine import BILATERAL_METHODS, biased_cross_bilateral
+from .registry import Entry, Registry
 
 __all__ = [
     "BILATERAL_METHODS",
@@ -30,6 +33,8 @@ __all__ = [
     "PROPAGATION_SOLVERS",
     "REGION_ESTIMATORS",
     "DefocusParams",
+    "Entry",
+    "Registry",
     "DefocusResult",
     "EdgeMap",
     "NoEdgesWarning",

@@ -7,9 +7,33 @@ Images are floats in [0, 1]; every blur quantity is a Gaussian σ in pixels of t
 from __future__ import annotations
 
 import dataclasses
-import math
 
-__all__ = ["PRESETS", "ROBUST_CHANGES", "ZHUO_SIM_CHANGES", "DefocusParams"]
+from .blur.estimators import BLUR_ESTIMATORS
+from .blur.model_fit import FIT_PSF_MODELS
+from .blur.region_estimators import REGION_ESTIMATORS, REGION_NOISE_MODELS, REGION_PSFS
+from .edges.isolation import EDGE_ISOLATION_METHODS
+from .magnify.magnification import MAP_FLOOR_MODES
+from .propagation.cue_fusion import REGION_PLACEMENTS
+from .propagation.defocus import PROPAGATION_REFINEMENTS, PROPAGATION_SOLVERS
+from .propagation.matting import MATTING_DATA_WEIGHTS
+from .propagation.methods import PROPAGATION_METHODS
+from .refine.cross_bilateral import BILATERAL_METHODS, RANGE_KERNELS
+from .registry import Registry
+
+__all__ = ["ALPHA_CONFIDENCES", "BELOW_SCALE_RULES", "BIAS_REFERENCES", "EDGE_DETECTORS", "DefocusParams"]
+
+#: ``DefocusParams.edge_detector`` (read by :func:`method.pipeline.edges_stage`).
+EDGE_DETECTORS = Registry("edge detector", {
+    "elder_zucker": "Elder & Zucker 1998 multi-scale detector, Eq. (7)-(9) (the paper)",
+    "canny": "Canny edges (Zhuo & Sim's edge set); only with estimator='gradient_ratio'",
+})
+#: ``DefocusParams.bias_reference``: the unit of ``bias_scale`` (Eq. 3's sharpness bias).
+BIAS_REFERENCES = Registry("bias reference", {"px": "σ in px", "image_fraction": "a fraction of max(H, W)"})
+#: ``DefocusParams.fit_below_scale``: a fitted blur narrower than the σ2 that detected the edge.
+BELOW_SCALE_RULES = Registry("below-scale rule", {"zero": "kept (the paper)", "nan": "dropped as unresolved"})
+#: ``DefocusParams.alpha_confidence``: what scales α_p of Eq. (4) beyond the measure confidence.
+ALPHA_CONFIDENCES = Registry("alpha confidence", {"none": "α_p = α (the paper)",
+                                                  "agreement": "agreement of BM with bCBF (beyond the paper)"})
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -296,161 +320,16 @@ class DefocusParams:
     # regions stay sharp; "shift" = max(σ − p_lo, 0).
 
     def __post_init__(self):
-        def bad(name, allowed):
-            raise ValueError(f"DefocusParams.{name}={getattr(self, name)!r} is invalid; allowed: {allowed}")
-
-        def check_name(name, registry):  # a variant chosen by name: allowed = the registry's keys
-            if not isinstance(getattr(self, name), str) or getattr(self, name) not in registry:
-                bad(name, sorted(registry))
-
-        # The registries define the allowed names (lazy: they import this module's users).
-        from .blur.estimators import BLUR_ESTIMATORS
-        from .blur.model_fit import FIT_PSF_MODELS
-        from .refine.cross_bilateral import BILATERAL_METHODS, RANGE_KERNELS
-        from .magnify.magnification import MAP_FLOOR_MODES
-        from .propagation.matting import MATTING_DATA_WEIGHTS
-        from .propagation.defocus import PROPAGATION_REFINEMENTS, PROPAGATION_SOLVERS
-        from .propagation.methods import PROPAGATION_METHODS
-        from .blur.region_estimators import REGION_ESTIMATORS, REGION_NOISE_MODELS, REGION_PSFS
-
-        for name in ("sigma1_scales", "sigma2_scales"):
-            scales = tuple(float(s) for s in getattr(self, name))
-            if not scales or any(not (s > 0) for s in scales):
-                bad(name, "non-empty tuple of positive scales (px)")
-            object.__setattr__(self, name, tuple(sorted(scales)))
-        if not self.noise_std > 0:
-            bad("noise_std", "> 0")
-        if not 0 < self.false_positive_rate < 1:
-            bad("false_positive_rate", "0 < α_I < 1")
-        if not (isinstance(self.fit_window_min, int) and self.fit_window_min >= 3):
-            bad("fit_window_min", "integer >= 3")
-        if not (isinstance(self.fit_window_max, int) and self.fit_window_max >= self.fit_window_min):
-            bad("fit_window_max", "integer >= fit_window_min")
-        if not self.max_sigma > 0:
-            bad("max_sigma", "> 0")
-        if not 0 <= self.fit_max_residual <= 1:
-            bad("fit_max_residual", "0 <= ρ_max <= 1 (dimensionless normalised residual)")
-        if not self.bilateral_sigma_spatial > 0:
-            bad("bilateral_sigma_spatial", "> 0")
-        if not self.bilateral_sigma_range > 0:
-            bad("bilateral_sigma_range", "> 0")
-        if not self.bias_scale > 0:
-            bad("bias_scale", "> 0")
-        check_name("estimator", BLUR_ESTIMATORS)
-        if self.edge_detector not in ("elder_zucker", "canny"):
-            bad("edge_detector", "'elder_zucker' or 'canny'")
-        if self.edge_detector == "canny" and self.estimator != "gradient_ratio":
-            bad("edge_detector", "'canny' only with estimator='gradient_ratio' (the other estimators read the "
-                                 "Elder–Zucker σ2 scales); else 'elder_zucker'")
-        if not (0 < self.canny_sigma < float("inf")):
-            bad("canny_sigma", "finite and > 0 (px)")
-        if not (0 <= self.canny_low_threshold <= self.canny_high_threshold < float("inf")):
-            bad("canny_low_threshold", "finite 0 <= canny_low_threshold <= canny_high_threshold")
-        for name in ("ratio_gradient_sigma", "ratio_reblur_sigma"):
-            if not (0 < getattr(self, name) < float("inf")):
-                bad(name, "finite and > 0 (px)")
-        if self.ratio_max_sigma is not None and not (0 < self.ratio_max_sigma < float("inf")):
-            bad("ratio_max_sigma", "None or finite and > 0 (px)")
-        if not isinstance(self.refine, bool):
-            bad("refine", "True or False")
-        if not isinstance(self.ratio_zero_is_measure, bool):
-            bad("ratio_zero_is_measure", "True or False")
-        check_name("bilateral_method", BILATERAL_METHODS)
-        check_name("bilateral_range_kernel", RANGE_KERNELS)
-        if self.bias_reference not in ("px", "image_fraction"):
-            bad("bias_reference", "'px' or 'image_fraction'")
-        if not (isinstance(self.refinement_robust_iterations, int) and not isinstance(self.refinement_robust_iterations, bool)
-                and self.refinement_robust_iterations >= 0):
-            bad("refinement_robust_iterations", "integer >= 0")
-        if not (self.refinement_robust_scale > 0 and self.refinement_robust_scale < float("inf")):
-            bad("refinement_robust_scale", "finite and > 0")
-        if not (self.fit_residual_noise >= 0 and self.fit_residual_noise < float("inf")):
-            bad("fit_residual_noise", "finite and >= 0 (dimensionless)")
-        if not (0 < self.relaxed_fit_weight <= 1):
-            bad("relaxed_fit_weight", "0 < c <= 1 (dimensionless confidence)")
-        if not 0 < self.fit_scale_ratio <= 1:
-            bad("fit_scale_ratio", "0 < ratio <= 1 (dimensionless)")
-        if self.fit_max_scale is not None and not self.fit_max_scale > 0:
-            bad("fit_max_scale", "None or > 0 (px)")
-        if not (isinstance(self.fit_min_samples, int) and self.fit_min_samples >= 3):
-            bad("fit_min_samples", "integer >= 3")
-        if not self.fit_max_width_ratio > 0:
-            bad("fit_max_width_ratio", "> 0 (inf: no limit)")
-        if self.fit_below_scale not in ("zero", "nan"):
-            bad("fit_below_scale", "'zero' or 'nan'")
-        check_name("fit_psf", FIT_PSF_MODELS)
-        if self.region_estimator is not None and (not isinstance(self.region_estimator, str)
-                                                  or self.region_estimator not in REGION_ESTIMATORS):
-            bad("region_estimator", [None, *sorted(REGION_ESTIMATORS)])
-        if self.region_psf not in REGION_PSFS:
-            bad("region_psf", list(REGION_PSFS))
-        if self.region_noise_model not in REGION_NOISE_MODELS:
-            bad("region_noise_model", list(REGION_NOISE_MODELS))
-        for name in ("region_window_min", "region_window_max", "region_stride"):
-            v = getattr(self, name)
-            if not (isinstance(v, int) and not isinstance(v, bool) and v >= (16 if name != "region_stride" else 1)):
-                bad(name, "integer >= 16 (px)" if name != "region_stride" else "integer >= 1 (px)")
-        if self.region_window_max < self.region_window_min:
-            bad("region_window_max", "integer >= region_window_min (px)")
-        if not (0 < self.region_window_scale < float("inf")):
-            bad("region_window_scale", "finite and > 0 (dimensionless)")
-        if not (0 <= self.region_sigma_min < self.region_sigma_max < float("inf")):
-            bad("region_sigma_max" if self.region_sigma_min >= 0 else "region_sigma_min",
-                "0 <= region_sigma_min < region_sigma_max < inf (px)")
-        if self.alpha_confidence not in ("none", "agreement"):
-            bad("alpha_confidence", "'none' or 'agreement'")
-        if not self.matting_lambda > 0:
-            bad("matting_lambda", "> 0")
-        if not self.matting_epsilon > 0:
-            bad("matting_epsilon", "> 0")
-        check_name("matting_data_weight", MATTING_DATA_WEIGHTS)
-        check_name("propagation", PROPAGATION_METHODS)
-        if self.propagation == "matting_laplacian" and self.alpha_confidence != "none":
-            bad("alpha_confidence", "'none' with propagation='matting_laplacian' (its data term has no per-edge weight)")
-        if not self.alpha > 0:
-            bad("alpha", "> 0")
-        if not (isinstance(self.propagation_window, int) and self.propagation_window >= 3
-                and self.propagation_window % 2 == 1):
-            bad("propagation_window", "odd integer >= 3")
-        if not (isinstance(self.propagation_neighborhood, int) and self.propagation_neighborhood >= 3
-                and self.propagation_neighborhood % 2 == 1):
-            bad("propagation_neighborhood", "odd integer >= 3")
-        if not 0 < self.propagation_tol < 1:
-            bad("propagation_tol", "0 < tol < 1")
-        ds = self.propagation_downsample
-        if not (ds == "auto" or (isinstance(ds, int) and ds >= 1 and (ds & (ds - 1)) == 0)):
-            bad("propagation_downsample", "'auto' or a power of two >= 1")
-        check_name("propagation_refinement", PROPAGATION_REFINEMENTS)
-        check_name("propagation_solver", PROPAGATION_SOLVERS)
-        if not 0 <= self.map_clip_percent < 50:
-            bad("map_clip_percent", "0 <= p < 50")
-        if not self.map_smoothing >= 0:
-            bad("map_smoothing", ">= 0")
-        check_name("map_floor", MAP_FLOOR_MODES)
-        from .propagation.cue_fusion import REGION_PLACEMENTS
-        from .edges.isolation import EDGE_ISOLATION_METHODS
-
-        if self.edge_isolation is not None:
-            check_name("edge_isolation", EDGE_ISOLATION_METHODS)
-        if not (0 < self.isolation_radius < float("inf")):
-            bad("isolation_radius", "finite and > 0 (units of σ̂)")
-        if not (0 < self.isolation_floor <= 1):
-            bad("isolation_floor", "0 < weight <= 1")
-        for name in ("fusion_edge_error_rel", "fusion_region_error_rel"):
-            if not (0 <= getattr(self, name) < float("inf")):
-                bad(name, "finite and >= 0 (dimensionless relative error)")
-        if not (0 < self.fusion_region_weight < float("inf")):
-            bad("fusion_region_weight", "finite and > 0 (dimensionless)")
-        check_name("fusion_region_placement", REGION_PLACEMENTS)
-        if not (0 <= self.fusion_island_weight <= 1):
-            bad("fusion_island_weight", "0 <= factor <= 1 (1: off; 0: island measures dropped)")
-        if not (0 <= self.fusion_straddle_weight <= 1):
-            bad("fusion_straddle_weight", "0 <= factor <= 1 (1: off)")
-        if not (0 < self.fusion_island_radius < float("inf")):
-            bad("fusion_island_radius", "finite and > 0 (px)")
-        if getattr(self, "region_estimator", None) is not None and self.propagation != "colorization":
-            bad("propagation", "'colorization' when region_estimator is set (the fusion needs per-pixel "
-                "data weights in Eq. 4)")
+        for name in ("sigma1_scales", "sigma2_scales"):  # normalised: sorted tuple of float px
+            try:
+                scales = tuple(sorted(float(v) for v in getattr(self, name)))
+            except (TypeError, ValueError):
+                scales = ()
+            if not scales or any(not (v > 0) for v in scales):
+                _bad(self, name, "non-empty tuple of positive scales (px)")
+            object.__setattr__(self, name, scales)
+        for check in _STAGE_CHECKS:
+            check(self)
 
     def replace(self, **changes) -> "DefocusParams":
         """A validated copy with some fields changed."""
@@ -472,9 +351,10 @@ class DefocusParams:
         ValueError
             Unknown name (the message lists the presets) or bad field values.
         """
-        if not isinstance(name, str) or name not in PRESETS:
-            raise ValueError(f"unknown preset {name!r}; allowed: {sorted(PRESETS)}")
-        return PRESETS[name].replace(**changes) if changes else PRESETS[name]
+        from .presets import PRESETS  # at call time: the presets are instances of this class
+
+        params = PRESETS.resolve(name, what="preset")
+        return params.replace(**changes) if changes else params
 
     def changes_from(self, other: "DefocusParams") -> dict:
         """Fields whose value differs from ``other``: {name: (value here, value in other)}."""
@@ -482,52 +362,164 @@ class DefocusParams:
                 if getattr(self, f.name) != getattr(other, f.name)}
 
 
-#: The robust preset's departures from the paper, one named field each (so each is an ablation row
-#: of ``experiments.stage_attribution``); the measurements behind every value are in the README's
-#: "Choices" section and docs/dense-map.md.
-ROBUST_CHANGES: dict = {
-    "sigma1_scales": (0.5, 1.0, 2.0, 4.0, 8.0, 16.0),
-    "sigma2_scales": (0.5, 1.0, 2.0, 4.0, 8.0),
-    "estimator": "model_fit_checked",
-    "fit_max_residual": 0.03,
-    "fit_max_scale": 2.0,
-    "fit_max_width_ratio": 0.75,
-    "fit_below_scale": "nan",
-    "fit_psf": "auto",
-    "fit_residual_noise": 2.0,
-    "relaxed_fit_weight": 0.1,
-    "bilateral_range_kernel": "product",
-    "bilateral_sigma_spatial": 0.05,
-    "sharpness_bias": False,
-    # region (spectral) blur fused with the edge measures in Eq. (4); each value's ablation row is in
-    # docs/cue-fusion.md (region_psf="edges" and edge_isolation were measured and left out)
-    "region_estimator": "local_spectrum",
-    "fusion_edge_error_rel": 0.3,
-    "fusion_island_weight": 0.001,
-    "fusion_straddle_weight": 0.0,
-}
+# --------------------------------------------------------------------------------------------
+# validation, one function per pipeline stage (Sec. 3.1, 3.2, Eq. 3, Eq. 4, Sec. 5)
+# --------------------------------------------------------------------------------------------
+_INF = float("inf")
 
-#: Zhuo & Sim 2011 inside the harness: gradient-ratio blur at Canny edges as their public code
-#: measures it (docs/zhuo-sim.md), a plain joint bilateral filter of the sparse map (their Sec. 3.2
-#: error correction; no sharpness bias), matting-Laplacian propagation (their Sec. 4).
-ZHUO_SIM_CHANGES: dict = {
-    "estimator": "gradient_ratio",
-    "edge_detector": "canny",
-    "ratio_gradient_sigma": 1.0,
-    "ratio_reblur_sigma": math.sqrt(1.25),
-    "ratio_max_sigma": 5.0,
-    "ratio_zero_is_measure": False,
-    "matting_lambda": 0.001,
-    "matting_epsilon": 9e-7,
-    "matting_data_weight": "sigma",
-    "refine": False,
-    "sharpness_bias": False,
-    "propagation": "matting_laplacian",
-}
 
-#: name -> DefocusParams. ``"paper"`` is the literal reproduction and equals ``DefocusParams()``.
-PRESETS: dict[str, DefocusParams] = {
-    "paper": DefocusParams(),
-    "robust": DefocusParams(**ROBUST_CHANGES),
-    "zhuo_sim": DefocusParams(**ZHUO_SIM_CHANGES),
-}
+def _bad(p, name, allowed):
+    raise ValueError(f"DefocusParams.{name}={getattr(p, name)!r} is invalid; allowed: {allowed}")
+
+
+def _choice(p, name, registry, *, optional=False):
+    registry.check(getattr(p, name), what=f"DefocusParams.{name}", optional=optional)
+
+
+def _is_int(v, minimum):
+    return isinstance(v, int) and not isinstance(v, bool) and v >= minimum
+
+
+def _check_edges(p):
+    """Sec. 3.1 (and the Canny and isolation options beyond the paper)."""
+    if not p.noise_std > 0:
+        _bad(p, "noise_std", "> 0")
+    if not 0 < p.false_positive_rate < 1:
+        _bad(p, "false_positive_rate", "0 < α_I < 1")
+    _choice(p, "edge_detector", EDGE_DETECTORS)
+    if not (0 < p.canny_sigma < _INF):
+        _bad(p, "canny_sigma", "finite and > 0 (px)")
+    if not (0 <= p.canny_low_threshold <= p.canny_high_threshold < _INF):
+        _bad(p, "canny_low_threshold", "finite 0 <= canny_low_threshold <= canny_high_threshold")
+    _choice(p, "edge_isolation", EDGE_ISOLATION_METHODS, optional=True)
+    if not (0 < p.isolation_radius < _INF):
+        _bad(p, "isolation_radius", "finite and > 0 (units of σ̂)")
+    if not (0 < p.isolation_floor <= 1):
+        _bad(p, "isolation_floor", "0 < weight <= 1")
+
+
+def _check_edge_blur(p):
+    """Sec. 3.2: the estimator at edges and its fit options."""
+    _choice(p, "estimator", BLUR_ESTIMATORS)
+    if p.edge_detector == "canny" and p.estimator != "gradient_ratio":
+        _bad(p, "edge_detector", "'canny' only with estimator='gradient_ratio' (the other estimators read the "
+                                 "Elder–Zucker σ2 scales); else 'elder_zucker'")
+    if not _is_int(p.fit_window_min, 3):
+        _bad(p, "fit_window_min", "integer >= 3")
+    if not (_is_int(p.fit_window_max, 3) and p.fit_window_max >= p.fit_window_min):
+        _bad(p, "fit_window_max", "integer >= fit_window_min")
+    if not p.max_sigma > 0:
+        _bad(p, "max_sigma", "> 0")
+    if not 0 <= p.fit_max_residual <= 1:
+        _bad(p, "fit_max_residual", "0 <= ρ_max <= 1 (dimensionless normalised residual)")
+    if not (0 <= p.fit_residual_noise < _INF):
+        _bad(p, "fit_residual_noise", "finite and >= 0 (dimensionless)")
+    if not (0 < p.relaxed_fit_weight <= 1):
+        _bad(p, "relaxed_fit_weight", "0 < c <= 1 (dimensionless confidence)")
+    if not 0 < p.fit_scale_ratio <= 1:
+        _bad(p, "fit_scale_ratio", "0 < ratio <= 1 (dimensionless)")
+    if p.fit_max_scale is not None and not p.fit_max_scale > 0:
+        _bad(p, "fit_max_scale", "None or > 0 (px)")
+    if not _is_int(p.fit_min_samples, 3):
+        _bad(p, "fit_min_samples", "integer >= 3")
+    if not p.fit_max_width_ratio > 0:
+        _bad(p, "fit_max_width_ratio", "> 0 (inf: no limit)")
+    _choice(p, "fit_below_scale", BELOW_SCALE_RULES)
+    _choice(p, "fit_psf", FIT_PSF_MODELS)
+    for name in ("ratio_gradient_sigma", "ratio_reblur_sigma"):
+        if not (0 < getattr(p, name) < _INF):
+            _bad(p, name, "finite and > 0 (px)")
+    if p.ratio_max_sigma is not None and not (0 < p.ratio_max_sigma < _INF):
+        _bad(p, "ratio_max_sigma", "None or finite and > 0 (px)")
+    if not isinstance(p.ratio_zero_is_measure, bool):
+        _bad(p, "ratio_zero_is_measure", "True or False")
+
+
+def _check_region(p):
+    """The region (local-spectrum) estimator beyond the paper."""
+    _choice(p, "region_estimator", REGION_ESTIMATORS, optional=True)
+    _choice(p, "region_psf", REGION_PSFS)
+    _choice(p, "region_noise_model", REGION_NOISE_MODELS)
+    for name in ("region_window_min", "region_window_max"):
+        if not _is_int(getattr(p, name), 16):
+            _bad(p, name, "integer >= 16 (px)")
+    if not _is_int(p.region_stride, 1):
+        _bad(p, "region_stride", "integer >= 1 (px)")
+    if p.region_window_max < p.region_window_min:
+        _bad(p, "region_window_max", "integer >= region_window_min (px)")
+    if not (0 < p.region_window_scale < _INF):
+        _bad(p, "region_window_scale", "finite and > 0 (dimensionless)")
+    if not (0 <= p.region_sigma_min < p.region_sigma_max < _INF):
+        _bad(p, "region_sigma_max" if p.region_sigma_min >= 0 else "region_sigma_min",
+             "0 <= region_sigma_min < region_sigma_max < inf (px)")
+
+
+def _check_refine(p):
+    """Eq. (3): the biased cross-bilateral filter."""
+    if not isinstance(p.refine, bool):
+        _bad(p, "refine", "True or False")
+    for name in ("bilateral_sigma_spatial", "bilateral_sigma_range", "bias_scale"):
+        if not getattr(p, name) > 0:
+            _bad(p, name, "> 0")
+    _choice(p, "bilateral_method", BILATERAL_METHODS)
+    _choice(p, "bilateral_range_kernel", RANGE_KERNELS)
+    _choice(p, "bias_reference", BIAS_REFERENCES)
+    if not _is_int(p.refinement_robust_iterations, 0):
+        _bad(p, "refinement_robust_iterations", "integer >= 0")
+    if not (0 < p.refinement_robust_scale < _INF):
+        _bad(p, "refinement_robust_scale", "finite and > 0")
+
+
+def _check_propagation(p):
+    """Eq. (4): the propagation, its solver and the matting-Laplacian alternative."""
+    _choice(p, "alpha_confidence", ALPHA_CONFIDENCES)
+    for name in ("matting_lambda", "matting_epsilon", "alpha"):
+        if not getattr(p, name) > 0:
+            _bad(p, name, "> 0")
+    _choice(p, "matting_data_weight", MATTING_DATA_WEIGHTS)
+    _choice(p, "propagation", PROPAGATION_METHODS)
+    if p.propagation == "matting_laplacian" and p.alpha_confidence != "none":
+        _bad(p, "alpha_confidence", "'none' with propagation='matting_laplacian' (its data term has no per-edge weight)")
+    for name in ("propagation_window", "propagation_neighborhood"):
+        if not (_is_int(getattr(p, name), 3) and getattr(p, name) % 2 == 1):
+            _bad(p, name, "odd integer >= 3")
+    if not 0 < p.propagation_tol < 1:
+        _bad(p, "propagation_tol", "0 < tol < 1")
+    ds = p.propagation_downsample
+    if not (ds == "auto" or (_is_int(ds, 1) and (ds & (ds - 1)) == 0)):
+        _bad(p, "propagation_downsample", "'auto' or a power of two >= 1")
+    _choice(p, "propagation_refinement", PROPAGATION_REFINEMENTS)
+    _choice(p, "propagation_solver", PROPAGATION_SOLVERS)
+
+
+def _check_fusion(p):
+    """The inverse-variance fusion of edge and region measures in Eq. (4) (beyond the paper)."""
+    for name in ("fusion_edge_error_rel", "fusion_region_error_rel"):
+        if not (0 <= getattr(p, name) < _INF):
+            _bad(p, name, "finite and >= 0 (dimensionless relative error)")
+    if not (0 < p.fusion_region_weight < _INF):
+        _bad(p, "fusion_region_weight", "finite and > 0 (dimensionless)")
+    _choice(p, "fusion_region_placement", REGION_PLACEMENTS)
+    if not (0 <= p.fusion_island_weight <= 1):
+        _bad(p, "fusion_island_weight", "0 <= factor <= 1 (1: off; 0: island measures dropped)")
+    if not (0 <= p.fusion_straddle_weight <= 1):
+        _bad(p, "fusion_straddle_weight", "0 <= factor <= 1 (1: off)")
+    if not (0 < p.fusion_island_radius < _INF):
+        _bad(p, "fusion_island_radius", "finite and > 0 (px)")
+    if p.region_estimator is not None and p.propagation != "colorization":
+        _bad(p, "propagation", "'colorization' when region_estimator is set (the fusion needs per-pixel "
+             "data weights in Eq. 4)")
+
+
+def _check_magnify(p):
+    """Sec. 5: the map's preprocessing before magnification."""
+    if not 0 <= p.map_clip_percent < 50:
+        _bad(p, "map_clip_percent", "0 <= p < 50")
+    if not p.map_smoothing >= 0:
+        _bad(p, "map_smoothing", ">= 0")
+    _choice(p, "map_floor", MAP_FLOOR_MODES)
+
+
+#: Checks run by ``DefocusParams.__post_init__``, in pipeline order.
+_STAGE_CHECKS = (_check_edges, _check_edge_blur, _check_region, _check_refine, _check_propagation, _check_fusion,
+                 _check_magnify)

@@ -24,7 +24,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .blur.estimators import USES_DETECTOR_HESSIANS, estimate_blur_measures
+from .blur.estimators import BLUR_ESTIMATORS, estimate_blur_measures
 from .edges.canny import detect_edges_canny
 from .refine.cross_bilateral import biased_cross_bilateral
 from .propagation.cue_fusion import fuse_cues
@@ -66,7 +66,7 @@ class DefocusResult:
     psf_disk: np.ndarray | None = None
     # bool HxW: True at the measures whose edge response was fitted with the disk PSF model of a thin
     # lens (params.fit_psf "disk", "best", or "auto" when it chose the disk), False at the other
-    # pixels; None when params.estimator fits no PSF model (method.blur.estimators.FITS_PSF_MODEL).
+    # pixels; None when params.estimator fits no PSF model (no "psf_model" hook in method.blur.estimators.BLUR_ESTIMATORS).
     region_sigma: np.ndarray | None = None
     # float64 HxW: blur σ, px, of the region estimator (params.region_estimator; NaN where it has no
     # measure), fused with the edge measures in Eq. (4); None when params.region_estimator is None.
@@ -226,7 +226,7 @@ def edges_stage(gray, *, params):
     params : DefocusParams, keyword-only
         ``sigma1_scales``, ``sigma2_scales`` (px), ``noise_std``, ``false_positive_rate``,
         ``estimator`` (the detector keeps its 2nd-derivative responses for the estimators of
-        :data:`method.blur.estimators.USES_DETECTOR_HESSIANS`). With ``edge_detector="canny"``
+        the ``"detector_hessians"`` capability in :data:`method.blur.estimators.BLUR_ESTIMATORS`). With ``edge_detector="canny"``
         (beyond the paper: Zhuo & Sim's edge set) Canny edges instead, from ``canny_sigma`` (px),
         ``canny_low_threshold`` and ``canny_high_threshold``
         (:func:`method.edges.canny.detect_edges_canny`).
@@ -240,7 +240,7 @@ def edges_stage(gray, *, params):
                                   high_threshold=params.canny_high_threshold)
     return detect_edges(gray, sigma1_scales=params.sigma1_scales, sigma2_scales=params.sigma2_scales,
                         noise_std=params.noise_std, false_positive_rate=params.false_positive_rate,
-                        keep_hessians=params.estimator in USES_DETECTOR_HESSIANS)
+                        keep_hessians="detector_hessians" in BLUR_ESTIMATORS.entry(params.estimator).capabilities)
 
 
 def blur_stage(gray, edge_map, *, params):

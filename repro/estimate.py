@@ -80,7 +80,7 @@ def _pixel_count(text: str) -> int:
 
 def _presets() -> dict:
     """The registry ``method.PRESETS`` (name -> DefocusParams), read at run time."""
-    from method.params import PRESETS
+    from method.presets import PRESETS
 
     return PRESETS
 

@@ -114,4 +114,56 @@ def test_method_stage_subpackages_export_public_names(name):
 
 def test_method_top_level_keeps_only_the_shared_modules():
     flat = sorted(p.name for p in (ROOT / "method").glob("*.py"))
-    assert flat == ["__init__.py", "luma.py", "params.py", "pipeline.py", "validation.py"], flat
+    assert flat == ["__init__.py", "luma.py", "params.py", "pipeline.py", "presets.py", "registry.py",
+                    "validation.py"], flat
+
+
+#: Tuples of names in method/ that are not choices.
+NOT_CHOICES = {"method.pipeline.STAGES": "the timed stages (keys of DefocusResult.timings)"}
+
+
+def _name_tables(module):
+    """Module-level UPPER_CASE dicts of implementations (callables, tuples of them) or descriptions, and
+    tuples of strings, in ``module``: choices by name that bypass :class:`method.registry.Registry`."""
+    def implementation(v):
+        return callable(v) or isinstance(v, str) or (isinstance(v, tuple) and any(map(callable, v)))
+
+    out = []
+    for attr, value in vars(module).items():
+        if not attr.isupper() or f"{module.__name__}.{attr}" in NOT_CHOICES:
+            continue
+        if isinstance(value, dict) and value and all(map(implementation, value.values())):
+            out.append(attr)
+        elif isinstance(value, (tuple, frozenset)) and value and all(isinstance(v, str) for v in value):
+            out.append(attr)
+    return out
+
+
+def _method_modules():
+    import importlib
+    import pkgutil
+
+    import method
+
+    return [importlib.import_module(m.name) for m in pkgutil.walk_packages(method.__path__, "method.")]
+
+
+def test_every_choice_by_name_in_method_is_a_registry():
+    """One registry type: a dict of implementations or a tuple of allowed names in ``method`` fails."""
+    found = {m.__name__: _name_tables(m) for m in _method_modules()}
+    assert {k: v for k, v in found.items() if v} == {}
+
+
+def test_the_registry_check_catches_plain_tables():
+    import types
+
+    from method.registry import Registry
+
+    probe = types.ModuleType("probe")
+    probe.SOLVERS = {"a": len}
+    probe.PAIRS = {"a": (len, abs)}
+    probe.NUMBERS = {"a": (1, 2)}
+    probe.CHOICES = ("x", "y")
+    probe.LIMITS = (1.0, 2.0)
+    probe.GOOD = Registry("good", {"a": len})
+    assert sorted(_name_tables(probe)) == ["CHOICES", "PAIRS", "SOLVERS"]

@@ -1,4 +1,4 @@
-"""Parameter presets (method.params.PRESETS) and the robust preset's switches.
+"""Parameter presets (method.presets.PRESETS) and the robust preset's switches.
 
 * ``"paper"`` is ``DefocusParams()`` and reproduces the pre-preset pipeline bit for bit;
 * presets, names and the new fields are validated;
@@ -23,7 +23,8 @@ from method import NoEdgesWarning, estimate_defocus_map
 from method.blur.estimators import estimate_blur
 from method.blur.model_fit import model_fit_diagnostics, apply_fit_rules, estimate_blur_model_fit
 from method.edges.elder_zucker import detect_edges
-from method.params import PRESETS, ROBUST_CHANGES, ZHUO_SIM_CHANGES, DefocusParams
+from method import PRESETS, DefocusParams
+from method.presets import ROBUST_CHANGES, ZHUO_SIM_CHANGES
 from method.pipeline import luminance
 from method.propagation.defocus import propagate_defocus
 from method.propagation.methods import PROPAGATION_METHODS, propagate_blur_measures

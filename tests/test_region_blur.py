@@ -12,7 +12,7 @@ import pytest
 from scipy.ndimage import convolve
 
 import method.blur.local_spectrum as bls
-from method.params import PRESETS, DefocusParams
+from method import PRESETS, DefocusParams
 from method.blur.region_estimators import REGION_ESTIMATORS, estimate_region_blur
 from scenes.analytic import dead_leaves, degrade
 

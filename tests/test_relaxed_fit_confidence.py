@@ -175,7 +175,7 @@ def test_cross_bilateral_weights():
 
 
 def test_a_registered_confidence_estimator_drives_the_pipeline(monkeypatch, blurry_mosaic):
-    """The confidence is a registry capability: an estimator registered in MEASURE_CONFIDENCE (here a
+    """The confidence is a registry capability: an estimator whose registry entry has a "confidence" hook (here a
     test one, half of whose measures weigh 0.05) has its confidence reach both later stages."""
     import method.blur.estimators as be
     from method.pipeline import blur_stage, edges_stage
@@ -188,8 +188,10 @@ def test_a_registered_confidence_estimator_drives_the_pipeline(monkeypatch, blur
         conf = np.where(np.arange(sigma.size).reshape(sigma.shape) % 2 == 0, 1.0, 0.05)
         return sigma, np.where(np.isfinite(sigma), conf, np.nan)
 
-    monkeypatch.setitem(be.BLUR_ESTIMATORS, "halved", fit)
-    monkeypatch.setitem(be.MEASURE_CONFIDENCE, "halved", (fit_with_confidence, lambda params: True))
+    from method.registry import Entry
+
+    monkeypatch.setitem(be.BLUR_ESTIMATORS, "halved", Entry(fit, hooks={"confidence": fit_with_confidence,
+                                                                      "confidence_used": lambda params: True}))
     m = blurry_mosaic
     p = DefocusParams(estimator="halved")
     assert uses_measure_confidence(p) and not uses_measure_confidence(DefocusParams(estimator="model_fit"))

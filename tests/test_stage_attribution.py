@@ -9,7 +9,7 @@ import pytest
 from experiments.stage_attribution import INPUTS, SIGMA_BINS, ablation_params, stage_errors, stage_rows
 from method import DefocusParams, estimate_defocus_map
 from method.refine.cross_bilateral import biased_cross_bilateral
-from method.params import ROBUST_CHANGES
+from method.presets import ROBUST_CHANGES
 from method.pipeline import edge_confidence, propagate_stage, propagation_confidence, refine_stage
 from method.propagation.defocus import propagate_defocus
 from method.propagation.methods import propagate_blur_measures

@@ -17,7 +17,8 @@ import pytest
 from scipy import ndimage
 
 from method.edges.canny import detect_edges_canny
-from method.params import ZHUO_SIM_CHANGES, DefocusParams
+from method import DefocusParams
+from method.presets import ZHUO_SIM_CHANGES
 from method.pipeline import blur_stage, edges_stage
 from scenes.analytic import dead_leaves, step_edge
 

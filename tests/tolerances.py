@@ -246,7 +246,7 @@ FIG8_CONSTANT_ROUNDTRIP_ATOL = 0.02
 #: 43.6 dB at λ = 1e-2; constant-σ 1.7 px round trip max |Δ| 0.014 more than 8 px from the border,
 #: 0.025 including the border, so the test compares the interior.)
 
-# --- presets and the robust preset's switches (method/params.py PRESETS / ROBUST_CHANGES,
+# --- presets and the robust preset's switches (method/presets.py PRESETS / ROBUST_CHANGES,
 #     method/blur/model_fit.py apply_fit_rules, method/refine/cross_bilateral.py range_kernel="product" /
 #     robust_iterations, method/propagation/defocus/defocus.py confidence=, experiments/stage_attribution.py) ------
 #: The robust preset's blur estimator (model_fit_checked, ρ ≤ 0.03, with the fit rules and

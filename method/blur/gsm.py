@@ -46,8 +46,7 @@ def estimate_blur_gsm(gray, *, params, edge_psf=None):
     psf = params.region_psf
     if psf == "edges":
         psf = edge_psf if edge_psf is not None else "gaussian"
-    if psf not in PSF_MODELS:
-        raise ValueError(f"edge_psf={edge_psf!r} is invalid; allowed: {list(PSF_MODELS)}")
+    PSF_MODELS.check(psf, what="edge_psf")
     out = local_spectrum_grid(gray, psf=psf, noise_model=params.region_noise_model,
                               sigma_min=params.region_sigma_min, sigma_max=params.region_sigma_max,
                               window_min=params.region_window_min, window_max=params.region_window_max,

@@ -28,6 +28,8 @@ import scipy.fft
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy.special import j1
 
+from ..registry import Registry
+
 __all__ = [
     "LSB",
     "PSF_MODELS",
@@ -41,9 +43,9 @@ __all__ = [
 #: One grey level of 8-bit data in image units; its quantisation adds LSB²/12 of white noise.
 LSB = 1.0 / 255.0
 #: Blur kernels the likelihood models (``DefocusParams.region_psf`` also allows "edges").
-PSF_MODELS = ("gaussian", "disk")
+PSF_MODELS = Registry("PSF model", {"gaussian": "Gaussian of σ", "disk": "uniform disk of radius 2σ"})
 #: Noise models of the likelihood (``DefocusParams.region_noise_model``).
-NOISE_MODELS = ("white", "spectrum", "spectrum_or_white")
+NOISE_MODELS = Registry("noise model", ("white", "spectrum", "spectrum_or_white"))
 #: Window sides the multi-window pass chooses from, px (each ≥ 16; the smallest ≥ 9·σ̂ is used).
 WINDOW_SIZES = (16, 24, 32, 48, 64, 96, 128)
 #: Window of the coarse pass that chooses each location's window, px.
@@ -597,8 +599,7 @@ def estimate_blur_local_spectrum(gray, *, params, edge_psf=None):
     psf = params.region_psf
     if psf == "edges":
         psf = edge_psf if edge_psf is not None else "gaussian"
-    if psf not in PSF_MODELS:
-        raise ValueError(f"edge_psf={edge_psf!r} is invalid; allowed: {list(PSF_MODELS)}")
+    PSF_MODELS.check(psf, what="edge_psf")
     g = np.asarray(gray, dtype=np.float64)
     out = local_spectrum_grid(g, psf=psf, noise_model=params.region_noise_model,
                               sigma_min=params.region_sigma_min, sigma_max=params.region_sigma_max,

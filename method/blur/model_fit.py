@@ -26,6 +26,7 @@ import numpy as np
 from .disk_edge_response import DISK_RHO_MAX, response_table, rho_row
 from ..edges.elder_zucker import check_edge_inputs, edge_pixels_by_scale
 from ..edges.gaussian_derivatives import GaussianDerivativeBank
+from ..registry import Registry
 
 __all__ = [
     "FIT_KAPPA",
@@ -236,12 +237,12 @@ def _best_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, coarse
 
 
 #: The edge-blur models the fit can use (``DefocusParams.fit_psf``): name -> what it fits.
-FIT_PSF_MODELS = {
+FIT_PSF_MODELS = Registry("fit PSF model", {
     "gaussian": "Eq. (2c): a Gaussian-blurred step (the paper)",
     "disk": "a step blurred by a uniform disk, the thin lens's defocus (method.blur.disk_edge_response)",
     "best": "both on the same window; per edge pixel the one with the smaller residual",
     "auto": "both on the same window; one model for the whole image (select_psf_model)",
-}
+})
 _EMPTY_DISK_TABLE = (np.zeros(1), np.zeros(1, dtype=np.int64), np.ones(1, dtype=np.int64), np.ones(1))
 
 #: Edge pixels per parallel chunk of :func:`_fit_kernel`.
@@ -560,8 +561,7 @@ def model_fit_diagnostics(gray, edge_map, *, params):
     diag = {"sigma_b": out, "residual": res, "window": win, "width": width, "sigma2": s2_map,
             "energy": energy, "disk": np.zeros(img.shape, dtype=bool)}
     psf = getattr(params, "fit_psf", "gaussian")
-    if psf not in FIT_PSF_MODELS:
-        raise ValueError(f"fit_psf={psf!r} is invalid; allowed: {list(FIT_PSF_MODELS)}")
+    FIT_PSF_MODELS.check(psf, what="fit_psf")
     disk_table = response_table() if psf != "gaussian" else _EMPTY_DISK_TABLE
     disk_width = np.full(img.shape, np.nan) if psf != "gaussian" else None
     disk_res = np.full(img.shape, np.nan) if psf != "gaussian" else None

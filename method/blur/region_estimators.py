@@ -9,24 +9,25 @@ regions) and the information density of σ in 1/px² per pixel (0 where σ is Na
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from .gsm import estimate_blur_gsm
 from .local_spectrum import NOISE_MODELS, PSF_MODELS, estimate_blur_local_spectrum
+from ..registry import Entry, Registry
 
 __all__ = ["REGION_ESTIMATORS", "REGION_NOISE_MODELS", "REGION_PSFS", "estimate_region_blur"]
 
 #: name -> fn(gray, *, params, edge_psf=None) -> (σ px, information 1/px²), both float64 HxW.
-REGION_ESTIMATORS: dict[str, Callable[..., tuple[np.ndarray, np.ndarray]]] = {
-    "local_spectrum": estimate_blur_local_spectrum,  # Zhu et al. 2013: profiled ML of windowed gradient spectra
-    "gsm": estimate_blur_gsm,                        # Chakrabarti et al. 2010: scale-mixture likelihood
-}
+REGION_ESTIMATORS = Registry("region estimator", {
+    "local_spectrum": Entry(estimate_blur_local_spectrum,
+                            "Zhu et al. 2013: profiled ML of windowed gradient spectra"),
+    "gsm": Entry(estimate_blur_gsm, "Chakrabarti et al. 2010: scale-mixture likelihood"),
+})
 #: Allowed ``DefocusParams.region_psf``: the likelihood's kernels, or "edges" (the edge fit's choice).
-REGION_PSFS: tuple[str, ...] = (*PSF_MODELS, "edges")
+REGION_PSFS = Registry("region PSF", {**{n: PSF_MODELS.entry(n) for n in PSF_MODELS},
+                                      "edges": "the PSF family the edge fit chose"})
 #: Allowed ``DefocusParams.region_noise_model``.
-REGION_NOISE_MODELS: tuple[str, ...] = NOISE_MODELS
+REGION_NOISE_MODELS = NOISE_MODELS
 
 
 def estimate_region_blur(gray, *, params, edge_psf=None):
@@ -63,10 +64,8 @@ def estimate_region_blur(gray, *, params, edge_psf=None):
     from ..luma import luminance
 
     name = params.region_estimator
-    if name is None or not isinstance(name, str) or name not in REGION_ESTIMATORS:
-        raise ValueError(f"region_estimator={name!r} is invalid; allowed: {sorted(REGION_ESTIMATORS)}")
-    if edge_psf is not None and edge_psf not in PSF_MODELS:
-        raise ValueError(f"edge_psf={edge_psf!r} is invalid; allowed: {[None, *PSF_MODELS]}")
+    REGION_ESTIMATORS.check(name, what="region_estimator")
+    PSF_MODELS.check(edge_psf, what="edge_psf", optional=True)
     g = np.asarray(gray)
     if not (g.ndim == 2 or (g.ndim == 3 and g.shape[2] == 3)):
         raise ValueError(f"gray has shape {g.shape}; allowed: HxW or HxWx3")

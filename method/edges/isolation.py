@@ -19,9 +19,9 @@ Methods (:data:`EDGE_ISOLATION_METHODS`, chosen by ``DefocusParams.edge_isolatio
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
+
+from ..registry import Entry, Registry
 
 __all__ = ["EDGE_ISOLATION_METHODS", "isolation_weights"]
 
@@ -86,10 +86,10 @@ def _weights_persistence(gray, edges, theta, sigma, *, radius, floor):
 
 
 #: name -> fn(gray, edges, theta, sigma, *, radius, floor) -> HxW weights (NaN off measures).
-EDGE_ISOLATION_METHODS: dict[str, Callable[..., np.ndarray]] = {
-    "normal": _weights_normal,            # distance to the next edge along the gradient normal
-    "persistence": _weights_persistence,  # survives at a coarse Canny scale (Karaali & Jung 2018)
-}
+EDGE_ISOLATION_METHODS = Registry("edge isolation method", {
+    "normal": Entry(_weights_normal, "distance to the next edge along the gradient normal"),
+    "persistence": Entry(_weights_persistence, "survives at a coarse Canny scale (Karaali & Jung 2018)"),
+})
 
 
 def isolation_weights(gray, edges, theta, sigma, *, method="normal", radius=3.0, floor=0.1) -> np.ndarray:
@@ -145,9 +145,7 @@ def isolation_weights(gray, edges, theta, sigma, *, method="normal", radius=3.0,
     if gray.ndim != 2 or not (gray.shape == edges.shape == theta.shape == sigma.shape):
         raise ValueError(f"gray, edges, theta and sigma must share one (H, W) shape; got {gray.shape}, "
                          f"{edges.shape}, {theta.shape}, {sigma.shape}")
-    fn = EDGE_ISOLATION_METHODS.get(method) if isinstance(method, str) else None
-    if fn is None:
-        raise ValueError(f"method={method!r} is unknown; allowed: {sorted(EDGE_ISOLATION_METHODS)}")
+    fn = EDGE_ISOLATION_METHODS.resolve(method, what="method")
     if not (0 < radius < np.inf):
         raise ValueError(f"radius={radius!r} is invalid; allowed: finite and > 0")
     if not (0 < floor <= 1):

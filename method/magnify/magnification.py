@@ -33,6 +33,7 @@ from scipy import fft as sfft
 from scipy import ndimage
 
 from ..validation import validate_image, validate_map
+from ..registry import Entry, Registry
 
 __all__ = ["MAGNIFICATION_KERNELS", "MAP_FLOOR_MODES", "check_extra_blur", "magnify_defocus", "preprocess_defocus_map"]
 
@@ -73,10 +74,10 @@ def _disk_kernel(sigma, supersample=8):
 
 
 #: Kernel families for the extra blur, by name: σ px → (normalised 2-D kernel, per-axis variance px²).
-MAGNIFICATION_KERNELS = {
-    "gaussian": _gaussian_kernel,
-    "disk": _disk_kernel,
-}
+MAGNIFICATION_KERNELS = Registry("magnification kernel", {
+    "gaussian": Entry(_gaussian_kernel, "Gaussian of σ (Sec. 5)"),
+    "disk": Entry(_disk_kernel, "uniform disk of radius 2σ, a thin lens's defocus"),
+})
 
 
 def _check_map(defocus_map, shape=None, *, name="defocus_map"):
@@ -102,17 +103,15 @@ def _floor_shift(m, floor):
 
 #: How the map's floor is removed before the Sec. 5 smoothing, by name:
 #: (clipped map px, floor p_lo px ≥ 0) → map px ≥ 0. See the module docstring.
-MAP_FLOOR_MODES = {
-    "clamp": _floor_clamp,
-    "subtract": _floor_subtract,
-    "shift": _floor_shift,
-}
+MAP_FLOOR_MODES = Registry("map floor", {
+    "clamp": Entry(_floor_clamp, "max(σ, 0), the literal Sec. 5 reading"),
+    "subtract": Entry(_floor_subtract, "remove the floor in quadrature"),
+    "shift": Entry(_floor_shift, "max(σ − floor, 0)"),
+})
 
 
 def _check_floor(floor):
-    if not isinstance(floor, str) or floor not in MAP_FLOOR_MODES:
-        raise ValueError(f"floor={floor!r} is unknown; allowed: {', '.join(repr(k) for k in MAP_FLOOR_MODES)}")
-    return floor
+    return MAP_FLOOR_MODES.check(floor, what="floor")
 
 
 def preprocess_defocus_map(defocus_map, *, clip_percent=5.0, smoothing=0.005, floor="clamp") -> np.ndarray:
@@ -332,8 +331,7 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel="gaussian", clip_p
     if not (np.isfinite(factor) and factor >= 1.0):
         raise ValueError(f"factor={factor!r} is invalid; allowed: finite and >= 1 "
                          "(factor < 1 would need deblurring, which this module does not do)")
-    if kernel not in MAGNIFICATION_KERNELS:
-        raise ValueError(f"kernel={kernel!r} is unknown; allowed: {sorted(MAGNIFICATION_KERNELS)}")
+    MAGNIFICATION_KERNELS.check(kernel, what="kernel")
     floor = _check_floor(floor)
     if preprocess:
         m = preprocess_defocus_map(m, clip_percent=clip_percent, smoothing=smoothing, floor=floor)

@@ -32,6 +32,7 @@ import numpy as np
 
 from .magnification import MAGNIFICATION_KERNELS, blur_stack_apply
 from ..validation import validate_image, validate_map
+from ..registry import Entry, Registry
 
 __all__ = ["DECONVOLUTION_METHODS", "DEFAULT_NSR", "deconvolve_defocus", "refocus"]
 
@@ -66,10 +67,10 @@ def _cls(khat, shape, nsr):
 
 
 #: Deconvolution filters by name: (kernel spectrum, FFT shape, λ) → filter spectrum.
-DECONVOLUTION_METHODS = {
-    "wiener": _wiener,
-    "cls": _cls,
-}
+DECONVOLUTION_METHODS = Registry("deconvolution method", {
+    "wiener": Entry(_wiener, "Wiener filter, constant noise-to-signal ratio"),
+    "cls": Entry(_cls, "constrained least squares, Laplacian regulariser"),
+})
 
 
 def _check_image(image):
@@ -81,8 +82,7 @@ def _check_sigma_map(m, shape, name):
 
 
 def _check_options(method, nsr):
-    if not isinstance(method, str) or method not in DECONVOLUTION_METHODS:
-        raise ValueError(f"method={method!r} is unknown; allowed: {sorted(DECONVOLUTION_METHODS)}")
+    DECONVOLUTION_METHODS.check(method, what="method")
     try:
         nsr = float(nsr)
     except (TypeError, ValueError):
@@ -189,8 +189,7 @@ def refocus(image, defocus_map, new_blur_map, *, method="wiener", nsr=DEFAULT_NS
     m = _check_sigma_map(defocus_map, img.shape, "defocus_map")
     m_new = _check_sigma_map(new_blur_map, img.shape, "new_blur_map")
     method, nsr = _check_options(method, nsr)
-    if kernel not in MAGNIFICATION_KERNELS:
-        raise ValueError(f"kernel={kernel!r} is unknown; allowed: {sorted(MAGNIFICATION_KERNELS)}")
+    MAGNIFICATION_KERNELS.check(kernel, what="kernel")
     img3 = img if img.ndim == 3 else img[..., None]
     sharp = np.clip(_deconvolve(img3, m, method, nsr), 0.0, 1.0)
     if np.any(m_new > 0):

@@ -29,9 +29,9 @@ a texture's; the edge fit is exact there, so such region measures are multiplied
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
+
+from ..registry import Entry, Registry
 
 __all__ = ["ERROR_FLOOR_PX", "REGION_PLACEMENTS", "blur_islands", "fuse_cues", "fuse_measures",
            "region_data_term", "straddled_windows"]
@@ -219,10 +219,10 @@ def _place_blocks(sigma, weight, stride):
 #: name -> fn(sigma, weight, stride) -> (sigma, weight): where the region measures enter Eq. (4). A
 #: dense region map (every pixel of a block carries its window's measure, information a per-pixel
 #: density) is already "blocks"; a sparse one (measures at window centres only) already "centres".
-REGION_PLACEMENTS: dict[str, Callable] = {
-    "centres": _place_centres,  # one term per block, at its window centre
-    "blocks": _place_blocks,    # spread over the block of pixels nearest to each centre
-}
+REGION_PLACEMENTS = Registry("region placement", {
+    "centres": Entry(_place_centres, "one term per block, at its window centre"),
+    "blocks": Entry(_place_blocks, "spread over the block of pixels nearest to each centre"),
+})
 
 
 def region_data_term(region_sigma, region_information, *, gray=None, edge_error_rel=0.5,
@@ -287,8 +287,7 @@ def region_data_term(region_sigma, region_information, *, gray=None, edge_error_
     if s.ndim != 2 or info.shape != s.shape:
         raise ValueError(f"region_sigma and region_information must share one (H, W) shape; got {s.shape}, "
                          f"{info.shape}")
-    if placement not in REGION_PLACEMENTS:
-        raise ValueError(f"placement={placement!r} is unknown; allowed: {sorted(REGION_PLACEMENTS)}")
+    REGION_PLACEMENTS.check(placement, what="placement")
     for name, v in (("edge_error_rel", edge_error_rel), ("region_error_rel", region_error_rel)):
         if not (0 <= v < np.inf):
             raise ValueError(f"{name}={v!r} is invalid; allowed: finite and >= 0")

@@ -53,8 +53,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable
-
 import numpy as np
 
 from .galerkin import galerkin_coarse_operator, prolong, restrict
@@ -71,6 +69,7 @@ from .system import (
     normal_equations,
 )
 from ..validation import check_positive, validate_propagation_inputs
+from ..registry import Entry, Registry
 
 __all__ = [
     "PROPAGATION_REFINEMENTS",
@@ -201,11 +200,14 @@ def _refine_jacobi(fine, x0, *, coarse, scale, s, coarse_shape, maxiter, tol):
 #:   the block-averaged guide (c = s²), whose correction is wrong across colour edges;
 #: * ``"jacobi"``: the re-discretised start and a Jacobi-only CG, which leaves the coarse grid's
 #:   smooth error almost intact.
-PROPAGATION_REFINEMENTS: dict[str, tuple[Callable, Callable]] = {
-    "galerkin": (_galerkin_start, _refine_galerkin),
-    "two_level": (_rediscretised_start, _refine_two_level),
-    "jacobi": (_rediscretised_start, _refine_jacobi),
-}
+#: Each entry's value refines the fine solution; its ``"start"`` hook builds the coarse start.
+PROPAGATION_REFINEMENTS = Registry("propagation refinement", {
+    "galerkin": Entry(_refine_galerkin, "Galerkin coarse operator, two-level PCG (default)",
+                      hooks={"start": _galerkin_start}),
+    "two_level": Entry(_refine_two_level, "re-discretised coarse level, two-level PCG (a comparison)",
+                       hooks={"start": _rediscretised_start}),
+    "jacobi": Entry(_refine_jacobi, "re-discretised start, Jacobi-only PCG", hooks={"start": _rediscretised_start}),
+})
 
 
 # --------------------------------------------------------------------------------------------
@@ -345,16 +347,14 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
     sparse_sigma, ref = validate_propagation_inputs(sparse_sigma, reference, min_side=2)
     window, neighborhood, eps, alpha, regularization = validate_options(
         window, neighborhood, eps, alpha, regularization)
-    if solver not in PROPAGATION_SOLVERS:
-        raise ValueError(f"solver={solver!r} is unknown; allowed: {sorted(PROPAGATION_SOLVERS)}")
+    PROPAGATION_SOLVERS.check(solver, what="solver")
     tol = check_positive("tol", tol)
     if not tol < 1:
         raise ValueError(f"tol={tol!r} is invalid; allowed: 0 < tol < 1")
     coarse_tol = max(tol, DEFAULT_COARSE_TOL) if coarse_tol is None else check_positive("coarse_tol", coarse_tol)
     if not coarse_tol < 1:
         raise ValueError(f"coarse_tol={coarse_tol!r} is invalid; allowed: None or 0 < coarse_tol < 1")
-    if not isinstance(refinement, str) or refinement not in PROPAGATION_REFINEMENTS:
-        raise ValueError(f"refinement={refinement!r} is unknown; allowed: {sorted(PROPAGATION_REFINEMENTS)}")
+    PROPAGATION_REFINEMENTS.check(refinement, what="refinement")
     if refine_iterations is not None and (
             isinstance(refine_iterations, bool) or not isinstance(refine_iterations, (int, np.integer)) or refine_iterations < 0):
         raise ValueError(f"refine_iterations={refine_iterations!r} is invalid; allowed: None or integer >= 0")
@@ -395,7 +395,7 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
         return solve(A, rhs, x0=x0, tol=tol).reshape(h, w)
 
     # --- coarse solve + full-resolution refinement --------------------------------------------
-    start, refine = PROPAGATION_REFINEMENTS[refinement]
+    start, refine = PROPAGATION_REFINEMENTS.hook(refinement, "start"), PROPAGATION_REFINEMENTS[refinement]
     weights, offs = padded_weights(ref, window, neighborhood, eps)
     a, rhs, lam, _ = data_term(sparse_sigma, alpha, regularization, confidence)
     fine = _FineSystem(sparse_sigma, ref, weights, offs, (a + lam).reshape(h, w), rhs.reshape(h, w), fill)

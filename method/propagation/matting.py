@@ -75,13 +75,12 @@ from __future__ import annotations
 
 import contextlib
 import io
-from collections.abc import Callable
-
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..validation import check_positive, validate_propagation_inputs
+from ..registry import Entry, Registry
 
 __all__ = [
     "MATTING_DATA_WEIGHTS",
@@ -95,10 +94,10 @@ DEFAULT_LAMBDA = 0.005
 #: ε of the matting Laplacian, Levin's convention (Σ_k + ε/|w_k| I₃) (not from the paper).
 DEFAULT_EPSILON = 1e-5
 #: name -> what D of the data term holds at a measure d̂ (0 elsewhere).
-MATTING_DATA_WEIGHTS: dict[str, str] = {
+MATTING_DATA_WEIGHTS = Registry("matting data weight", {
     "constant": "1 (Zhuo & Sim's equation)",
     "sigma": "d̂ (the public Zhuo & Sim code: D = diag(sparse map))",
-}
+})
 #: Largest image (pixels) accepted by ``solver="direct"`` (sparse LU took ~70 s at 512² here).
 DIRECT_MAX_PIXELS = 512 * 512
 
@@ -165,8 +164,7 @@ def _assemble(ref, sparse_sigma, lam, epsilon, radius, data_weight="constant"):
 
 
 def _check_data_weight(data_weight):
-    if not isinstance(data_weight, str) or data_weight not in MATTING_DATA_WEIGHTS:
-        raise ValueError(f"data_weight={data_weight!r} is unknown; allowed: {sorted(MATTING_DATA_WEIGHTS)}")
+    MATTING_DATA_WEIGHTS.check(data_weight, what="data_weight")
     return data_weight
 
 
@@ -268,11 +266,11 @@ def _solve_direct(A, b, *, shape, x0, tol, max_iterations):
 #: Solvers of (L + λD) d = λ D d̂, chosen with ``solver="..."``. Each is called as
 #: ``solve(A, b, *, shape, x0, tol, max_iterations) -> d``; the iterative ones stop at relative
 #: residual ``tol`` and raise RuntimeError after ``max_iterations``; ``"direct"`` ignores both.
-MATTING_SOLVERS: dict[str, Callable] = {
-    "cg_vcycle": _solve_cg_vcycle,
-    "cg_ichol": _solve_cg_ichol,
-    "direct": _solve_direct,
-}
+MATTING_SOLVERS = Registry("matting solver", {
+    "cg_vcycle": Entry(_solve_cg_vcycle, "CG preconditioned by pymatting's multigrid V-cycle"),
+    "cg_ichol": Entry(_solve_cg_ichol, "CG preconditioned by pymatting's incomplete Cholesky"),
+    "direct": Entry(_solve_direct, "sparse LU (scipy)"),
+})
 
 
 # --------------------------------------------------------------------------------------------
@@ -348,8 +346,7 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
        on one thread.
     """
     sparse_sigma, ref, lam, epsilon, radius = _validate(sparse_sigma, reference, lam, epsilon, radius)
-    if not isinstance(solver, str) or solver not in MATTING_SOLVERS:
-        raise ValueError(f"solver={solver!r} is unknown; allowed: {sorted(MATTING_SOLVERS)}")
+    MATTING_SOLVERS.check(solver, what="solver")
     tol = check_positive("tol", tol)
     if not tol < 1:
         raise ValueError(f"tol={tol!r} is invalid; allowed: 0 < tol < 1")

@@ -14,11 +14,10 @@ Adding a method is one function plus one line in :data:`PROPAGATION_METHODS`.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from .defocus import propagate_defocus
+from ..registry import Entry, Registry
 
 __all__ = ["PROPAGATION_METHODS", "propagate_blur_measures"]
 
@@ -49,10 +48,10 @@ def _matting_laplacian(sparse_sigma, reference, *, params, confidence=None, max_
 
 
 #: name -> fn(sparse_sigma, reference, *, params, confidence) -> (H, W) float64 σ in px.
-PROPAGATION_METHODS: dict[str, Callable[..., np.ndarray]] = {
-    "colorization": _colorization,            # Bae & Durand Eq. (4) (Levin et al. 2004 affinities)
-    "matting_laplacian": _matting_laplacian,  # Zhuo & Sim 2011 (Levin et al. 2008 matting Laplacian)
-}
+PROPAGATION_METHODS = Registry("propagation", {
+    "colorization": Entry(_colorization, "Bae & Durand Eq. (4) (Levin et al. 2004 affinities)"),
+    "matting_laplacian": Entry(_matting_laplacian, "Zhuo & Sim 2011 (Levin et al. 2008 matting Laplacian)"),
+})
 
 
 def propagate_blur_measures(sparse_sigma, reference, *, params, confidence=None, max_confidence=1.0) -> np.ndarray:
@@ -80,9 +79,7 @@ def propagate_blur_measures(sparse_sigma, reference, *, params, confidence=None,
     ValueError
         Unknown method (the message lists :data:`PROPAGATION_METHODS`), or bad inputs.
     """
-    fn = PROPAGATION_METHODS.get(params.propagation)
-    if fn is None:
-        raise ValueError(f"unknown propagation {params.propagation!r}; allowed: {sorted(PROPAGATION_METHODS)}")
+    fn = PROPAGATION_METHODS.resolve(params.propagation, what="DefocusParams.propagation")
     if max_confidence == 1.0:
         return np.asarray(fn(sparse_sigma, reference, params=params, confidence=confidence), dtype=np.float64)
     return np.asarray(fn(sparse_sigma, reference, params=params, confidence=confidence,

@@ -13,10 +13,10 @@ The system itself comes from :mod:`method.propagation.system`.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 import scipy.sparse.linalg as spla
+
+from ..registry import Entry, Registry
 
 __all__ = ["AMG_PROLONGATION_SMOOTHER", "COARSE_SETUPS", "PROPAGATION_SOLVERS", "CoarseLevel", "amg_vcycle"]
 
@@ -64,10 +64,10 @@ def _solve_amg_pcg(A, rhs, *, x0=None, tol=1e-6):
 
 
 #: Solvers of the assembled normal equations, chosen with ``solver="..."``.
-PROPAGATION_SOLVERS: dict[str, Callable] = {
-    "amg_pcg": _solve_amg_pcg,
-    "direct": _solve_direct,
-}
+PROPAGATION_SOLVERS = Registry("propagation solver", {
+    "amg_pcg": Entry(_solve_amg_pcg, "CG preconditioned by pyamg smoothed-aggregation multigrid"),
+    "direct": Entry(_solve_direct, "sparse LU (scipy SuperLU)"),
+})
 
 
 class CoarseLevel:
@@ -127,9 +127,9 @@ def _coarse_direct(A_c):
 #: Set-up of the coarse level of ``downsample`` > 1, per ``solver`` name (same keys as
 #: :data:`PROPAGATION_SOLVERS`): the hierarchy / factorisation is built once and serves both the
 #: coarse solve and the coarse-grid correction of the two-level preconditioner.
-COARSE_SETUPS: dict[str, Callable] = {
-    "amg_pcg": _coarse_amg,
-    "direct": _coarse_direct,
-}
+COARSE_SETUPS = Registry("coarse set-up", {
+    "amg_pcg": Entry(_coarse_amg, "pyamg hierarchy: AMG-PCG solve, one V-cycle as inverse"),
+    "direct": Entry(_coarse_direct, "sparse LU factorisation for both"),
+})
 
 

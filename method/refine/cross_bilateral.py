@@ -13,7 +13,6 @@ into one 3-D (x, y, C_i) bilateral problem per channel whose numerators and deno
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
 import numba
@@ -21,6 +20,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..validation import validate_image, validate_sparse_sigma
+from ..registry import Entry, Registry
 
 __all__ = ["BILATERAL_METHODS", "biased_cross_bilateral", "sharpness_bias"]
 
@@ -338,13 +338,15 @@ def _grid_product(ys, xs, colors, values, bias, sigma_s, sigma_r, shape, cell=GR
 
 #: Implementations of Eq. (3), chosen with ``method="..."``: (sum-over-channels kernel of the paper,
 #: product-over-channels kernel).
-BILATERAL_METHODS: dict[str, tuple[Callable, Callable]] = {
-    "grid": (_grid, _grid_product),
-    "brute_force": (_brute_force, _brute_force_product),
-}
+BILATERAL_METHODS = Registry("bilateral method", {
+    "grid": Entry(_grid, "bilateral grid", hooks={"product": _grid_product}),
+    "brute_force": Entry(_brute_force, "direct sum over the window", hooks={"product": _brute_force_product}),
+})
 
-#: Range kernels of Eq. (3b): "sum" (the paper's Σ over channels) or "product" (joint colour).
-RANGE_KERNELS = ("sum", "product")
+#: Range kernels of Eq. (3b): "sum" (the paper's Σ over channels) or "product" (joint colour); the
+#: implementation of "product" is each bilateral method's ``"product"`` hook.
+RANGE_KERNELS = Registry("range kernel", {"sum": "Σ over channels of the colour distance (the paper)",
+                                          "product": "product over channels (joint colour)"})
 
 
 def biased_cross_bilateral(sparse_sigma, reference, *, sigma_spatial=0.10, sigma_range=0.10,
@@ -403,10 +405,8 @@ def biased_cross_bilateral(sparse_sigma, reference, *, sigma_spatial=0.10, sigma
        (brute force: O(M²); grid: splat on a (y, x, C_i) grid of cell σ/3, Gaussian blur, slice).
     4. Sum numerators and denominators over channels; divide.
     """
-    if method not in BILATERAL_METHODS:
-        raise ValueError(f"method={method!r} is unknown; allowed: {sorted(BILATERAL_METHODS)}")
-    if range_kernel not in RANGE_KERNELS:
-        raise ValueError(f"range_kernel={range_kernel!r} is unknown; allowed: {list(RANGE_KERNELS)}")
+    BILATERAL_METHODS.check(method, what="method")
+    RANGE_KERNELS.check(range_kernel, what="range_kernel")
     if isinstance(robust_iterations, bool) or not isinstance(robust_iterations, (int, np.integer)) \
             or robust_iterations < 0:
         raise ValueError(f"robust_iterations={robust_iterations!r} is invalid; allowed: integer >= 0")
@@ -443,7 +443,7 @@ def biased_cross_bilateral(sparse_sigma, reference, *, sigma_spatial=0.10, sigma
     sigma_r = float(sigma_range) * span if span > 0 else 1.0
     if span == 0:
         colors = np.zeros_like(colors)
-    kernel = BILATERAL_METHODS[method][RANGE_KERNELS.index(range_kernel)]
+    kernel = BILATERAL_METHODS[method] if range_kernel == "sum" else BILATERAL_METHODS.hook(method, "product")
     ys, xs = ys.astype(np.float64), xs.astype(np.float64)
     refined = kernel(ys, xs, colors, values, bias, sigma_s, sigma_r, (h, w))
     for _ in range(int(robust_iterations)):

@@ -1,0 +1,65 @@
+"""Named parameter sets of the pipeline: ``paper`` (the reproduction) and measured variants beyond it.
+
+Each preset is a :class:`~method.params.DefocusParams`; a preset beyond the paper is written as its
+changes from the paper's defaults, one named field each, so each change is an ablation row of
+``experiments.stage_attribution``. The measurements behind every value: docs/presets.md.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .params import DefocusParams
+from .registry import Entry, Registry
+
+__all__ = ["PRESETS", "ROBUST_CHANGES", "ZHUO_SIM_CHANGES"]
+
+
+#: The robust preset's departures from the paper, one named field each (so each is an ablation row
+#: of ``experiments.stage_attribution``); the measurements behind every value: docs/presets.md.
+ROBUST_CHANGES: dict = {
+    "sigma1_scales": (0.5, 1.0, 2.0, 4.0, 8.0, 16.0),
+    "sigma2_scales": (0.5, 1.0, 2.0, 4.0, 8.0),
+    "estimator": "model_fit_checked",
+    "fit_max_residual": 0.03,
+    "fit_max_scale": 2.0,
+    "fit_max_width_ratio": 0.75,
+    "fit_below_scale": "nan",
+    "fit_psf": "auto",
+    "fit_residual_noise": 2.0,
+    "relaxed_fit_weight": 0.1,
+    "bilateral_range_kernel": "product",
+    "bilateral_sigma_spatial": 0.05,
+    "sharpness_bias": False,
+    # region (spectral) blur fused with the edge measures in Eq. (4); each value's ablation row is in
+    # docs/cue-fusion.md (region_psf="edges" and edge_isolation were measured and left out)
+    "region_estimator": "local_spectrum",
+    "fusion_edge_error_rel": 0.3,
+    "fusion_island_weight": 0.001,
+    "fusion_straddle_weight": 0.0,
+}
+
+#: Zhuo & Sim 2011 inside the harness: gradient-ratio blur at Canny edges as their public code
+#: measures it (docs/zhuo-sim.md), a plain joint bilateral filter of the sparse map (their Sec. 3.2
+#: error correction; no sharpness bias), matting-Laplacian propagation (their Sec. 4).
+ZHUO_SIM_CHANGES: dict = {
+    "estimator": "gradient_ratio",
+    "edge_detector": "canny",
+    "ratio_gradient_sigma": 1.0,
+    "ratio_reblur_sigma": math.sqrt(1.25),
+    "ratio_max_sigma": 5.0,
+    "ratio_zero_is_measure": False,
+    "matting_lambda": 0.001,
+    "matting_epsilon": 9e-7,
+    "matting_data_weight": "sigma",
+    "refine": False,
+    "sharpness_bias": False,
+    "propagation": "matting_laplacian",
+}
+
+#: name -> DefocusParams. ``"paper"`` is the literal reproduction and equals ``DefocusParams()``.
+PRESETS = Registry("preset", {
+    "paper": Entry(DefocusParams(), "the paper's method and defaults (Bae & Durand 2007)"),
+    "robust": Entry(DefocusParams(**ROBUST_CHANGES), "beyond the paper: checked fit, disk PSF, region cue fused"),
+    "zhuo_sim": Entry(DefocusParams(**ZHUO_SIM_CHANGES), "Zhuo & Sim 2011 as their public code measures"),
+})

@@ -72,13 +72,7 @@ def validate_estimators(names) -> tuple[str, ...]:
     """
     from method import BLUR_ESTIMATORS
 
-    names = tuple(names)
-    if not names:
-        raise ValueError(f"no estimator given; allowed: {sorted(BLUR_ESTIMATORS)}")
-    bad = [n for n in names if n not in BLUR_ESTIMATORS]
-    if bad:
-        raise ValueError(f"unknown estimator(s) {', '.join(map(repr, bad))}; allowed: {sorted(BLUR_ESTIMATORS)}")
-    return names
+    return tuple(BLUR_ESTIMATORS.check_all(names, what="estimator"))
 
 
 def estimator_fingerprint(name: str) -> str:

@@ -134,7 +134,7 @@ class Registry(MutableMapping):
         if (optional and name is None) or name in self:
             return name
         allowed = ("None, " if optional else "") + self.allowed()
-        raise ValueError(f"{what or self.kind}={name!r} is invalid; allowed: {allowed}")
+        raise ValueError(f"{what or self.kind}={name!r} is invalid (unknown {self.kind}); allowed: {allowed}")
 
     def check_all(self, names: Iterable[str], *, what: str | None = None) -> list[str]:
         """``names`` as a list if it is non-empty and every one is registered; else one ValueError.

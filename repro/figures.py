@@ -61,10 +61,7 @@ def preset_names(names) -> tuple[str, ...]:
     """
     from method import PRESETS
 
-    unknown = [n for n in names if n not in PRESETS]
-    if unknown:
-        raise ValueError(f"--preset {' '.join(unknown)!s} is invalid; allowed: {', '.join(PRESETS)}")
-    return tuple(dict.fromkeys(["paper", *names]))
+    return tuple(dict.fromkeys(["paper", *PRESETS.check_all(names or ["paper"], what="preset")]))
 
 
 def figure_config(fig, mode: str, presets=None):

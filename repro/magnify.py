@@ -127,10 +127,8 @@ def main(argv=None) -> int:
 
     args = _parser().parse_args(argv)
     factor = parse_factor(args.factor)
-    if args.kernel not in MAGNIFICATION_KERNELS:
-        raise ValueError(f"--kernel {args.kernel!r} is unknown; choose one of {', '.join(sorted(MAGNIFICATION_KERNELS))}")
-    if args.floor is not None and args.floor not in MAP_FLOOR_MODES:
-        raise ValueError(f"--floor {args.floor!r} is unknown; choose one of {', '.join(MAP_FLOOR_MODES)}")
+    MAGNIFICATION_KERNELS.check(args.kernel, what="--kernel")
+    MAP_FLOOR_MODES.check(args.floor, what="--floor", optional=True)
     params = defocus_params(args)
     floor = args.floor or params.map_floor
     photo_path = Path(args.photo)

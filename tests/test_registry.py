@@ -38,9 +38,9 @@ def test_a_plain_function_is_registered_with_its_docstring_as_summary():
 def test_unknown_names_are_one_message_listing_the_allowed_names():
     reg = _registry()
     assert reg.check("plain") == "plain" and reg.check(None, optional=True) is None
-    with pytest.raises(ValueError, match=r"^--widget='nope' is invalid; allowed: 'described', 'double', 'plain'$"):
+    with pytest.raises(ValueError, match=r"^--widget='nope' is invalid \(unknown widget\); allowed: 'described', 'double', 'plain'$"):
         reg.check("nope", what="--widget")
-    with pytest.raises(ValueError, match=r"^widget=None is invalid; allowed: 'described'"):
+    with pytest.raises(ValueError, match=r"^widget=None is invalid \(unknown widget\); allowed: 'described'"):
         reg.check(None)
     with pytest.raises(ValueError, match=r"allowed: None, 'described'"):
         reg.check(3, optional=True)
@@ -74,5 +74,5 @@ def test_the_method_registries_are_read_by_validation_and_capabilities():
     assert BLUR_ESTIMATORS.having("detector_hessians") == {"model_fit", "model_fit_checked"}
     assert BLUR_ESTIMATORS.having("confidence") == {"model_fit_checked"}
     assert PRESETS["paper"] == DefocusParams() and DefocusParams.preset("robust") is PRESETS["robust"]
-    with pytest.raises(ValueError, match=r"^preset='fast' is invalid; allowed: 'paper', 'robust', 'zhuo_sim'$"):
+    with pytest.raises(ValueError, match=r"^preset='fast' is invalid \(unknown preset\); allowed: 'paper', 'robust', 'zhuo_sim'$"):
         DefocusParams.preset("fast")

@@ -54,7 +54,7 @@ import warnings
 
 import numpy as np
 
-from .registry import Figure
+from .scene_sets import scene_set_figure
 
 __all__ = ["FIGURE", "FULL", "QUICK", "Fig7Config", "compute", "compute_set"]
 
@@ -249,20 +249,6 @@ def scene_case(name, config) -> tuple[dict, dict, dict]:
     return arrays, metrics, others
 
 
-def compute(config: Fig7Config) -> dict:
-    """:func:`compute_set` on the default scene set and on each of ``config.other_scene_sets``.
-
-    Returns
-    -------
-    dict
-        :func:`compute_set`'s arrays and metrics for ``config.scenes``, plus ``metrics["scene_set"]``,
-        ``metrics["scene_sets"][name]`` and arrays ``<name>__<key>`` (:mod:`experiments.scene_sets`).
-    """
-    from .scene_sets import compute_scene_sets
-
-    return compute_scene_sets(compute_set, config)
-
-
 def compute_set(config: Fig7Config) -> dict:
     """Doubled-defocus experiment on every scene of ``config`` (one scene set).
 
@@ -311,11 +297,10 @@ def compute_set(config: Fig7Config) -> dict:
     return data
 
 
-FIGURE = Figure(
-    name="fig7",
+FIGURE = scene_set_figure(
+    compute_set, name="fig7", quick=QUICK, full=FULL, version=4,
     title="Doubled defocus: f/8 render magnified x2 vs the real f/4 render (maps and images)",
-    compute=compute,
-    plot="experiments.plotting.fig7:plot",
-    configs={"quick": QUICK, "full": FULL},
-    version=4,
 )
+#: :func:`compute_set` on the default scene set and on each of ``config.other_scene_sets``
+#: (:func:`experiments.scene_sets.compute_scene_sets`).
+compute = FIGURE.compute

@@ -140,6 +140,18 @@ def _initial_guess(p):
     return x50, max(x90 - x10, 0.5), left, right
 
 
+def _edge_fit_result(solution, width_name):
+    """The fit of an edge model p ≈ B + A·G(x; x0, w) as a dict; ``solution.x`` = (x0, w, A, B)."""
+    x0, width, a, b = solution.x
+    return {
+        width_name: float(abs(width)),
+        "edge_px": float(x0),
+        "amplitude": float(a),
+        "offset": float(b),
+        "rms_residual": float(np.sqrt(np.mean(solution.fun**2))),
+    }
+
+
 def fit_disk_edge(profile):
     """Fit the disk-blurred, box-integrated step (:func:`disk_edge_profile`) to an edge profile.
 
@@ -178,14 +190,7 @@ def fit_disk_edge(profile):
         sol = least_squares(resid, [x50, max(c_start, 0.05), a0, b0], method="lm", x_scale="jac")
         if best is None or sol.cost < best.cost:
             best = sol
-    x0, c, a, b = best.x
-    return {
-        "coc_px": float(abs(c)),
-        "edge_px": float(x0),
-        "amplitude": float(a),
-        "offset": float(b),
-        "rms_residual": float(np.sqrt(np.mean(best.fun**2))),
-    }
+    return _edge_fit_result(best, "coc_px")
 
 
 def fit_erf_edge(profile):
@@ -218,14 +223,7 @@ def fit_erf_edge(profile):
 
     sol = least_squares(resid, [x50, max(width / 2.563, 0.3), right - left, left], method="lm",
                         x_scale="jac")
-    x0, s, a, b = sol.x
-    return {
-        "sigma_px": float(abs(s)),
-        "edge_px": float(x0),
-        "amplitude": float(a),
-        "offset": float(b),
-        "rms_residual": float(np.sqrt(np.mean(sol.fun**2))),
-    }
+    return _edge_fit_result(sol, "sigma_px")
 
 
 def second_moment_sigma(profile, *, edge_px, half_window_px):

@@ -110,8 +110,8 @@ def compute(config: Fig2Config) -> dict:
     renderer = StepEdgeRenderer(spp=config.edge_spp, rows=config.edge_rows, crop_width=config.edge_crop_width,
                                 seed=config.seed)
     depths = np.asarray(config.edge_depth_factors, dtype=np.float64) * big.focus_distance_m
-    wide = [cam.replace(resolution=(config.edge_width_px, config.edge_rows)) for cam in (big, small)]
-    grid = measure_edge_grid(renderer, wide, depths)
+    edge_cameras = [cam.replace(resolution=(config.edge_width_px, config.edge_rows)) for cam in (big, small)]
+    grid = measure_edge_grid(renderer, edge_cameras, depths)
     out = {"cl": grid["coc_fit_px"][0], "cs": grid["coc_fit_px"][1],
            "el": grid["coc_eq5_px"][0], "es": grid["coc_eq5_px"][1]}
     curve_s = np.geomspace(0.4 * big.focus_distance_m, 8.0 * big.focus_distance_m, 400)

@@ -23,7 +23,7 @@ import numpy as np
 
 from .registry import Figure
 
-__all__ = ["FIGURE", "Fig10Config", "compute"]
+__all__ = ["FIGURE", "Fig10Config", "camera", "compute", "edge_renderer"]
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -61,6 +61,35 @@ FULL = Fig10Config()
 QUICK = Fig10Config(measured_distances_cm=(100.0, 150.0, 250.0, 300.0), spp=1024, curve_points=201)
 
 
+def camera(config: Fig10Config, f_number: float):
+    """The thin-lens camera of the rendered points at ``f_number`` (film ``width_px`` × ``rows``).
+
+    Parameters
+    ----------
+    config : Fig10Config
+    f_number : float
+        N, dimensionless.
+
+    Returns
+    -------
+    scenes.camera.ThinLensCamera
+    """
+    from scenes.camera import SENSORS, ThinLensCamera
+
+    sensor = SENSORS[config.sensor]
+    return ThinLensCamera(sensor_width_mm=sensor.width_mm, sensor_height_mm=sensor.height_mm,
+                          focal_length_mm=config.focal_length_cm * 10.0, f_number=float(f_number),
+                          focus_distance_m=config.focus_distance_cm / 100.0,
+                          resolution=(config.width_px, config.rows))
+
+
+def edge_renderer(config: Fig10Config):
+    """The step-edge renderer of the measured points (:class:`scenes.calibration.StepEdgeRenderer`)."""
+    from scenes.calibration import StepEdgeRenderer
+
+    return StepEdgeRenderer(spp=config.spp, rows=config.rows, crop_width=config.crop_width, seed=config.seed)
+
+
 def compute(config: Fig10Config) -> dict:
     """Eq. (5) curves and rendered points of Fig. 10.
 
@@ -74,10 +103,11 @@ def compute(config: Fig10Config) -> dict:
         ``f_numbers`` (k,), ``curve_s_cm`` (n,), ``curve_c_cm`` (k, n) — Eq. (5), cm;
         ``points_s_cm`` (m,), ``points_c_cm`` (k, m) — measured, cm; ``points_eq5_cm`` (k, m);
         ``points_c_px`` / ``points_eq5_px`` (k, m); ``points_rel_err`` (k, m);
+        ``points_edge_offset_px`` (k, m): fitted edge − optical axis, px;
+        ``points_sigma_2nd_px`` (k, m): second-moment σ of the edge's line spread, px;
         ``metrics``: ``max_rel_err``, ``rms_rel_err``, per-N maxima, pixel pitch, timings.
     """
-    from scenes.calibration import StepEdgeRenderer, measure_edge
-    from scenes.camera import SENSORS, ThinLensCamera
+    from scenes.calibration import measure_edge_grid
     from scenes.thin_lens import circle_of_confusion
 
     t0 = time.perf_counter()
@@ -88,21 +118,12 @@ def compute(config: Fig10Config) -> dict:
         circle_of_confusion(s_curve / 100.0, focal_length=f_m, f_number=float(n), focus_distance=d_m) * 100.0
         for n in ns
     ])
-    sensor = SENSORS[config.sensor]
-    renderer = StepEdgeRenderer(spp=config.spp, rows=config.rows, crop_width=config.crop_width,
-                                seed=config.seed)
+    renderer = edge_renderer(config)
     s_pts = np.asarray(config.measured_distances_cm, dtype=np.float64)
-    c_px = np.full((ns.size, s_pts.size), np.nan)
-    eq5_px = np.full_like(c_px, np.nan)
-    pitch_cm = None
-    for i, n in enumerate(ns):
-        cam = ThinLensCamera(sensor_width_mm=sensor.width_mm, sensor_height_mm=sensor.height_mm,
-                             focal_length_mm=config.focal_length_cm * 10.0, f_number=float(n),
-                             focus_distance_m=d_m, resolution=(config.width_px, config.rows))
-        pitch_cm = cam.pixel_pitch_m * 100.0
-        for j, s in enumerate(s_pts):
-            row = measure_edge(renderer, cam, s / 100.0, label=config.sensor)
-            c_px[i, j], eq5_px[i, j] = row["coc_fit_px"], row["coc_eq5_px"]
+    cameras = [camera(config, n) for n in ns]
+    pitch_cm = cameras[-1].pixel_pitch_m * 100.0
+    grid = measure_edge_grid(renderer, cameras, s_pts / 100.0, label=config.sensor)
+    c_px, eq5_px = grid["coc_fit_px"], grid["coc_eq5_px"]
     rel = c_px / eq5_px - 1.0
     metrics = {
         "max_rel_err": float(np.nanmax(np.abs(rel))),
@@ -127,6 +148,8 @@ def compute(config: Fig10Config) -> dict:
         "points_c_px": c_px,
         "points_eq5_px": eq5_px,
         "points_rel_err": rel,
+        "points_edge_offset_px": grid["edge_offset_px"],
+        "points_sigma_2nd_px": grid["sigma_2nd_px"],
         "metrics": metrics,
     }
 
@@ -137,6 +160,6 @@ FIGURE = Figure(
     compute=compute,
     plot="experiments.plotting.fig10:plot",
     configs={"quick": QUICK, "full": FULL},
-    version=2,  # 2: multijitter sampler in scenes.calibration
+    version=3,  # 3: edge offsets and second-moment σ of the points
     sigma_convention="none: the figure reports the CoC diameter c itself (disk fit), not a Gaussian sigma",
 )

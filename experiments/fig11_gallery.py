@@ -30,7 +30,7 @@ import warnings
 
 import numpy as np
 
-from .registry import Figure
+from .scene_sets import scene_set_figure
 
 __all__ = ["FIGURE", "FULL", "QUICK", "Fig11Config", "compute", "compute_set", "load_photo"]
 
@@ -145,21 +145,6 @@ def _map_stats(res):
             "sparse_median_px": float(np.nanmedian(res.sparse_sigma)) if res.edges.any() else float("nan")}
 
 
-def compute(config: Fig11Config) -> dict:
-    """:func:`compute_set` on the default scene set and on each of ``config.other_scene_sets``.
-
-    Returns
-    -------
-    dict
-        :func:`compute_set`'s arrays and metrics for ``config.scenes`` and the photos, plus
-        ``metrics["scene_set"]``, ``metrics["scene_sets"][name]`` (scenes only) and arrays
-        ``<name>__<key>`` (:mod:`experiments.scene_sets`).
-    """
-    from .scene_sets import compute_scene_sets
-
-    return compute_scene_sets(compute_set, config)
-
-
 def compute_set(config: Fig11Config) -> dict:
     """Gallery of rendered scenes and bundled photos: maps, magnified results, metrics (one scene set).
 
@@ -254,11 +239,10 @@ def compute_set(config: Fig11Config) -> dict:
     return data
 
 
-FIGURE = Figure(
-    name="fig11",
+FIGURE = scene_set_figure(
+    compute_set, name="fig11", quick=QUICK, full=FULL, version=3,
     title="Results gallery: input, defocus map, magnified result (renders with MAE; skimage.data photos)",
-    compute=compute,
-    plot="experiments.plotting.fig11:plot",
-    configs={"quick": QUICK, "full": FULL},
-    version=3,
 )
+#: :func:`compute_set` on the default scene set and on each of ``config.other_scene_sets``
+#: (:func:`experiments.scene_sets.compute_scene_sets`); the photos only with the default set.
+compute = FIGURE.compute

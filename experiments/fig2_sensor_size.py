@@ -91,7 +91,7 @@ def compute(config: Fig2Config) -> dict:
         Eq. (5) on the wide film, for the plot; ``metrics``.
     """
     from scenes import SCENES
-    from scenes.calibration import StepEdgeRenderer, measure_edge
+    from scenes.calibration import StepEdgeRenderer, measure_edge_grid
     from scenes.render import render_scene
 
     t0 = time.perf_counter()
@@ -110,12 +110,10 @@ def compute(config: Fig2Config) -> dict:
     renderer = StepEdgeRenderer(spp=config.edge_spp, rows=config.edge_rows, crop_width=config.edge_crop_width,
                                 seed=config.seed)
     depths = np.asarray(config.edge_depth_factors, dtype=np.float64) * big.focus_distance_m
-    out = {k: np.full(depths.size, np.nan) for k in ("cl", "cs", "el", "es")}
-    for j, s in enumerate(depths):
-        for tag, cam in (("l", big), ("s", small)):
-            row = measure_edge(renderer, cam.replace(resolution=(config.edge_width_px, config.edge_rows)),
-                               float(s), label=tag)
-            out["c" + tag][j], out["e" + tag][j] = row["coc_fit_px"], row["coc_eq5_px"]
+    edge_cameras = [cam.replace(resolution=(config.edge_width_px, config.edge_rows)) for cam in (big, small)]
+    grid = measure_edge_grid(renderer, edge_cameras, depths)
+    out = {"cl": grid["coc_fit_px"][0], "cs": grid["coc_fit_px"][1],
+           "el": grid["coc_eq5_px"][0], "es": grid["coc_eq5_px"][1]}
     curve_s = np.geomspace(0.4 * big.focus_distance_m, 8.0 * big.focus_distance_m, 400)
     wide = config.edge_width_px
     curve_l = big.replace(resolution=(wide, config.edge_rows)).coc_px(curve_s)

@@ -373,17 +373,6 @@ def preset_estimators(estimators, params) -> tuple[str, ...]:
     return tuple(out)
 
 
-def _scene_set_configs(config: Fig4Config) -> list[tuple[str, Fig4Config]]:
-    """``[(set name, config of that set)]``: the default set first, then ``other_scene_sets``."""
-    from .scene_sets import check_scene_sets
-
-    check_scene_sets(config)
-    out = [(config.scene_set, config)]
-    for name, overrides in config.other_scene_sets:
-        out.append((name, dataclasses.replace(config, scene_set=name, other_scene_sets=(), **dict(overrides))))
-    return out
-
-
 def compute(config: Fig4Config) -> dict:
     """Estimates, error curves and metrics of Fig. 4, for every preset and scene set.
 
@@ -420,13 +409,14 @@ def compute(config: Fig4Config) -> dict:
     """
     from .evaluation import validate_estimators
     from .fig6_alpha_sweep import method_presets
+    from .scene_sets import scene_set_configs
 
     validate_estimators(config.estimators)
     presets = method_presets(config.presets)
     by_preset = {p: (params, preset_estimators(config.estimators, params)) for p, params in presets.items()}
     for _, ests in by_preset.values():
         validate_estimators(ests)
-    sets = _scene_set_configs(config)
+    sets = scene_set_configs(config)
     t0 = time.perf_counter()
     rendered = {name: _rendered(cfg, by_preset) for name, cfg in sets}
     t1 = time.perf_counter()

@@ -38,7 +38,7 @@ import time
 
 import numpy as np
 
-from .registry import Figure
+from .scene_sets import scene_set_figure
 
 __all__ = ["FIGURE", "FULL", "QUICK", "SWEEP_CURVES", "Fig5Config", "bias_sweep", "compute", "compute_set", "scale_label"]
 
@@ -193,20 +193,6 @@ SWEEP_CURVES = {
 }
 
 
-def compute(config: Fig5Config) -> dict:
-    """:func:`compute_set` on the default scene set and on each of ``config.other_scene_sets``.
-
-    Returns
-    -------
-    dict
-        :func:`compute_set`'s arrays and metrics for ``config.scenes``, plus ``metrics["scene_set"]``,
-        ``metrics["scene_sets"][name]`` and arrays ``<name>__<key>`` (:mod:`experiments.scene_sets`).
-    """
-    from .scene_sets import compute_scene_sets
-
-    return compute_scene_sets(compute_set, config)
-
-
 def compute_set(config: Fig5Config) -> dict:
     """Sparse maps before/after Eq. (3) with and without the bias, and their metrics (one scene set).
 
@@ -310,11 +296,10 @@ def compute_set(config: Fig5Config) -> dict:
     return {"cases": np.asarray(cases), **out, "metrics": metrics}
 
 
-FIGURE = Figure(
-    name="fig5",
+FIGURE = scene_set_figure(
+    compute_set, name="fig5", quick=QUICK, full=FULL, version=3,
     title="Blur measure before/after the biased cross-bilateral filter (Eq. 3), no-bias ablation and bias-scale sweep",
-    compute=compute,
-    plot="experiments.plotting.fig5:plot",
-    configs={"quick": QUICK, "full": FULL},
-    version=3,
 )
+#: :func:`compute_set` on the default scene set and on each of ``config.other_scene_sets``
+#: (:func:`experiments.scene_sets.compute_scene_sets`).
+compute = FIGURE.compute

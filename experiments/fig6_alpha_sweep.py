@@ -48,7 +48,7 @@ import warnings
 
 import numpy as np
 
-from .registry import Figure
+from .scene_sets import scene_set_figure
 
 __all__ = ["FIGURE", "FULL", "QUICK", "Fig6Config", "StageOutputs", "compute", "compute_set", "method_presets", "sweep_alpha"]
 
@@ -324,20 +324,6 @@ def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, als
     return stages, out
 
 
-def compute(config: Fig6Config) -> dict:
-    """:func:`compute_set` on the default scene set and on each of ``config.other_scene_sets``.
-
-    Returns
-    -------
-    dict
-        :func:`compute_set`'s arrays and metrics for ``config.scenes``, plus ``metrics["scene_set"]``,
-        ``metrics["scene_sets"][name]`` and arrays ``<name>__<key>`` (:mod:`experiments.scene_sets`).
-    """
-    from .scene_sets import compute_scene_sets
-
-    return compute_scene_sets(compute_set, config)
-
-
 def compute_set(config: Fig6Config) -> dict:
     """α sweep of Eq. (4) on rendered scenes, both encodings, with errors against σ_gt.
 
@@ -435,11 +421,10 @@ def _summary(per_scene, config, *, from_sparse):
     return summary
 
 
-FIGURE = Figure(
-    name="fig6",
+FIGURE = scene_set_figure(
+    compute_set, name="fig6", quick=QUICK, full=FULL, version=3,
     title="Eq. (4) data weight alpha in {0.1, 0.2, 0.5, 1}: dense maps vs ground truth (sRGB and linear input)",
-    compute=compute,
-    plot="experiments.plotting.fig6:plot",
-    configs={"quick": QUICK, "full": FULL},
-    version=3,
 )
+#: :func:`compute_set` on the default scene set and on each of ``config.other_scene_sets``
+#: (:func:`experiments.scene_sets.compute_scene_sets`).
+compute = FIGURE.compute

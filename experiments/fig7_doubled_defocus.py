@@ -54,7 +54,7 @@ import warnings
 
 import numpy as np
 
-from .registry import Figure
+from .scene_sets import scene_set_figure
 
 __all__ = ["FIGURE", "FULL", "QUICK", "Fig7Config", "compute", "compute_set"]
 
@@ -124,6 +124,165 @@ def _masked_psnr(test, reference, mask):
     return float("inf") if mse == 0 else float(10.0 * np.log10(1.0 / mse))
 
 
+@dataclasses.dataclass(frozen=True)
+class _RenderedPair:
+    """The small- and large-aperture renders of one scene, as the experiment uses them.
+
+    Attributes
+    ----------
+    image_small, image_large : ndarray, shape (H, W, 3)
+        The f/8 and f/4 inputs (``config.encoding``, quantised).
+    linear_small : ndarray, shape (H, W, 3)
+        The f/8 render's linear RGB clipped to [0, 1].
+    gt_small, gt_large : ndarray, shape (H, W)
+        σ_gt of the two renders, px (NaN where no surface).
+    defocus_small : ndarray, shape (H, W)
+        Defocus-only σ of the f/8 render, √(σ_gt² − σ_filter²) = c/4, px.
+    mask, in_focus, defocused : ndarray of bool, shape (H, W)
+        Evaluated pixels (finite σ_gt in both, off occlusion boundaries); of those, the pixels whose
+        f/4 defocus-only σ is ≤ / > ``config.in_focus_sigma_px``.
+    """
+
+    image_small: np.ndarray
+    image_large: np.ndarray
+    linear_small: np.ndarray
+    gt_small: np.ndarray
+    gt_large: np.ndarray
+    defocus_small: np.ndarray
+    mask: np.ndarray
+    in_focus: np.ndarray
+    defocused: np.ndarray
+
+    @property
+    def regions(self) -> dict:
+        """``{"all": mask}`` for :func:`experiments.metrics.dense_metrics`."""
+        return {"all": self.mask}
+
+
+def _render_pair(name, config) -> _RenderedPair:
+    """Render scene ``name`` at ``config``'s two apertures (:class:`_RenderedPair`)."""
+    from scenes import render_scene
+    from scenes.render import FILTER_SIGMA_PX
+
+    r_s = render_scene(name, preset=config.preset, f_number=config.f_number_small_aperture,
+                       seed=config.render_seed, progress=False)
+    r_l = render_scene(name, preset=config.preset, f_number=config.f_number_large_aperture,
+                       seed=config.render_seed, progress=False)
+    gt_s = np.asarray(r_s.sigma_px, dtype=np.float64)
+    gt_l = np.asarray(r_l.sigma_px, dtype=np.float64)
+    sf = FILTER_SIGMA_PX
+    mask = np.isfinite(gt_s) & np.isfinite(gt_l) & ~r_s.occlusion_boundary & ~r_l.occlusion_boundary
+    sigma_d_l = np.sqrt(np.maximum(gt_l**2 - sf**2, 0.0))
+    return _RenderedPair(
+        image_small=r_s.image(encoding=config.encoding, quantize_bits=config.quantize_bits),
+        image_large=r_l.image(encoding=config.encoding, quantize_bits=config.quantize_bits),
+        linear_small=np.clip(np.asarray(r_s.rgb, dtype=np.float64), 0.0, 1.0),
+        gt_small=gt_s, gt_large=gt_l,
+        defocus_small=np.sqrt(np.maximum(gt_s**2 - sf**2, 0.0)),  # defocus-only σ of the f/8 render (c/4)
+        mask=mask,
+        in_focus=mask & (sigma_d_l <= config.in_focus_sigma_px),
+        defocused=mask & (sigma_d_l > config.in_focus_sigma_px),
+    )
+
+
+def _score_image(im, pair: _RenderedPair) -> dict:
+    """:func:`experiments.metrics.image_quality` against the f/4 input, plus PSNR in and out of focus."""
+    from .metrics import image_quality
+
+    q = image_quality(im, pair.image_large)
+    q["psnr_in_focus_db"] = _masked_psnr(im, pair.image_large, pair.in_focus)
+    q["psnr_defocused_db"] = _masked_psnr(im, pair.image_large, pair.defocused)
+    return q
+
+
+def _preset_independent(pair: _RenderedPair, config) -> tuple[dict, dict, dict]:
+    """Rows that do not depend on the method preset: the doubled truth, the unchanged input, the oracles.
+
+    Returns
+    -------
+    (dict, dict, dict)
+        ``truth_rows`` (dense metrics of k·σ_gt(f/8) and the filter-aware doubled truth against
+        σ_gt(f/4)), ``images`` (``unchanged_small``, ``magnified_oracle_srgb``,
+        ``magnified_oracle_linear``; HxWx3) and their ``quality`` (:func:`_score_image`).
+    """
+    from method import magnify_defocus
+    from scenes.render import FILTER_SIGMA_PX
+
+    from .metrics import dense_metrics
+
+    k, sf = config.factor, FILTER_SIGMA_PX
+    truth_maps = {"k_x_gt_small_naive": k * pair.gt_small,
+                  "gt_small_doubled_filter_aware": np.sqrt(k * k * pair.defocus_small**2 + sf**2)}
+    truth_rows = {n: dense_metrics(m, pair.gt_large, regions=pair.regions)["all"] for n, m in truth_maps.items()}
+    oracle_map = np.where(np.isfinite(pair.defocus_small), pair.defocus_small, 0.0)
+    oracle_srgb = magnify_defocus(pair.image_small, oracle_map, factor=k, kernel=config.kernel, preprocess=False)
+    oracle_linear = _encode(magnify_defocus(pair.linear_small, oracle_map, factor=k, kernel=config.kernel,
+                                            preprocess=False), config)
+    images = {"unchanged_small": pair.image_small, "magnified_oracle_srgb": oracle_srgb,
+              "magnified_oracle_linear": oracle_linear}
+    return truth_rows, images, {n: _score_image(im, pair) for n, im in images.items()}
+
+
+def _estimated_case(pair: _RenderedPair, params, config, truth_rows: dict, fixed_quality: dict) -> tuple[dict, dict]:
+    """Estimate both maps with ``params``, magnify the f/8 input and score everything (one preset).
+
+    Returns
+    -------
+    (dict, dict)
+        Arrays ``map_small``, ``map_large``, ``magnified``, ``magnified_subtract``,
+        ``map_small_subtract`` and the preset's metrics (see :func:`scene_case`).
+    """
+    from method import magnify_defocus
+    from method.magnify.magnification import preprocess_defocus_map
+
+    from .metrics import dense_metrics
+
+    k, regions, gt_s, gt_l, img_s = config.factor, pair.regions, pair.gt_small, pair.gt_large, pair.image_small
+    t0 = time.perf_counter()
+    res_s = _estimate(img_s, params)
+    res_l = _estimate(pair.image_large, params)
+    t_est = time.perf_counter() - t0
+    candidates = {"map_small": res_s.defocus_map, "k_x_map_small": k * res_s.defocus_map,
+                  "map_large": res_l.defocus_map}
+    maps = {n: dense_metrics(m, gt_l, regions=regions)["all"] for n, m in candidates.items()}
+    maps.update(truth_rows)
+    maps_vs_gt_small = {"map_small": dense_metrics(res_s.defocus_map, gt_s, regions=regions)["all"]}
+    # the doubling claim compared directly: k × map(f/8) with map(f/4) as the reference, px
+    doubled_vs_map_large = dense_metrics(k * res_s.defocus_map, res_l.defocus_map, regions=regions)["all"]
+    clip, smooth = params.map_clip_percent, params.map_smoothing  # paper: 5 %, 0.5 %
+    t0 = time.perf_counter()
+    mag = magnify_defocus(img_s, res_s.defocus_map, factor=k, kernel=config.kernel, clip_percent=clip,
+                          smoothing=smooth)
+    t_mag = time.perf_counter() - t0
+    mag_subtract = magnify_defocus(img_s, res_s.defocus_map, factor=k, kernel=config.kernel,
+                                   clip_percent=clip, smoothing=smooth, floor="subtract")
+    map_subtract = preprocess_defocus_map(res_s.defocus_map, clip_percent=clip, smoothing=smooth,
+                                          floor="subtract")
+    map_floor_px = max(float(np.percentile(res_s.defocus_map, clip)), 0.0)  # p_lo, px
+    quality = {"unchanged_small": fixed_quality["unchanged_small"],
+               "magnified_estimated": _score_image(mag, pair),
+               "magnified_estimated_subtract": _score_image(mag_subtract, pair),
+               "magnified_oracle_srgb": fixed_quality["magnified_oracle_srgb"],
+               "magnified_oracle_linear": fixed_quality["magnified_oracle_linear"]}
+    metrics = {
+        "maps_vs_gt_large": maps,
+        "maps_vs_gt_small": maps_vs_gt_small,
+        "k_x_map_small_vs_map_large": doubled_vs_map_large,
+        "image_vs_large": quality,
+        "gt_range_px": {"small": [float(np.nanmin(gt_s)), float(np.nanmax(gt_s))],
+                        "large": [float(np.nanmin(gt_l)), float(np.nanmax(gt_l))]},
+        "map_floor_px": map_floor_px,
+        "evaluated_pixels": int(pair.mask.sum()),
+        "in_focus_pixels": int(pair.in_focus.sum()),
+        "defocused_pixels": int(pair.defocused.sum()),
+        "estimate_seconds": t_est,
+        "magnify_seconds": t_mag,
+    }
+    arrays = {"map_small": res_s.defocus_map, "map_large": res_l.defocus_map, "magnified": mag,
+              "magnified_subtract": mag_subtract, "map_small_subtract": map_subtract}
+    return arrays, metrics
+
+
 def scene_case(name, config) -> tuple[dict, dict, dict]:
     """Render, estimate, magnify and score one scene for every preset; returns (arrays, metrics, presets).
 
@@ -146,121 +305,24 @@ def scene_case(name, config) -> tuple[dict, dict, dict]:
         ``config.presets`` (arrays: the estimated-map ones above, ``map_small`` … ``map_small_subtract``;
         metrics: the paper's keys).
     """
-    from method import magnify_defocus
-    from method.magnify.magnification import preprocess_defocus_map
-    from scenes import render_scene
-    from scenes.render import FILTER_SIGMA_PX
-
     from .fig6_alpha_sweep import method_presets
-    from .metrics import dense_metrics, image_quality
 
     presets = method_presets(config.presets)
-    k = config.factor
-    r_s = render_scene(name, preset=config.preset, f_number=config.f_number_small_aperture,
-                       seed=config.render_seed, progress=False)
-    r_l = render_scene(name, preset=config.preset, f_number=config.f_number_large_aperture,
-                       seed=config.render_seed, progress=False)
-    img_s = r_s.image(encoding=config.encoding, quantize_bits=config.quantize_bits)
-    img_l = r_l.image(encoding=config.encoding, quantize_bits=config.quantize_bits)
-    gt_s = np.asarray(r_s.sigma_px, dtype=np.float64)
-    gt_l = np.asarray(r_l.sigma_px, dtype=np.float64)
-    sf = FILTER_SIGMA_PX
-    sigma_d_s = np.sqrt(np.maximum(gt_s**2 - sf**2, 0.0))  # defocus-only σ of the f/8 render (c/4)
-    mask = np.isfinite(gt_s) & np.isfinite(gt_l) & ~r_s.occlusion_boundary & ~r_l.occlusion_boundary
-    regions = {"all": mask}
-    sigma_d_l = np.sqrt(np.maximum(gt_l**2 - sf**2, 0.0))
-    in_focus = mask & (sigma_d_l <= config.in_focus_sigma_px)
-    defocused = mask & (sigma_d_l > config.in_focus_sigma_px)
-
-    def score_image(im):
-        q = image_quality(im, img_l)
-        q["psnr_in_focus_db"] = _masked_psnr(im, img_l, in_focus)
-        q["psnr_defocused_db"] = _masked_psnr(im, img_l, defocused)
-        return q
-
-    # preset-independent rows: the doubled truth, the unchanged input and the oracle upper bounds
-    truth_maps = {"k_x_gt_small_naive": k * gt_s,
-                  "gt_small_doubled_filter_aware": np.sqrt(k * k * sigma_d_s**2 + sf**2)}
-    truth_rows = {n: dense_metrics(m, gt_l, regions=regions)["all"] for n, m in truth_maps.items()}
-    oracle_srgb = magnify_defocus(img_s, np.where(np.isfinite(sigma_d_s), sigma_d_s, 0.0), factor=k,
-                                  kernel=config.kernel, preprocess=False)
-    lin = np.clip(np.asarray(r_s.rgb, dtype=np.float64), 0.0, 1.0)
-    oracle_linear = _encode(magnify_defocus(lin, np.where(np.isfinite(sigma_d_s), sigma_d_s, 0.0), factor=k,
-                                            kernel=config.kernel, preprocess=False), config)
-    fixed_images = {"unchanged_small": img_s, "magnified_oracle_srgb": oracle_srgb,
-                    "magnified_oracle_linear": oracle_linear}
-    fixed_quality = {n: score_image(im) for n, im in fixed_images.items()}
-
-    def estimated(params):
-        t0 = time.perf_counter()
-        res_s = _estimate(img_s, params)
-        res_l = _estimate(img_l, params)
-        t_est = time.perf_counter() - t0
-        candidates = {"map_small": res_s.defocus_map, "k_x_map_small": k * res_s.defocus_map,
-                      "map_large": res_l.defocus_map}
-        maps = {n: dense_metrics(m, gt_l, regions=regions)["all"] for n, m in candidates.items()}
-        maps.update(truth_rows)
-        maps_vs_gt_small = {"map_small": dense_metrics(res_s.defocus_map, gt_s, regions=regions)["all"]}
-        # the doubling claim compared directly: k × map(f/8) with map(f/4) as the reference, px
-        doubled_vs_map_large = dense_metrics(k * res_s.defocus_map, res_l.defocus_map, regions=regions)["all"]
-        clip, smooth = params.map_clip_percent, params.map_smoothing  # paper: 5 %, 0.5 %
-        t0 = time.perf_counter()
-        mag = magnify_defocus(img_s, res_s.defocus_map, factor=k, kernel=config.kernel, clip_percent=clip,
-                              smoothing=smooth)
-        t_mag = time.perf_counter() - t0
-        mag_subtract = magnify_defocus(img_s, res_s.defocus_map, factor=k, kernel=config.kernel,
-                                       clip_percent=clip, smoothing=smooth, floor="subtract")
-        map_subtract = preprocess_defocus_map(res_s.defocus_map, clip_percent=clip, smoothing=smooth,
-                                              floor="subtract")
-        map_floor_px = max(float(np.percentile(res_s.defocus_map, clip)), 0.0)  # p_lo, px
-        quality = {"unchanged_small": fixed_quality["unchanged_small"],
-                   "magnified_estimated": score_image(mag),
-                   "magnified_estimated_subtract": score_image(mag_subtract),
-                   "magnified_oracle_srgb": fixed_quality["magnified_oracle_srgb"],
-                   "magnified_oracle_linear": fixed_quality["magnified_oracle_linear"]}
-        metrics = {
-            "maps_vs_gt_large": maps,
-            "maps_vs_gt_small": maps_vs_gt_small,
-            "k_x_map_small_vs_map_large": doubled_vs_map_large,
-            "image_vs_large": quality,
-            "gt_range_px": {"small": [float(np.nanmin(gt_s)), float(np.nanmax(gt_s))],
-                            "large": [float(np.nanmin(gt_l)), float(np.nanmax(gt_l))]},
-            "map_floor_px": map_floor_px,
-            "evaluated_pixels": int(mask.sum()),
-            "in_focus_pixels": int(in_focus.sum()),
-            "defocused_pixels": int(defocused.sum()),
-            "estimate_seconds": t_est,
-            "magnify_seconds": t_mag,
-        }
-        arrays = {"map_small": res_s.defocus_map, "map_large": res_l.defocus_map, "magnified": mag,
-                  "magnified_subtract": mag_subtract, "map_small_subtract": map_subtract}
-        return arrays, metrics
-
+    pair = _render_pair(name, config)
+    truth_rows, images, fixed_quality = _preset_independent(pair, config)
     names = list(presets)
-    arrays, metrics = estimated(presets[names[0]])
-    arrays.update({"image_small": img_s, "image_large": img_l, "gt_small": gt_s, "gt_large": gt_l, "mask": mask,
-                   "magnified_oracle_srgb": oracle_srgb, "magnified_oracle_linear": oracle_linear})
+    arrays, metrics = _estimated_case(pair, presets[names[0]], config, truth_rows, fixed_quality)
+    arrays.update({"image_small": pair.image_small, "image_large": pair.image_large, "gt_small": pair.gt_small,
+                   "gt_large": pair.gt_large, "mask": pair.mask,
+                   "magnified_oracle_srgb": images["magnified_oracle_srgb"],
+                   "magnified_oracle_linear": images["magnified_oracle_linear"]})
     others = {}
     for pname in names[1:]:
         t0 = time.perf_counter()
-        a, m = estimated(presets[pname])
+        a, m = _estimated_case(pair, presets[pname], config, truth_rows, fixed_quality)
         m["compute_seconds"] = time.perf_counter() - t0
         others[pname] = (a, m)
     return arrays, metrics, others
-
-
-def compute(config: Fig7Config) -> dict:
-    """:func:`compute_set` on the default scene set and on each of ``config.other_scene_sets``.
-
-    Returns
-    -------
-    dict
-        :func:`compute_set`'s arrays and metrics for ``config.scenes``, plus ``metrics["scene_set"]``,
-        ``metrics["scene_sets"][name]`` and arrays ``<name>__<key>`` (:mod:`experiments.scene_sets`).
-    """
-    from .scene_sets import compute_scene_sets
-
-    return compute_scene_sets(compute_set, config)
 
 
 def compute_set(config: Fig7Config) -> dict:
@@ -311,11 +373,10 @@ def compute_set(config: Fig7Config) -> dict:
     return data
 
 
-FIGURE = Figure(
-    name="fig7",
+FIGURE = scene_set_figure(
+    compute_set, name="fig7", quick=QUICK, full=FULL, version=4,
     title="Doubled defocus: f/8 render magnified x2 vs the real f/4 render (maps and images)",
-    compute=compute,
-    plot="experiments.plotting.fig7:plot",
-    configs={"quick": QUICK, "full": FULL},
-    version=4,
 )
+#: :func:`compute_set` on the default scene set and on each of ``config.other_scene_sets``
+#: (:func:`experiments.scene_sets.compute_scene_sets`).
+compute = FIGURE.compute

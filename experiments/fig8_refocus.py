@@ -179,27 +179,6 @@ def _masked_ssim(test, reference, mask):
     return float(smap.mean(axis=-1)[mask].mean())
 
 
-def _check_scene_sets(config: Fig8Config) -> list[tuple[str, Fig8Config]]:
-    """``[(set name, config)]``, default set first; ``ValueError`` unless each scene is in its named set."""
-    from scenes import SCENE_SETS, SCENES
-
-    out = [(config.scene_set, config)]
-    for name, overrides in config.other_scene_sets:
-        out.append((name, dataclasses.replace(config, scene_set=name, other_scene_sets=(), **dict(overrides))))
-    seen = set()
-    for name, cfg in out:
-        if name in seen:
-            raise ValueError(f"scene set {name!r} appears twice in the config")
-        seen.add(name)
-        if name not in SCENE_SETS:
-            raise ValueError(f"scene_set={name!r} is invalid; allowed: one of {sorted(SCENE_SETS)}")
-        if cfg.scene not in SCENES:
-            raise ValueError(f"scene={cfg.scene!r} is unknown; allowed: {sorted(SCENES)}")
-        if cfg.scene not in SCENE_SETS[name]:
-            raise ValueError(f"scene {cfg.scene!r} is not in scene set {name!r}; allowed: {list(SCENE_SETS[name])}")
-    return out
-
-
 def compute(config: Fig8Config) -> dict:
     """Refocusing experiment (see the module Notes) for every preset and scene set.
 
@@ -223,9 +202,10 @@ def compute(config: Fig8Config) -> dict:
         ``scene_set``; ``scene_sets.<set>`` the same for each further set (arrays ``<set>__<key>``).
     """
     from .fig6_alpha_sweep import method_presets
+    from .scene_sets import scene_set_configs
 
     presets = method_presets(config.presets)
-    sets = _check_scene_sets(config)
+    sets = scene_set_configs(config)
     data = metrics = None
     nested = {}
     for set_name, cfg in sets:

@@ -14,9 +14,13 @@ arrays of the other set are stored as ``<name>__<key>``.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from collections.abc import Callable
 
-__all__ = ["SCENE_SET_CAPTIONS", "SET_SEPARATOR", "check_scene_sets", "compute_scene_sets", "set_arrays"]
+from .registry import Figure
+
+__all__ = ["SCENE_SET_CAPTIONS", "SET_SEPARATOR", "check_scene_sets", "compute_scene_sets", "scene_set_configs",
+           "scene_set_figure", "set_arrays"]
 
 #: One line per scene set: what it is (under its figures and in the report).
 SCENE_SET_CAPTIONS = {
@@ -30,30 +34,56 @@ SCENE_SET_CAPTIONS = {
 SET_SEPARATOR = "__"
 
 
+def scene_set_configs(config) -> list[tuple[str, object]]:
+    """``[(set name, config of that set)]``: the default set first, then each of ``other_scene_sets``.
+
+    A further set's config is ``config`` with that set's overrides, ``scene_set`` = its name and no
+    ``other_scene_sets``.
+
+    Parameters
+    ----------
+    config : frozen dataclass
+        With ``scene_set`` (str), ``other_scene_sets`` (see module docs) and the scenes drawn from
+        the set: ``scenes`` (tuple of str) or, for a one-scene figure, ``scene`` (str).
+
+    Returns
+    -------
+    list of (str, dataclass)
+
+    Raises
+    ------
+    ValueError
+        Unless each set is named once, is a set of ``scenes.SCENE_SETS`` and holds its config's scenes.
+    """
+    from scenes import SCENE_SETS
+
+    out = [(config.scene_set, config)]
+    for set_name, overrides in config.other_scene_sets:
+        out.append((set_name, dataclasses.replace(config, scene_set=set_name, other_scene_sets=(),
+                                                  **dict(overrides))))
+    seen = set()
+    for set_name, cfg in out:
+        if set_name in seen:
+            raise ValueError(f"scene set {set_name!r} appears twice in the config")
+        seen.add(set_name)
+        if set_name not in SCENE_SETS:
+            raise ValueError(f"scene_set={set_name!r} is invalid; allowed: one of {sorted(SCENE_SETS)}")
+        names = cfg.scenes if hasattr(cfg, "scenes") else (cfg.scene,)
+        stray = [n for n in names if n not in SCENE_SETS[set_name]]
+        if stray:
+            raise ValueError(f"scenes {stray} are not in scene set {set_name!r}; allowed: {list(SCENE_SETS[set_name])}")
+    return out
+
+
 def check_scene_sets(config) -> None:
     """Raise ``ValueError`` unless every scene of each set of ``config`` belongs to that named set.
 
     Parameters
     ----------
     config : frozen dataclass
-        With ``scenes`` (tuple of str), ``scene_set`` (str) and ``other_scene_sets`` (see module docs).
+        See :func:`scene_set_configs`.
     """
-    from scenes import SCENE_SETS
-
-    def check(set_name, names):
-        if set_name not in SCENE_SETS:
-            raise ValueError(f"scene_set={set_name!r} is invalid; allowed: one of {sorted(SCENE_SETS)}")
-        stray = [n for n in names if n not in SCENE_SETS[set_name]]
-        if stray:
-            raise ValueError(f"scenes {stray} are not in scene set {set_name!r}; allowed: {list(SCENE_SETS[set_name])}")
-
-    check(config.scene_set, config.scenes)
-    seen = {config.scene_set}
-    for set_name, overrides in config.other_scene_sets:
-        if set_name in seen:
-            raise ValueError(f"scene set {set_name!r} appears twice in the config")
-        seen.add(set_name)
-        check(set_name, dict(overrides).get("scenes", config.scenes))
+    scene_set_configs(config)
 
 
 def compute_scene_sets(compute_one: Callable[[object], dict], config) -> dict:
@@ -72,13 +102,12 @@ def compute_scene_sets(compute_one: Callable[[object], dict], config) -> dict:
         The default set's arrays and metrics; ``metrics["scene_set"]``,
         ``metrics["scene_sets"][name]`` (each with ``"scene_set": name``), arrays ``<name>__<key>``.
     """
-    check_scene_sets(config)
+    sets = scene_set_configs(config)
     data = compute_one(config)
     metrics = data["metrics"]
     metrics["scene_set"] = config.scene_set
     nested = {}
-    for set_name, overrides in config.other_scene_sets:
-        sub_config = dataclasses.replace(config, scene_set=set_name, other_scene_sets=(), **dict(overrides))
+    for set_name, sub_config in sets[1:]:
         sub = compute_one(sub_config)
         sub_metrics = sub.pop("metrics")
         sub_metrics["scene_set"] = set_name
@@ -87,6 +116,33 @@ def compute_scene_sets(compute_one: Callable[[object], dict], config) -> dict:
             data[f"{set_name}{SET_SEPARATOR}{key}"] = value
     metrics["scene_sets"] = nested
     return data
+
+
+def scene_set_figure(compute_set: Callable[[object], dict], *, name: str, title: str, quick, full,
+                     version: int, **fields) -> Figure:
+    """The :class:`~experiments.registry.Figure` of a figure computed on every scene set of its config.
+
+    Parameters
+    ----------
+    compute_set : callable
+        ``compute_set(config) -> dict`` for one scene set; the figure's compute is
+        :func:`compute_scene_sets` over it.
+    name, title : str, keyword-only
+        Figure name (its plot is ``experiments.plotting.<name>:plot``) and one-line title.
+    quick, full : frozen dataclass, keyword-only
+        The configs of the two modes.
+    version : int, keyword-only
+        Code version of the compute (part of the cache key).
+    **fields
+        Further :class:`~experiments.registry.Figure` fields (``sigma_convention``, ``renders``).
+
+    Returns
+    -------
+    Figure
+    """
+    return Figure(name=name, title=title, compute=functools.partial(compute_scene_sets, compute_set),
+                  plot=f"experiments.plotting.{name}:plot", configs={"quick": quick, "full": full},
+                  version=version, **fields)
 
 
 def set_arrays(data: dict, set_name: str | None) -> dict:

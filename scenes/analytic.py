@@ -812,6 +812,113 @@ def _boundary_mask(rects, shape, band_of):
     return out
 
 
+def _check_band(boundary_band):
+    """``boundary_band`` as a float (None stays None); ValueError unless finite and >= 0 px."""
+    if boundary_band is None:
+        return None
+    bad_band = f"boundary_band={boundary_band!r} is invalid; allowed: None or a finite band >= 0 px"
+    try:
+        band_val = float(boundary_band)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(bad_band) from exc
+    if not (np.isfinite(band_val) and band_val >= 0):
+        raise ValueError(bad_band)
+    return band_val
+
+
+def _check_degrade(noise_std, quantize_bits):
+    """ValueError unless ``noise_std`` >= 0 and ``quantize_bits`` is None or 1..16 (see :func:`degrade`)."""
+    if not noise_std >= 0:
+        raise ValueError(f"noise_std={noise_std!r} is invalid; allowed: >= 0")
+    if quantize_bits is not None and not 1 <= int(quantize_bits) <= 16:
+        raise ValueError(f"quantize_bits={quantize_bits!r} is invalid; allowed: 1..16 or None")
+
+
+@dataclasses.dataclass(frozen=True)
+class _LayerWindows:
+    """Where one tile's blurred layer is computed (see :func:`texture_mosaic`, Notes 1).
+
+    Attributes
+    ----------
+    out : (int, int, int, int)
+        (a0, a1, b0, b1): output rows [a0, a1) x columns [b0, b1), the tile plus its blur support.
+    fine : (int, int, int, int)
+        (fy0, fy1, fx0, fx1): the sharp window on the fine lattice, one more support beyond.
+    mask : (int, int, int, int)
+        (ty0, ty1, tx0, tx1): where M_t = 1 inside the fine window, fine-lattice samples.
+    """
+
+    out: tuple
+    fine: tuple
+    mask: tuple
+
+
+#: "Infinite" extent of tiles touching the canvas border, fine-lattice samples.
+_UNBOUNDED = 1 << 40
+
+
+def _layer_windows(rect, shape, rad, s) -> _LayerWindows:
+    """The windows of tile ``rect`` = (r0, r1, c0, c1) on an (H, W) canvas, kernel radius ``rad``
+    (fine samples) and supersampling ``s``."""
+    r0, r1, c0, c1 = rect
+    h, w = shape
+    big = _UNBOUNDED
+    q = -(-rad // s) + 1  # layer support beyond the tile, output px
+    # tile extent on the fine lattice: samples k with (r0 − ½)s <= k < (r1 − ½)s
+    ext_y = (-big if r0 == 0 else int(np.ceil((r0 - 0.5) * s)),
+             big if r1 == h else int(np.ceil((r1 - 0.5) * s)))
+    ext_x = (-big if c0 == 0 else int(np.ceil((c0 - 0.5) * s)),
+             big if c1 == w else int(np.ceil((c1 - 0.5) * s)))
+    a0, a1, b0, b1 = max(0, r0 - q), min(h, r1 + q), max(0, c0 - q), min(w, c1 + q)
+    fy0, fy1 = a0 * s - rad, (a1 - 1) * s + rad + 1  # fine window [fy0, fy1) x [fx0, fx1)
+    fx0, fx1 = b0 * s - rad, (b1 - 1) * s + rad + 1
+    ty0, ty1 = max(fy0, ext_y[0]), min(fy1, ext_y[1])  # where M_t = 1 inside the window
+    tx0, tx1 = max(fx0, ext_x[0]), min(fx1, ext_x[1])
+    return _LayerWindows(out=(a0, a1, b0, b1), fine=(fy0, fy1, fx0, fx1), mask=(ty0, ty1, tx0, tx1))
+
+
+def _photo_tile(src, pick, rect, mask, n_ch):
+    """Sharp texture of a photo tile over ``mask`` = (ty0, ty1, tx0, tx1) (output px, s = 1).
+
+    The crop of ``src`` (mirror-extended) is the best of 4 random offsets (drawn from ``pick``) by
+    mean |finite difference| over the tile ``rect`` = (r0, r1, c0, c1). Returns (ty1 − ty0, tx1 − tx0, n_ch).
+    """
+    r0, r1, c0, c1 = rect
+    ty0, ty1, tx0, tx1 = mask
+    best = None
+    for _ in range(4):  # seam-free offsets if the source is big enough, else anywhere
+        span_y, span_x = src.shape[0] - (r1 - r0), src.shape[1] - (c1 - c0)
+        oy = int(pick.integers(span_y + 1 if span_y >= 0 else 2 * src.shape[0]))
+        ox = int(pick.integers(span_x + 1 if span_x >= 0 else 2 * src.shape[1]))
+        crop = src[_reflect_index(oy + np.arange(r1 - r0), src.shape[0])[:, None],
+                   _reflect_index(ox + np.arange(c1 - c0), src.shape[1])[None, :]]
+        g = np.mean(np.abs(np.diff(crop, axis=0))) + np.mean(np.abs(np.diff(crop, axis=1)))
+        if best is None or g > best[0]:
+            best = (g, oy, ox)
+    _, oy, ox = best
+    iy = _reflect_index(oy + np.arange(ty0, ty1) - r0, src.shape[0])
+    ix = _reflect_index(ox + np.arange(tx0, tx1) - c0, src.shape[1])
+    return src[iy[:, None], ix[None, :]].reshape(ty1 - ty0, tx1 - tx0, n_ch)
+
+
+def _add_layer(num, den, sharp, stages, win: _LayerWindows, s):
+    """Add one tile's blurred layer G ∗ (M_t·T_t) to ``num`` (H, W, C) and G ∗ M_t to ``den`` (H, W), in place."""
+    a0, a1, b0, b1 = win.out
+    fy0, fy1, fx0, fx1 = win.fine
+    ty0, ty1, tx0, tx1 = win.mask
+    window = np.zeros((fy1 - fy0, fx1 - fx0))
+    start, n_out = (a0 * s - fy0, b0 * s - fx0), (a1 - a0, b1 - b0)
+    for c in range(num.shape[2]):
+        window[ty0 - fy0:ty1 - fy0, tx0 - fx0:tx1 - fx0] = sharp[..., c]
+        num[a0:a1, b0:b1, c] += _apply_stages_2d(window, stages, start, n_out)
+    my = np.zeros(fy1 - fy0)
+    my[ty0 - fy0:ty1 - fy0] = 1.0
+    mx = np.zeros(fx1 - fx0)
+    mx[tx0 - fx0:tx1 - fx0] = 1.0
+    den[a0:a1, b0:b1] += np.outer(_apply_stages_1d(my, stages, start[0], n_out[0]),
+                                  _apply_stages_1d(mx, stages, start[1], n_out[1]))
+
+
 def texture_mosaic(*, sigmas=(0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0), tile=96, cols=4,
                    texture="dead_leaves", color=True, noise_std=0.0, quantize_bits=None, rng=0,
                    boundary_band=None, supersample=4, radius_range=(2.0, 32.0)):
@@ -885,20 +992,10 @@ def texture_mosaic(*, sigmas=(0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0), tile=96, 
     if texture not in TEXTURES:
         raise ValueError(f"texture={texture!r} is invalid; allowed: {', '.join(repr(t) for t in TEXTURES)}")
     color = _check_bool(color, "color")
-    if boundary_band is not None:
-        bad_band = f"boundary_band={boundary_band!r} is invalid; allowed: None or a finite band >= 0 px"
-        try:
-            band_val = float(boundary_band)
-        except (TypeError, ValueError) as exc:
-            raise ValueError(bad_band) from exc
-        if not (np.isfinite(band_val) and band_val >= 0):
-            raise ValueError(bad_band)
+    band_val = _check_band(boundary_band)
     s = _check_supersample(supersample) if texture == "dead_leaves" else 1
     r_range = _check_radius_range(radius_range, s) if texture == "dead_leaves" else None
-    if not noise_std >= 0:
-        raise ValueError(f"noise_std={noise_std!r} is invalid; allowed: >= 0")
-    if quantize_bits is not None and not 1 <= int(quantize_bits) <= 16:
-        raise ValueError(f"quantize_bits={quantize_bits!r} is invalid; allowed: 1..16 or None")
+    _check_degrade(noise_std, quantize_bits)
     entropy = _seed_entropy(rng)
     n_ch = 3 if color else 1
     rects, (h, w) = _tile_layout(len(sig), tile, cols)
@@ -912,51 +1009,16 @@ def texture_mosaic(*, sigmas=(0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0), tile=96, 
         order = pick.permutation(len(sources))  # tile t uses source order[t mod n]
     num = np.zeros((h, w, n_ch))
     den = np.zeros((h, w))
-    big = 1 << 40  # "infinite" extent of tiles touching the canvas border
-    for t, ((r0, r1, c0, c1), stages) in enumerate(zip(rects, plans)):
-        rad = _stages_support(stages)
-        q = -(-rad // s) + 1  # layer support beyond the tile, output px
-        # tile extent on the fine lattice: samples k with (r0 − ½)s <= k < (r1 − ½)s
-        ext_y = (-big if r0 == 0 else int(np.ceil((r0 - 0.5) * s)),
-                 big if r1 == h else int(np.ceil((r1 - 0.5) * s)))
-        ext_x = (-big if c0 == 0 else int(np.ceil((c0 - 0.5) * s)),
-                 big if c1 == w else int(np.ceil((c1 - 0.5) * s)))
-        a0, a1, b0, b1 = max(0, r0 - q), min(h, r1 + q), max(0, c0 - q), min(w, c1 + q)
-        fy0, fy1 = a0 * s - rad, (a1 - 1) * s + rad + 1  # fine window [fy0, fy1) x [fx0, fx1)
-        fx0, fx1 = b0 * s - rad, (b1 - 1) * s + rad + 1
-        ty0, ty1 = max(fy0, ext_y[0]), min(fy1, ext_y[1])  # where M_t = 1 inside the window
-        tx0, tx1 = max(fx0, ext_x[0]), min(fx1, ext_x[1])
+    for t, (rect, stages) in enumerate(zip(rects, plans)):
+        win = _layer_windows(rect, (h, w), _stages_support(stages), s)
+        ty0, ty1, tx0, tx1 = win.mask
         if texture == "dead_leaves":
             labels, colours = _leaves_labels(entropy, (t,), (ty0, tx0), (ty1 - ty0, tx1 - tx0), s,
                                              r_range, n_ch, None, (0.1, 0.9))
             sharp = colours[labels]
         else:
-            src = sources[order[t % len(sources)]]
-            best = None
-            for _ in range(4):  # seam-free offsets if the source is big enough, else anywhere
-                span_y, span_x = src.shape[0] - (r1 - r0), src.shape[1] - (c1 - c0)
-                oy = int(pick.integers(span_y + 1 if span_y >= 0 else 2 * src.shape[0]))
-                ox = int(pick.integers(span_x + 1 if span_x >= 0 else 2 * src.shape[1]))
-                crop = src[_reflect_index(oy + np.arange(r1 - r0), src.shape[0])[:, None],
-                           _reflect_index(ox + np.arange(c1 - c0), src.shape[1])[None, :]]
-                g = np.mean(np.abs(np.diff(crop, axis=0))) + np.mean(np.abs(np.diff(crop, axis=1)))
-                if best is None or g > best[0]:
-                    best = (g, oy, ox)
-            _, oy, ox = best
-            iy = _reflect_index(oy + np.arange(ty0, ty1) - r0, src.shape[0])
-            ix = _reflect_index(ox + np.arange(tx0, tx1) - c0, src.shape[1])
-            sharp = src[iy[:, None], ix[None, :]].reshape(ty1 - ty0, tx1 - tx0, n_ch)
-        window = np.zeros((fy1 - fy0, fx1 - fx0))
-        start, n_out = (a0 * s - fy0, b0 * s - fx0), (a1 - a0, b1 - b0)
-        for c in range(n_ch):
-            window[ty0 - fy0:ty1 - fy0, tx0 - fx0:tx1 - fx0] = sharp[..., c]
-            num[a0:a1, b0:b1, c] += _apply_stages_2d(window, stages, start, n_out)
-        my = np.zeros(fy1 - fy0)
-        my[ty0 - fy0:ty1 - fy0] = 1.0
-        mx = np.zeros(fx1 - fx0)
-        mx[tx0 - fx0:tx1 - fx0] = 1.0
-        den[a0:a1, b0:b1] += np.outer(_apply_stages_1d(my, stages, start[0], n_out[0]),
-                                      _apply_stages_1d(mx, stages, start[1], n_out[1]))
+            sharp = _photo_tile(sources[order[t % len(sources)]], pick, rect, win.mask, n_ch)
+        _add_layer(num, den, sharp, stages, win, s)
 
     image = np.clip(num / den[..., None], 0.0, 1.0)
     image = image if color else image[..., 0]

@@ -18,46 +18,38 @@ Units: distances in metres, positions and blur in pixels of the full film.
 
 Notes
 -----
-Algorithm of :func:`run_calibration`:
+Algorithm of :func:`measure_edge` (:func:`measure_edge_grid` over cameras × distances; the
+experiments ``fig10`` (Eq. 5) and ``fig2`` (Eq. 6) run it):
 
-1. For each camera (two sensors with the same relative focal length, Eq. 6) and f-number, and
-   each object distance S, set ``aperture_radius``, ``focus_distance``, ``x_fov`` and the
+1. For the camera and object distance S, set ``aperture_radius``, ``focus_distance``, ``x_fov`` and the
    half-plane's ``to_world`` through ``mi.traverse`` (one scene load per film size) and render.
 2. Average the film rows → profile p[i], i = 0 … crop_width − 1, pixel i covering [i, i + 1].
 3. Least-squares fit p ≈ B + A·G(x; x0, c), G the box-averaged disk edge-spread function.
-4. Compare c with Eq. (5); pair the sensors at equal (S, N) and compare c'_1 / c'_2 with Eq. (6).
+4. Compare c with Eq. (5); two sensors at equal (S, N) and field of view give c'_1 / c'_2 to
+   compare with Eq. (6).
 """
 
 from __future__ import annotations
 
-import dataclasses
-import functools
-import json
 import math
 import time
 from collections.abc import Sequence
 
 import numpy as np
 
-from .camera import SENSORS, ThinLensCamera, same_field_of_view
-from .thin_lens import BOX_FILTER_SIGMA_PX, coc_to_sigma, relative_circle_of_confusion
+from .camera import ThinLensCamera
+from .thin_lens import BOX_FILTER_SIGMA_PX, coc_to_sigma
 
 __all__ = [
-    "CALIBRATION_DEFAULTS",
     "FOV_MAPPINGS",
-    "CalibrationConfig",
+    "GRID_FIELDS",
     "StepEdgeRenderer",
-    "calibration_cases",
-    "default_renderer",
     "disk_edge_profile",
     "fit_disk_edge",
     "fit_erf_edge",
-    "format_table",
     "measure_edge",
-    "run_calibration",
+    "measure_edge_grid",
     "second_moment_sigma",
-    "sensor_ratio_table",
-    "write_calibration_log",
 ]
 
 #: Ways of turning a physical camera into Mitsuba's horizontal field of view.
@@ -148,6 +140,18 @@ def _initial_guess(p):
     return x50, max(x90 - x10, 0.5), left, right
 
 
+def _edge_fit_result(solution, width_name):
+    """The fit of an edge model p ≈ B + A·G(x; x0, w) as a dict; ``solution.x`` = (x0, w, A, B)."""
+    x0, width, a, b = solution.x
+    return {
+        width_name: float(abs(width)),
+        "edge_px": float(x0),
+        "amplitude": float(a),
+        "offset": float(b),
+        "rms_residual": float(np.sqrt(np.mean(solution.fun**2))),
+    }
+
+
 def fit_disk_edge(profile):
     """Fit the disk-blurred, box-integrated step (:func:`disk_edge_profile`) to an edge profile.
 
@@ -186,14 +190,7 @@ def fit_disk_edge(profile):
         sol = least_squares(resid, [x50, max(c_start, 0.05), a0, b0], method="lm", x_scale="jac")
         if best is None or sol.cost < best.cost:
             best = sol
-    x0, c, a, b = best.x
-    return {
-        "coc_px": float(abs(c)),
-        "edge_px": float(x0),
-        "amplitude": float(a),
-        "offset": float(b),
-        "rms_residual": float(np.sqrt(np.mean(best.fun**2))),
-    }
+    return _edge_fit_result(best, "coc_px")
 
 
 def fit_erf_edge(profile):
@@ -226,14 +223,7 @@ def fit_erf_edge(profile):
 
     sol = least_squares(resid, [x50, max(width / 2.563, 0.3), right - left, left], method="lm",
                         x_scale="jac")
-    x0, s, a, b = sol.x
-    return {
-        "sigma_px": float(abs(s)),
-        "edge_px": float(x0),
-        "amplitude": float(a),
-        "offset": float(b),
-        "rms_residual": float(np.sqrt(np.mean(sol.fun**2))),
-    }
+    return _edge_fit_result(sol, "sigma_px")
 
 
 def second_moment_sigma(profile, *, edge_px, half_window_px):
@@ -420,16 +410,6 @@ class StepEdgeRenderer:
         return profile.copy()
 
 
-def default_renderer(*, spp=4096, rows=8, crop_width=256, seed=0) -> StepEdgeRenderer:
-    """A process-wide :class:`StepEdgeRenderer` per setting, so renders are shared within a run."""
-    return _shared_renderer(int(spp), int(rows), int(crop_width), int(seed))
-
-
-@functools.lru_cache(maxsize=8)
-def _shared_renderer(spp, rows, crop_width, seed):
-    return StepEdgeRenderer(spp=spp, rows=rows, crop_width=crop_width, seed=seed)
-
-
 # --------------------------------------------------------------------------------------------
 # Measurement
 # --------------------------------------------------------------------------------------------
@@ -490,188 +470,36 @@ def measure_edge(renderer: StepEdgeRenderer, camera: ThinLensCamera, depth_m: fl
     }
 
 
-@dataclasses.dataclass(frozen=True, kw_only=True)
-class CalibrationConfig:
-    """Every parameter of the calibration run (issue part 7)."""
-
-    width_px: int = 4096
-    # film width, px; sets the pixel pitch (sensor width / width_px). Only a crop is rendered.
-    crop_width: int = 256
-    # rendered crop around the optical axis, px; must exceed the largest c + 16 px.
-    rows: int = 8
-    # film height, px; rows are averaged into one profile.
-    spp: int = 4096
-    # samples per pixel; per-pixel std of the averaged profile ≤ 0.5/√(rows·spp) ≈ 0.003.
-    seed: int = 0
-    # sampler seed.
-    focus_distance_m: float = 1.0
-    # D, metres. Close focus makes (D − f)/D (the naive-FOV error) 5 % for the 50 mm lens.
-    depths_m: tuple[float, ...] = (0.45, 0.7, 1.6, 5.0)
-    # object distances S, metres: two in front of and two behind focus.
-    f_numbers: tuple[float, ...] = (4.0, 8.0)
-    # N, dimensionless.
-    sensors: tuple[str, ...] = ("full_frame", "canon_powershot_a80")
-    # keys of scenes.camera.SENSORS; the first has f = 50 mm, the others the same f' = f/X (Eq. 6).
-    reference_focal_length_mm: float = 50.0
-    # focal length on the first sensor, mm.
+#: Numeric fields of a :func:`measure_edge` row that :func:`measure_edge_grid` collects.
+GRID_FIELDS = ("coc_eq5_px", "coc_fit_px", "rel_err", "sigma_erf_px", "sigma_erf_pred_px", "sigma_2nd_px",
+               "sigma_2nd_pred_px", "edge_offset_px", "rms_residual")
 
 
-#: The calibration the test suite runs: 2 sensors × 2 f-numbers × 4 depths = 16 cases, all ≥ 2.6 px.
-CALIBRATION_DEFAULTS = CalibrationConfig()
-
-
-def calibration_cases(config: CalibrationConfig = CALIBRATION_DEFAULTS):
-    """The (label, camera, depth) cases of a calibration config.
-
-    Returns
-    -------
-    list of (str, ThinLensCamera, float)
-        Sensor key, camera (same field of view across sensors via
-        :func:`scenes.camera.same_field_of_view`), object distance S in metres.
-    """
-    first = SENSORS[config.sensors[0]]
-    base = ThinLensCamera(
-        sensor_width_mm=first.width_mm, sensor_height_mm=first.height_mm,
-        focal_length_mm=config.reference_focal_length_mm, f_number=config.f_numbers[0],
-        focus_distance_m=config.focus_distance_m, resolution=(config.width_px, config.rows),
-    )
-    cases = []
-    for name in config.sensors:
-        cam_s = same_field_of_view(base, name)
-        for n in config.f_numbers:
-            cam = cam_s.replace(f_number=float(n))
-            for s in config.depths_m:
-                cases.append((name, cam, float(s)))
-    return cases
-
-
-def run_calibration(config: CalibrationConfig = CALIBRATION_DEFAULTS, *, renderer=None, progress=None):
-    """Render and measure every case of ``config``.
+def measure_edge_grid(renderer: StepEdgeRenderer, cameras: Sequence[ThinLensCamera], depths_m, *,
+                      fov_mapping="thin_lens", label=""):
+    """:func:`measure_edge` for every camera at every object distance.
 
     Parameters
     ----------
-    config : CalibrationConfig
-    renderer : StepEdgeRenderer, optional, keyword-only
-        Defaults to :func:`default_renderer` with the config's sampling settings (shared in-process).
-    progress : callable, optional, keyword-only
-        Called with each finished row (e.g. to print it).
+    renderer : StepEdgeRenderer
+    cameras : sequence of ThinLensCamera, length k
+    depths_m : array_like, shape (m,)
+        Object distances S, metres.
+    fov_mapping : {"thin_lens", "naive"}, keyword-only
+    label : str, keyword-only
+        Name of the cameras in the rows.
 
     Returns
     -------
-    list of dict
-        One row per case (see :func:`measure_edge`).
+    dict
+        ``field -> ndarray (k, m)`` of float64 for every field of :data:`GRID_FIELDS` (px, or
+        dimensionless for ``rel_err``; camera i, distance j).
     """
-    if renderer is None:
-        renderer = default_renderer(spp=config.spp, rows=config.rows, crop_width=config.crop_width,
-                                    seed=config.seed)
-    rows = []
-    for label, cam, depth in calibration_cases(config):
-        row = measure_edge(renderer, cam, depth, label=label)
-        rows.append(row)
-        if progress is not None:
-            progress(row)
-    return rows
-
-
-def sensor_ratio_table(rows: Sequence[dict], *, reference=None):
-    """Pair rows of different sensors at equal (S, N, D, width) and compare blur ratios with Eq. (6).
-
-    The measured ratio is of the relative blur c' = c / X (equal pixel counts make it the ratio
-    of c in pixels); the prediction is the ratio of :func:`scenes.thin_lens.relative_circle_of_confusion`.
-
-    Parameters
-    ----------
-    rows : sequence of dict
-        Rows from :func:`measure_edge` (``fov_mapping == "thin_lens"`` only are used).
-    reference : str, optional, keyword-only
-        Sensor label in the numerator (default: the first label seen).
-
-    Returns
-    -------
-    list of dict
-        ``ratio_measured``, ``ratio_eq6``, ``rel_err``, ``min_coc_px`` (the smaller Eq. 5 c of the pair).
-    """
-    rows = [r for r in rows if r["fov_mapping"] == "thin_lens"]
-    if not rows:
-        return []
-    reference = reference or rows[0]["label"]
-    by_key = {}
-    for r in rows:
-        by_key.setdefault((r["depth_m"], r["f_number"], r["focus_distance_m"], r["width_px"]), {})[r["label"]] = r
-    out = []
-    for (s, n, d, w), group in by_key.items():
-        if reference not in group:
-            continue
-        a = group[reference]
-        for label, b in group.items():
-            if label == reference:
-                continue
-            def rel(r):
-                x = r["sensor_width_mm"] * 1e-3
-                return float(relative_circle_of_confusion(
-                    s, relative_focal_length=r["focal_length_mm"] / r["sensor_width_mm"],
-                    sensor_width=x, f_number=n, focus_distance=d))
-            measured = (a["coc_fit_px"] / a["width_px"]) / (b["coc_fit_px"] / b["width_px"])
-            predicted = rel(a) / rel(b)
-            out.append({
-                "pair": f"{reference}/{label}", "depth_m": s, "f_number": n, "focus_distance_m": d,
-                "ratio_measured": measured, "ratio_eq6": predicted, "rel_err": measured / predicted - 1.0,
-                "sensor_width_ratio": a["sensor_width_mm"] / b["sensor_width_mm"],
-                "min_coc_px": min(a["coc_eq5_px"], b["coc_eq5_px"]),
-            })
+    depths = [float(s) for s in np.asarray(depths_m, dtype=np.float64).ravel()]
+    out = {name: np.full((len(cameras), len(depths)), np.nan) for name in GRID_FIELDS}
+    for i, cam in enumerate(cameras):
+        for j, s in enumerate(depths):
+            row = measure_edge(renderer, cam, s, fov_mapping=fov_mapping, label=label)
+            for name in GRID_FIELDS:
+                out[name][i, j] = row[name]
     return out
-
-
-def format_table(rows: Sequence[dict], ratios: Sequence[dict] = ()) -> str:
-    """Human-readable table of calibration rows (and optional Eq. 6 ratios)."""
-    lines = [
-        f"{'sensor':<20} {'f/mm':>6} {'N':>3} {'D/m':>5} {'S/m':>5} {'fov':>9} {'c_eq5':>8} {'c_fit':>8} "
-        f"{'err%':>6} {'σ2nd':>6} {'pred':>6} {'σerf':>6} {'pred':>6} {'edge':>6}",
-    ]
-    for r in rows:
-        lines.append(
-            f"{r['label']:<20} {r['focal_length_mm']:6.2f} {r['f_number']:3.0f} {r['focus_distance_m']:5.2f} "
-            f"{r['depth_m']:5.2f} {r['fov_mapping']:>9} {r['coc_eq5_px']:8.3f} {r['coc_fit_px']:8.3f} "
-            f"{100 * r['rel_err']:+6.2f} {r['sigma_2nd_px']:6.2f} {r['sigma_2nd_pred_px']:6.2f} "
-            f"{r['sigma_erf_px']:6.2f} {r['sigma_erf_pred_px']:6.2f} {r['edge_offset_px']:+6.3f}"
-        )
-    if ratios:
-        lines.append("")
-        lines.append(f"{'pair':<36} {'S/m':>5} {'N':>3} {'measured':>9} {'Eq.6':>8} {'err%':>6} {'X ratio':>8}")
-        for q in ratios:
-            lines.append(
-                f"{q['pair']:<36} {q['depth_m']:5.2f} {q['f_number']:3.0f} {q['ratio_measured']:9.4f} "
-                f"{q['ratio_eq6']:8.4f} {100 * q['rel_err']:+6.2f} {q['sensor_width_ratio']:8.4f}"
-            )
-    return "\n".join(lines)
-
-
-def write_calibration_log(rows, ratios=(), *, folder=None, extra=None):
-    """Write the table as ``calibration.json`` and ``calibration.txt`` (atomically).
-
-    Parameters
-    ----------
-    rows, ratios : sequences of dict
-        From :func:`run_calibration` / :func:`sensor_ratio_table`.
-    folder : path, optional, keyword-only
-        Default ``<cache>/calibration``.
-    extra : dict, optional, keyword-only
-        Additional JSON-able metadata (timings, config).
-
-    Returns
-    -------
-    pathlib.Path
-        The JSON file.
-    """
-    from pathlib import Path
-
-    from .backend import cache_root
-    from defocus_cache import atomic_write_text
-
-    folder = Path(folder) if folder is not None else cache_root() / "calibration"
-    folder.mkdir(parents=True, exist_ok=True)
-    payload = {"rows": list(rows), "ratios": list(ratios), **(extra or {})}
-    path = folder / "calibration.json"
-    atomic_write_text(path, json.dumps(payload, indent=1, default=str))
-    atomic_write_text(folder / "calibration.txt", format_table(rows, ratios) + "\n")
-    return path

@@ -1,19 +1,17 @@
-"""Calibration (issue part 7): Mitsuba's thin-lens blur equals Eq. (5); sensor ratios equal Eq. (6).
+"""Calibration: Mitsuba's thin-lens blur equals Eq. (5); sensor ratios equal Eq. (6).
 
-Renders a geometric step edge for 2 sensors (same field of view) × f/4, f/8 × 4 distances and
-fits the exact disk ⊗ box edge profile. Run with ``pytest -s`` to see the measured table; it is
-also written to ``<cache>/calibration/calibration.{json,txt}``.
+The rendered checks read the figures' own data (the quick configs through the figure cache, shared
+with the claims golden): fig10's step edges (one sensor, f/2, f/4, f/8, both sides of focus) against
+Eq. (5), fig2's step edges (two sensors at the same field of view) against Eq. (6). The model and
+the fitters are checked on synthetic profiles. Run with ``pytest -s`` to see the measured table.
 """
 
 from __future__ import annotations
-
-import time
 
 import numpy as np
 import pytest
 
 from tests import tolerances as tol
-
 
 
 # --- model and fitters (no rendering) -----------------------------------------------------------
@@ -81,93 +79,146 @@ def test_bad_inputs_raise():
         StepEdgeRenderer(crop_width=15)
 
 
-# --- the rendered calibration ------------------------------------------------------------------
+# --- the rendered calibration: fig10 (Eq. 5) and fig2 (Eq. 6) data ---------------------------------
+#: Figure mode whose data the rendered checks read.
+MODE = "quick"
+
+
+def _figure_config(name):
+    from experiments.registry import FIGURES
+
+    return FIGURES[name].config(MODE)
+
+
+def _figure_data(name):
+    import warnings
+
+    from experiments.registry import FIGURES, compute_cached
+
+    fig = FIGURES[name]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return compute_cached(fig, fig.config(MODE)).as_data()
+
+
 @pytest.fixture(scope="module")
-def calibration():
-    """Render the 16 cases once per test module; return rows, ratios and the wall time."""
-    from scenes.calibration import (
-        CALIBRATION_DEFAULTS, format_table, run_calibration, sensor_ratio_table, write_calibration_log,
-    )
+def fig10():
+    """fig10's data with one row per rendered point (sensor, N, S, Eq. 5 c, fitted c, σ, edge)."""
+    from scenes.thin_lens import coc_to_sigma
 
-    t0 = time.perf_counter()
-    rows = run_calibration(CALIBRATION_DEFAULTS)
-    ratios = sensor_ratio_table(rows)
-    elapsed = time.perf_counter() - t0
-    print("\n" + format_table(rows, ratios))
-    print(f"calibration: {len(rows)} cases in {elapsed:.1f} s")
-    import dataclasses
+    data = _figure_data("fig10")
+    cfg = _figure_config("fig10")
+    rows = []
+    for i, n in enumerate(data["f_numbers"]):
+        for j, s_cm in enumerate(data["points_s_cm"]):
+            eq5 = float(data["points_eq5_px"][i, j])
+            rows.append({
+                "f_number": float(n), "depth_m": float(s_cm) / 100.0,
+                "focus_distance_m": cfg.focus_distance_cm / 100.0, "coc_eq5_px": eq5,
+                "coc_fit_px": float(data["points_c_px"][i, j]), "rel_err": float(data["points_rel_err"][i, j]),
+                "sigma_2nd_px": float(data["points_sigma_2nd_px"][i, j]),
+                "sigma_2nd_pred_px": float(coc_to_sigma(eq5, convention="line_spread")),
+                "edge_offset_px": float(data["points_edge_offset_px"][i, j]),
+            })
+    print(f"\nfig10 ({MODE}, {cfg.sensor}, {cfg.spp} spp):")
+    print(f"{'N':>3} {'S/m':>5} {'c_eq5':>8} {'c_fit':>8} {'err%':>6} {'σ2nd':>6} {'pred':>6} {'edge':>6}")
+    for r in rows:
+        print(f"{r['f_number']:3.0f} {r['depth_m']:5.2f} {r['coc_eq5_px']:8.3f} {r['coc_fit_px']:8.3f} "
+              f"{100 * r['rel_err']:+6.2f} {r['sigma_2nd_px']:6.2f} {r['sigma_2nd_pred_px']:6.2f} "
+              f"{r['edge_offset_px']:+6.3f}")
+    return {"rows": rows, "data": data, "config": cfg}
 
-    path = write_calibration_log(rows, ratios, extra={
-        "seconds": elapsed, "config": dataclasses.asdict(CALIBRATION_DEFAULTS)})
-    print(f"written: {path}")
-    return {"rows": rows, "ratios": ratios, "seconds": elapsed}
+
+@pytest.fixture(scope="module")
+def fig2():
+    """fig2's step-edge pairs (large / small sensor at equal S, N and field of view)."""
+    data = _figure_data("fig2")
+    pairs = [{"depth_m": float(s), "ratio_measured": float(m), "ratio_eq6": float(p),
+              "min_coc_px": float(min(el, es)), "coc_fit_px": (float(cl), float(cs)), "coc_eq5_px": (float(el), float(es))}
+             for s, m, p, cl, cs, el, es in zip(data["edge_depth_m"], data["edge_ratio"], data["edge_ratio_eq6"],
+                                                data["edge_coc_px_large"], data["edge_coc_px_small"],
+                                                data["edge_eq5_px_large"], data["edge_eq5_px_small"])]
+    print(f"\nfig2 ({MODE}): {'S/m':>5} {'measured':>9} {'Eq.6':>8} {'err%':>6}")
+    for q in pairs:
+        print(f"{'':12}{q['depth_m']:5.2f} {q['ratio_measured']:9.4f} {q['ratio_eq6']:8.4f} "
+              f"{100 * (q['ratio_measured'] / q['ratio_eq6'] - 1):+6.2f}")
+    return {"pairs": pairs, "metrics": data["metrics"], "config": _figure_config("fig2")}
 
 
 @pytest.mark.render
-def test_sixteen_cases_span_both_sides_of_focus(calibration):
-    rows = calibration["rows"]
-    assert len(rows) == 16
-    assert {r["label"] for r in rows} == {"full_frame", "canon_powershot_a80"}
-    assert {r["f_number"] for r in rows} == {4.0, 8.0}
+def test_cases_span_both_sides_of_focus(fig10, fig2):
+    rows = fig10["rows"]
+    assert {r["f_number"] for r in rows} == {2.0, 4.0, 8.0}
     near = [r for r in rows if r["depth_m"] < r["focus_distance_m"]]
     far = [r for r in rows if r["depth_m"] > r["focus_distance_m"]]
     assert len({r["depth_m"] for r in near}) >= 2 and len({r["depth_m"] for r in far}) >= 2
     assert sum(r["coc_eq5_px"] >= tol.CALIB_MIN_COC_PX for r in rows) >= 8
+    focus = fig2["metrics"]["focus_distance_m"]
+    depths = [q["depth_m"] for q in fig2["pairs"]]
+    assert min(depths) < focus < max(depths)
+    assert len(set(fig2["config"].sensors)) == 2
 
 
 @pytest.mark.render
-def test_fitted_coc_matches_eq5(calibration):
-    bad = [
-        (r["label"], r["f_number"], r["depth_m"], round(r["coc_eq5_px"], 3), round(r["coc_fit_px"], 3))
-        for r in calibration["rows"]
-        if r["coc_eq5_px"] >= tol.CALIB_MIN_COC_PX and abs(r["rel_err"]) > tol.CALIB_COC_RTOL
-    ]
+def test_fitted_coc_matches_eq5(fig10, fig2):
+    cases = [(f"f/{r['f_number']:g}", r["depth_m"], r["coc_eq5_px"], r["coc_fit_px"]) for r in fig10["rows"]]
+    for q in fig2["pairs"]:
+        for sensor, eq5, fit in zip(fig2["config"].sensors, q["coc_eq5_px"], q["coc_fit_px"]):
+            cases.append((sensor, q["depth_m"], eq5, fit))
+    bad = [(label, s, round(eq5, 3), round(fit, 3)) for label, s, eq5, fit in cases
+           if eq5 >= tol.CALIB_MIN_COC_PX and abs(fit / eq5 - 1.0) > tol.CALIB_COC_RTOL]
     assert not bad, f"rendered blur differs from Eq. (5) by > {tol.CALIB_COC_RTOL:.0%}: {bad}"
 
 
 @pytest.mark.render
-def test_edge_on_optical_axis(calibration):
-    for r in calibration["rows"]:
+def test_edge_on_optical_axis(fig10):
+    for r in fig10["rows"]:
         assert abs(r["edge_offset_px"]) <= tol.CALIB_EDGE_POSITION_PX, r
 
 
 @pytest.mark.render
-def test_second_moment_sigma_is_c_over_4(calibration):
-    for r in calibration["rows"]:
-        if r["coc_eq5_px"] >= 4.0:
-            assert r["sigma_2nd_px"] == pytest.approx(r["sigma_2nd_pred_px"], rel=tol.CALIB_SIGMA_2ND_RTOL), r
+def test_second_moment_sigma_is_c_over_4(fig10):
+    checked = [r for r in fig10["rows"] if r["coc_eq5_px"] >= 4.0]
+    assert checked
+    for r in checked:
+        assert r["sigma_2nd_px"] == pytest.approx(r["sigma_2nd_pred_px"], rel=tol.CALIB_SIGMA_2ND_RTOL), r
 
 
 @pytest.mark.render
-def test_sensor_ratio_matches_eq6(calibration):
-    ratios = calibration["ratios"]
-    assert len(ratios) == 8
-    checked = [q for q in ratios if q["min_coc_px"] >= tol.CALIB_MIN_COC_PX]
-    assert len(checked) >= 4
+def test_sensor_ratio_matches_eq6(fig2):
+    pairs = fig2["pairs"]
+    assert len(pairs) == len(fig2["config"].edge_depth_factors)
+    checked = [q for q in pairs if q["min_coc_px"] >= tol.CALIB_MIN_COC_PX]
+    assert len(checked) >= 2
     for q in checked:
         assert q["ratio_measured"] == pytest.approx(q["ratio_eq6"], rel=tol.CALIB_RATIO_RTOL), q
-    # to first order the ratio is the sensor-width ratio (Eq. 6): ~5× here
-    assert 4.5 < np.median([q["ratio_measured"] for q in checked]) < 5.8
+    # to first order the ratio is the sensor-width ratio X_L / X_S (Eq. 6): within −10 % / +16 %
+    # (the band 4.5-5.8 around 36 / 7.18 mm = 5.01 for full frame vs the PowerShot A80)
+    width_ratio = fig2["metrics"]["sensor_width_ratio"]
+    median = float(np.median([q["ratio_measured"] for q in checked]))
+    assert 4.5 / 5.014 < median / width_ratio < 5.8 / 5.014, (median, width_ratio)
 
 
 @pytest.mark.render
-def test_naive_fov_mapping_fails_and_project_mapping_passes(calibration):
+def test_naive_fov_mapping_fails_and_project_mapping_passes(fig10):
     """fov = 2·atan(W/2f) renders the blur (D − f)/D too small; the project's v-based mapping does not."""
-    from scenes.calibration import CALIBRATION_DEFAULTS, calibration_cases, default_renderer, measure_edge
+    from experiments.fig10_coc_vs_distance import camera, edge_renderer
+    from scenes.calibration import measure_edge
 
-    cfg = CALIBRATION_DEFAULTS
-    renderer = default_renderer(spp=cfg.spp, rows=cfg.rows, crop_width=cfg.crop_width, seed=cfg.seed)
-    cases = [(lab, cam, s) for lab, cam, s in calibration_cases(cfg)
-             if lab == "full_frame" and cam.f_number == 4.0 and s in (0.45, 5.0)]
-    assert len(cases) == 2
-    for label, cam, s in cases:
-        naive = measure_edge(renderer, cam, s, fov_mapping="naive", label=label)
-        proper = measure_edge(renderer, cam, s, fov_mapping="thin_lens", label=label)
-        factor = (cam.focus_distance_m - cam.focal_length_m) / cam.focus_distance_m  # 0.95
+    cfg = fig10["config"]
+    cam = camera(cfg, 4.0)
+    renderer = edge_renderer(cfg)
+    proper_rows = {r["depth_m"]: r for r in fig10["rows"] if r["f_number"] == 4.0}
+    depths = (min(proper_rows), max(proper_rows))  # both sides of focus
+    assert depths[0] < cam.focus_distance_m < depths[1]
+    factor = (cam.focus_distance_m - cam.focal_length_m) / cam.focus_distance_m  # 0.9575
+    for s in depths:
+        naive = measure_edge(renderer, cam, s, fov_mapping="naive", label=cfg.sensor)
+        proper = proper_rows[s]
         print(f"S={s} m: Eq.5 {proper['coc_eq5_px']:.3f} px, thin_lens fov {proper['coc_fit_px']:.3f} px, "
               f"naive fov {naive['coc_fit_px']:.3f} px (ratio {naive['coc_fit_px'] / proper['coc_eq5_px']:.4f}, "
               f"(D-f)/D = {factor:.4f})")
+        assert naive["coc_eq5_px"] == pytest.approx(proper["coc_eq5_px"], rel=1e-12)
         assert abs(proper["rel_err"]) <= tol.CALIB_COC_RTOL
         assert abs(naive["rel_err"]) > tol.CALIB_COC_RTOL
         assert naive["coc_fit_px"] / naive["coc_eq5_px"] == pytest.approx(factor, rel=tol.CALIB_NAIVE_FACTOR_RTOL)
-

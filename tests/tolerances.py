@@ -8,14 +8,16 @@ Each section belongs to one area of the code; append new constants to the sectio
 #: Relative agreement between closed forms evaluated two ways (float64 round-off only).
 THIN_LENS_RTOL = 1e-12
 
-# --- calibration: rendered thin-lens blur vs Eq. (5)/(6) (scenes/calibration.py) ---------------
-#: Fitted disk diameter vs Eq. (5), relative (issue part 7). Measured: |err| <= 1.3 % (16 cases,
-#: 2.7-91 px, 4096 spp x 8 rows); 3 % leaves room for sampling noise on the smallest blurs.
+# --- calibration: rendered thin-lens blur vs Eq. (5)/(6) (scenes/calibration.py; the test reads
+#     fig10's and fig2's quick data) ----------------------------------------------------------------
+#: Fitted disk diameter vs Eq. (5), relative. Measured: |err| <= 1.3 % (16 edges, 2.7-91 px,
+#: 4096 spp x 8 rows); on fig10 + fig2 quick (12 + 4 edges, 13-286 px, 1024 spp) <= 0.08 %
+#: (2026-12-03). 3 % leaves room for sampling noise on the smallest blurs.
 CALIB_COC_RTOL = 0.03
 #: Cases with Eq. (5) c below this (px) are reported, not asserted: a sub-2-px disk is hard to tell
 #: from the 1-px box footprint at this noise level.
 CALIB_MIN_COC_PX = 2.0
-#: Ratio of the two sensors' relative blur c/X vs Eq. (6), relative (issue part 7). Measured <= 1.5 %.
+#: Ratio of the two sensors' relative blur c/X vs Eq. (6), relative. Measured <= 1.5 % (fig2 quick: 0.07 %).
 CALIB_RATIO_RTOL = 0.03
 #: Naive fov = 2 atan(W/2f) must render the blur (D - f)/D times Eq. (5); agreement with that factor.
 CALIB_NAIVE_FACTOR_RTOL = 0.01

@@ -18,7 +18,10 @@ from types import MappingProxyType
 import numpy as np
 
 from . import textures as tx
-from .base import SceneDefinition, emissive, facing_rectangle, image_extent, reflectance_texture
+from .base import (
+    PATH_INTEGRATOR, SceneDefinition, ambient_light, area_light, emissive, facing_rectangle, image_extent,
+    reflectance_texture, spp_per_preset,
+)
 
 __all__ = ["CLUTTER", "PLANES", "PORTRAIT", "SHADOW_GLOSS", "TILTED_PLANE"]
 
@@ -68,7 +71,6 @@ PLANES = SceneDefinition(
     description="fronto-parallel textured planes at 0.13/0.2/0.3/0.5/0.9/2 m with sharp step edges (focus 0.2 m)",
     focus_distance_m=_PLANES_D,
     shapes=_planes_shapes,
-    default_spp=MappingProxyType({"small": 256, "full": 256}),
     facts=MappingProxyType(
         {
             "plane_depths_m": tuple(sorted(p[0] for p in _PLANES_LAYOUT)),
@@ -108,7 +110,6 @@ TILTED_PLANE = SceneDefinition(
     description="one textured plane receding from 0.18 m (bottom) to 1.0 m (top): continuous depth (focus 0.2 m)",
     focus_distance_m=_TILT_D,
     shapes=_tilted_shapes,
-    default_spp=MappingProxyType({"small": 256, "full": 256}),
     facts=MappingProxyType({"plane": {"z0_m": _TILT_Z0, "slope_dz_dy": _TILT_SLOPE}}),
 )
 
@@ -158,7 +159,6 @@ PORTRAIT = SceneDefinition(
     "shelf at 0.6 m, blurred foreground card at 0.125 m",
     focus_distance_m=_PORTRAIT_D,
     shapes=_portrait_shapes,
-    default_spp=MappingProxyType({"small": 256, "full": 256}),
     facts=MappingProxyType({"background_depth_m": 1.5}),
 )
 
@@ -207,7 +207,6 @@ CLUTTER = SceneDefinition(
     description=f"{_CLUTTER_COUNT} textured spheres, rotated cubes and cards at 0.12-1.6 m before a plane at 2 m (focus 0.25 m)",
     focus_distance_m=_CLUTTER_D,
     shapes=_clutter_shapes,
-    default_spp=MappingProxyType({"small": 256, "full": 256}),
 )
 
 
@@ -245,13 +244,10 @@ def _shadow_gloss_shapes() -> dict:
             @ T().scale([0.012, 0.03, 0.012]),
             "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.2, 0.35, 0.6]}},
         },
-        "light": {
-            "type": "rectangle",
-            # facing down (normal −y), above and to the right (world −x is image right) of the objects
-            "to_world": T().translate([-0.14, 0.2, 0.2]) @ T().rotate([1, 0, 0], 90) @ T().scale([0.05] * 3),
-            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [60.0, 58.0, 54.0]}},
-        },
-        "ambient": {"type": "constant", "radiance": {"type": "rgb", "value": [0.04, 0.045, 0.05]}},
+        # facing down (normal −y), above and to the right (world −x is image right) of the objects
+        "light": area_light(T().translate([-0.14, 0.2, 0.2]) @ T().rotate([1, 0, 0], 90) @ T().scale([0.05] * 3),
+                            [60.0, 58.0, 54.0]),
+        "ambient": ambient_light([0.04, 0.045, 0.05]),
     }
 
 
@@ -262,6 +258,6 @@ SHADOW_GLOSS = SceneDefinition(
     "focus distance 0.25 m, textured floor and brick wall at 1.2 m",
     focus_distance_m=_SG_D,
     shapes=_shadow_gloss_shapes,
-    integrator=MappingProxyType({"type": "path", "max_depth": 4}),
-    default_spp=MappingProxyType({"small": 512, "full": 512}),
+    integrator=PATH_INTEGRATOR,
+    default_spp=spp_per_preset(512),
 )

@@ -28,7 +28,10 @@ from types import MappingProxyType
 import numpy as np
 
 from . import textures as tx
-from .base import SceneDefinition, facing_rectangle, image_extent, reflectance_texture
+from .base import (
+    PATH_INTEGRATOR, SceneDefinition, ambient_light, area_light, facing_rectangle, image_extent, reflectance_texture,
+    spp_per_preset,
+)
 
 __all__ = ["HERON_AT_THE_LAKE", "PATIO_TABLE", "PORTRAIT_GARDEN", "STREET_FIGURES"]
 
@@ -150,7 +153,6 @@ PORTRAIT_GARDEN = SceneDefinition(
     focus_distance_m=_PG_D,
     shapes=_portrait_garden_shapes,
     integrator=_SUNLIT_INTEGRATOR,
-    default_spp=MappingProxyType({"small": 256, "full": 256}),
     camera_name=_CANON,
     facts=MappingProxyType({"subject_depth_m": _PG_D, "foreground_depth_m": 0.8, "background_depth_m": 10.0}),
 )
@@ -205,7 +207,6 @@ STREET_FIGURES = SceneDefinition(
     focus_distance_m=_SF_D,
     shapes=_street_figures_shapes,
     integrator=_SUNLIT_INTEGRATOR,
-    default_spp=MappingProxyType({"small": 256, "full": 256}),
     camera_name=_CANON,
     facts=MappingProxyType({"subject_depth_m": _SF_D, "people_depths_m": (2.0, 3.5, 6.0, 8.0)}),
 )
@@ -261,7 +262,6 @@ HERON_AT_THE_LAKE = SceneDefinition(
     focus_distance_m=_HL_D,
     shapes=_heron_shapes,
     integrator=_SUNLIT_INTEGRATOR,
-    default_spp=MappingProxyType({"small": 256, "full": 256}),
     camera_name=_NIKON,
     facts=MappingProxyType({"subject_depth_m": _HL_D, "background_depth_m": 30.0}),
 )
@@ -302,12 +302,9 @@ def _patio_table_shapes() -> dict:
             "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.6, 0.35, 0.15]}},
         },
         # a sky-light panel above and to the left (world +x is image left), facing down: soft shadows
-        "skylight": {
-            "type": "rectangle",
-            "to_world": T().translate([0.6, 0.9, 1.7]) @ T().rotate([1, 0, 0], 90) @ T().scale([0.3, 0.3, 1.0]),
-            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [14.0, 13.5, 12.5]}},
-        },
-        "ambient": {"type": "constant", "radiance": {"type": "rgb", "value": [0.05, 0.055, 0.06]}},
+        "skylight": area_light(T().translate([0.6, 0.9, 1.7]) @ T().rotate([1, 0, 0], 90) @ T().scale([0.3, 0.3, 1.0]),
+                               [14.0, 13.5, 12.5]),
+        "ambient": ambient_light([0.05, 0.055, 0.06]),
     }
 
 
@@ -318,8 +315,8 @@ PATIO_TABLE = SceneDefinition(
     "receding 1.65-3 m, wall at 3.2 m, garden at 9 m (Canon 1D Mark II, 85 mm)",
     focus_distance_m=_PT_D,
     shapes=_patio_table_shapes,
-    integrator=MappingProxyType({"type": "path", "max_depth": 4}),
-    default_spp=MappingProxyType({"small": 512, "full": 512}),
+    integrator=PATH_INTEGRATOR,
+    default_spp=spp_per_preset(512),
     camera_name=_CANON,
     facts=MappingProxyType({"subject_depth_m": _PT_D, "background_depth_m": 9.0}),
 )

@@ -236,3 +236,53 @@ def test_cli_unknown_layout_one_line(tmp_path, capsys):
 def test_maps_only_flags_need_maps(capsys):
     status, _, err = _run(["--protocol", "rtf"], capsys)
     assert status == 2 and "--protocol is invalid without --maps" in err
+
+
+# ------------------------------------------------------------------------------------------------
+# round trip on an exported render (the smallest scene preset)
+# ------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.render
+def test_round_trip_ground_truth_and_estimate_maps_match_the_harness(tmp_path, capsys):
+    """σ_gt scored as a map has zero error; ``repro.estimate``'s maps of the exported 8-bit PNGs score
+    what ``repro.evaluate --preset`` gives on the same renders (sRGB, 8 bit) to 1e-9 px."""
+    import shutil
+
+    from repro import dataset as dataset_cli
+    from repro import estimate
+    from repro._cli import run_cli
+    from repro.evaluate import main as evaluate_main
+
+    data, name = tmp_path / "data", ds.image_name("planes", 8.0, "small")
+    assert run_cli(dataset_cli.main, ["export", "--scenes", "planes", "--fnumber", "8", "--out", str(data), "-q"],
+                   prog="repro.dataset") == 0
+    manifest = json.loads((data / "manifest.json").read_text())
+    assert manifest["images"][name]["render"]["spp"] > 0 and "git_commit" in manifest["harness"]
+
+    truth_maps = tmp_path / "truth_maps"
+    truth_maps.mkdir()
+    shutil.copy(data / "gt" / f"{name}_sigma.npy", truth_maps / f"{name}.npy")
+    result = em.score_folder(truth_maps, em.DatasetTruth(data), protocols=list(em.PROTOCOLS))
+    assert result.problems == [] and result.scored == [name]
+    by = {r["protocol"]: r for r in result.rows}
+    assert by["harness"]["all_mae"] == 0.0 and by["harness"]["textured_mae"] == 0.0
+    assert by["harness"]["all_n"] > 0 and by["rtf"]["nmae"] == 0.0 and by["detection"]["accuracy"] == 1.0
+
+    maps = tmp_path / "maps"
+    maps.mkdir()
+    assert run_cli(estimate.main, [str(data / "images" / f"{name}.png"), "-o", str(maps / f"{name}.npy"),
+                                   "--preset", "paper", "-q"], prog="repro.estimate") == 0
+    assert run_cli(evaluate_main, ["--maps", str(maps), "--dataset", str(data), "--protocol", "harness", "rtf",
+                                   "--out", str(tmp_path / "ext"), "-q"], prog="repro.evaluate") == 0
+    assert run_cli(evaluate_main, ["--preset", "paper", "--scenes", "planes", "--fnumber", "8", "--encoding", "srgb",
+                                   "--out", str(tmp_path / "own"), "-q"], prog="repro.evaluate") == 0
+    capsys.readouterr()
+    ext = {r["protocol"]: r for r in json.loads((tmp_path / "ext" / "maps.json").read_text())["rows"]}
+    (own,) = json.loads((tmp_path / "own" / "evaluate.json").read_text())["rows"]
+    for ours, theirs in (("dense_all_mae", ext["harness"]["all_mae"]), ("dense_all_bias", ext["harness"]["all_bias"]),
+                         ("dense_all_rmse", ext["harness"]["all_rmse"]),
+                         ("dense_textured_mae", ext["harness"]["textured_mae"]),
+                         ("dense_textured_n", ext["harness"]["textured_n"]),
+                         ("rtf_nmae", ext["rtf"]["nmae"]), ("rtf_nmse", ext["rtf"]["nmse"])):
+        assert abs(own[ours] - theirs) <= 1e-9, (ours, own[ours], theirs)

@@ -320,6 +320,26 @@ class RenderTruth:
     def image(self, name: str) -> np.ndarray:
         return self.render(name).image(encoding="srgb", quantize_bits=8)
 
+    @classmethod
+    def named_by(cls, folders, *, variant: str | None = None) -> "RenderTruth":
+        """The renders named by the map files of ``folders``: every file stem that is an image name
+        of a known scene with a valid f-number and resolution preset (other files are left to
+        :func:`score_folder`'s "unknown name" lines)."""
+        from scenes import SCENES
+        from scenes.render import validate_render_options
+
+        names = []
+        for stem in sorted({p.stem for f in folders if Path(f).is_dir() for p in Path(f).iterdir() if p.is_file()}):
+            parsed = parse_image_name(stem)
+            if parsed is None or parsed[0] not in SCENES:
+                continue
+            try:
+                validate_render_options(parsed[0], preset=parsed[2], f_number=parsed[1])
+            except ValueError:
+                continue
+            names.append(stem)
+        return cls(names, variant=variant)
+
     @staticmethod
     def grid(scenes, f_numbers, scene_preset: str) -> list[str]:
         """The image names of a scene × f-number grid at one resolution preset."""

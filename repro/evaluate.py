@@ -34,7 +34,7 @@ options: one line on stderr, exit status 2.
 ``.npy``/``.npz``/float ``.exr``/16-bit ``.png`` (σ × ``--png-scale``), ``NAME`` an image of the
 ``--dataset`` folder (``repro.dataset export``; needs neither the renderer nor the sweep engine) or,
 without it, of the harness's own renders (``<scene>_f<N>_<scene_preset>``: the images of
-``--scenes`` × ``--fnumber`` × ``--scene-preset``, or with no ``--scenes`` every map named like one).
+``--scenes`` × ``--fnumber`` × ``--scene-preset`` when one is given, else every map named like one).
 Per image and protocol the metrics are printed with their means and written to ``<out>/maps.json``
 and ``<out>/maps.csv``. A missing, misnamed, wrongly sized, NaN-only or unreadable map is one line on
 stderr naming it and the others are still scored; exit status 2 when none could be scored. A dataset
@@ -378,23 +378,16 @@ def _validate_maps(args):
     from repro._cli import require_extras, scene_grid
 
     require_extras("render", command="repro.evaluate --maps without --dataset")
-    if args.scenes is None:  # the maps say which images: every file named like a render of a known scene
-        from experiments.dataset import parse_image_name
-        from scenes import SCENES
-
-        stems = sorted({p.stem for p in args.maps.iterdir() if p.is_file()})
-        names = [n for n in stems if (parse_image_name(n) or ("",))[0] in SCENES]
-        for n in names:
-            scene, f_number, preset = parse_image_name(n)
-            scene_grid([scene], [f_number], preset)
+    if not _used(args, _NOT_WITH_DATASET[:3]):  # the maps say which images: files named like a render
+        truth = RenderTruth.named_by([args.maps], variant=args.variant)
     else:
         scenes, f_numbers = scene_grid(args.scenes, args.fnumber, args.scene_preset)
-        names = RenderTruth.grid(scenes, f_numbers, args.scene_preset)
+        truth = RenderTruth(RenderTruth.grid(scenes, f_numbers, args.scene_preset), variant=args.variant)
     if args.variant:
         from scenes.backend import select_variant
 
         select_variant(args.variant)
-    return RenderTruth(names, variant=args.variant), protocols
+    return truth, protocols
 
 
 #: Identifying columns of the ``--maps`` table.

@@ -509,13 +509,10 @@ def external_leaderboard(external: dict, dataset: Path | None) -> dict:
     if dataset is not None:
         truth = DatasetTruth(dataset)
     else:
-        from experiments.dataset import parse_image_name
         from repro._cli import require_extras
-        from scenes import SCENES
 
         require_extras("render", command="repro.report --external without --dataset")
-        stems = {p.stem for f in external.values() if Path(f).is_dir() for p in Path(f).iterdir() if p.is_file()}
-        truth = RenderTruth([n for n in stems if (parse_image_name(n) or ("",))[0] in SCENES])
+        truth = RenderTruth.named_by(external.values())
     return build_leaderboard(truth, external=external)
 
 

@@ -286,3 +286,24 @@ def test_round_trip_ground_truth_and_estimate_maps_match_the_harness(tmp_path, c
                          ("dense_textured_n", ext["harness"]["textured_n"]),
                          ("rtf_nmae", ext["rtf"]["nmae"]), ("rtf_nmse", ext["rtf"]["nmse"])):
         assert abs(own[ours] - theirs) <= 1e-9, (ours, own[ours], theirs)
+
+
+@pytest.mark.render
+def test_without_a_dataset_maps_match_the_harness_renders_by_name(tmp_path, capsys):
+    from experiments.evaluation import ground_truth_sigma
+    from scenes import render_scene
+
+    name = ds.image_name("planes", 8.0, "small")
+    sigma = ground_truth_sigma(render_scene("planes", preset="small", f_number=8.0, progress=False))
+    maps = tmp_path / "maps"
+    maps.mkdir()
+    np.save(maps / f"{name}.npy", sigma)
+    np.save(maps / "planes_f0_small.npy", sigma)  # no such render: named, not fatal
+    status, _, err = _run(["--maps", maps, "--protocol", "harness", "detection", "--out", tmp_path / "out"], capsys)
+    assert status == 0, err
+    assert len(err.splitlines()) == 1 and "planes_f0_small.npy: unknown name" in err
+    rows = {r["protocol"]: r for r in json.loads((tmp_path / "out" / "maps.json").read_text())["rows"]}
+    assert rows["harness"]["all_mae"] == 0.0 and rows["detection"]["accuracy"] == 1.0
+    # with the grid options, the images are the grid's: the missing f/4 map is one line
+    status, _, err = _run(["--maps", maps, "--scenes", "planes", "--out", tmp_path / "out2"], capsys)
+    assert status == 0 and sum("planes_f4_small: no map" in line for line in err.splitlines()) == 1, err

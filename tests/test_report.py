@@ -250,3 +250,27 @@ def test_report_cli_bad_external_one_line(tmp_path, capsys, argv, fragment):
     status = run_cli(main, ["--figures", str(figs), "--out", str(tmp_path / "rep"), *argv], prog="repro.report")
     err = capsys.readouterr().err
     assert status == 2 and len(err.splitlines()) == 1 and fragment in err, err
+
+
+@pytest.mark.render
+def test_leaderboard_without_a_dataset_scores_on_the_renders_the_maps_name(tmp_path):
+    import numpy as np
+
+    from experiments.evaluation import ground_truth_sigma
+    from repro.report import external_leaderboard
+    from scenes import render_scene
+
+    maps = tmp_path / "maps"
+    maps.mkdir()
+    np.save(maps / "planes_f8_small.npy",
+            ground_truth_sigma(render_scene("planes", preset="small", f_number=8.0, progress=False)))
+    board = external_leaderboard({"truth": maps}, None)
+    assert board["problems"] == [] and board["scene_sets"] == {"tabletop_stress": ["planes_f8_small"]}
+    rows = {(r["entry"], r["protocol"]): r for r in board["rows"]}
+    assert rows[("truth", "harness")]["all_mae"] == 0.0 and rows[("truth", "rtf")]["nmae"] == 0.0
+    assert rows[("paper", "harness")]["n_images"] == 1
+    from experiments.evaluation import evaluate_case
+
+    own = evaluate_case(None, "planes", f_number=8.0, preset="small", method_preset="paper").metrics
+    assert abs(rows[("paper", "harness")]["all_mae"] - own["dense"]["all"]["mae"]) <= 1e-9  # = repro.evaluate
+    assert abs(rows[("paper", "rtf")]["nmae"] - own["rtf"]["nmae"]) <= 1e-9

@@ -47,7 +47,7 @@ def main(argv=None) -> int:
     CAMERA_PRESETS = Registry("camera preset", CAMERAS)
 
     scenes, f_numbers = scene_grid(args.scenes, args.fnumber, args.scene_preset, out=args.out)
-    camera_name = CAMERA_PRESETS.check(args.camera, what="--camera", optional=True)
+    camera_name = None if args.camera is None else CAMERA_PRESETS.check(args.camera, what="--camera")
     combos = [(s, n) for s in scenes for n in f_numbers]
     entries = []
     with tqdm(combos, desc="export", unit="image", file=sys.stderr, disable=args.quiet) as bar:

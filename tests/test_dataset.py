@@ -83,3 +83,34 @@ def test_cli_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys):
     status, _, err = run(["export", "--scenes", "planes", "--camera", "pinhole", "--out", out], capsys)
     assert_one_line_error(status, err, "--camera='pinhole' is invalid (unknown camera preset)")
     assert not out.exists()
+
+
+@pytest.mark.render
+def test_export_camera_reaches_the_render_and_the_manifest(tmp_path, monkeypatch, capsys):
+    import scenes
+    from repro.dataset import PROG, main
+    from tests.photo_cli import cli_runner
+
+    real = scenes.render_scene("planes", preset="small", f_number=8.0, progress=False)
+    seen = []
+
+    def fake_render(scene, camera=None, **kw):  # the cached render stands in; the camera is what is checked
+        seen.append(camera)
+        return real
+
+    monkeypatch.setattr(scenes, "render_scene", fake_render)
+    run, assert_one_line_error = cli_runner(main, PROG)
+    out = tmp_path / "data"
+    status, _, err = run(["export", "--scenes", "planes", "--fnumber", "8", "--camera", "aps_c_22", "--out", out, "-q"],
+                         capsys)
+    assert status == 0, err
+    (camera,) = seen
+    from scenes.camera import CAMERA_PRESETS
+
+    assert camera.sensor_width_mm == CAMERA_PRESETS["aps_c_22"].sensor_width_mm and camera.f_number == 8.0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["render_settings"]["camera_preset"] == "aps_c_22"
+    assert manifest["images"]["planes_f8_small"]["camera_preset"] == "aps_c_22"
+    assert manifest["images"]["planes_f8_small"]["render"]["spp"] == real.metadata["spp"]
+    status, _, err = run(["export", "--scenes", "planes", "--fnumber", "8", "--out", out, "-q"], capsys)
+    assert_one_line_error(status, err, "was exported with --camera aps_c_22")

@@ -64,6 +64,7 @@ __all__ = [
     "parse_resolution",
     "require_extras",
     "run_cli",
+    "scene_grid",
     "version_string",
 ]
 
@@ -120,10 +121,10 @@ EXTRAS: dict[str, tuple[str, ...]] = {
 
 #: Extras a command needs whatever its flags: its module -> extra names (checked by :func:`run_cli`).
 #: ``repro.estimate``, ``repro.magnify``, ``repro.report`` and ``repro.bench`` (without ``--accuracy``
-#: or ``--sweep``) need none.
+#: or ``--sweep``) need none; ``repro.evaluate`` checks the render extra itself (``--maps --dataset``
+#: needs none).
 COMMAND_EXTRAS: dict[str, tuple[str, ...]] = {
     "repro.render": ("render",),
-    "repro.evaluate": ("render",),
     "repro.figures": ("render",),
     "repro.sweep": ("sweep", "render"),
 }
@@ -388,3 +389,35 @@ def check_output_path(path, *, suffixes: Sequence[str] = (".exr",), flag: str = 
     if not os.access(folder, os.W_OK | os.X_OK) or (p.exists() and not os.access(p, os.W_OK)):
         raise CLIError(f"{flag} {str(path)!r} is not writable; allowed: a file path in a writable folder")
     return p
+
+
+def scene_grid(scenes, f_numbers, scene_preset: str, *, out=None) -> tuple[list[str], list[float]]:
+    """Validated scenes × f-numbers of a render grid, duplicates dropped, before anything is rendered.
+
+    Parameters
+    ----------
+    scenes : sequence of str or None
+        Keys of :data:`scenes.SCENES` (None: all).
+    f_numbers : sequence of float
+    scene_preset : str
+        Render resolution preset.
+    out : path, optional, keyword-only
+        An output folder, refused when it is a file.
+
+    Raises
+    ------
+    ValueError
+        One line naming the unknown scene(s), the bad f-number, or the ``--out`` that is a file.
+    """
+    from method.registry import Registry
+    from scenes import SCENES
+    from scenes.render import validate_render_options
+
+    names = Registry("scene", SCENES).check_all(dict.fromkeys(scenes or list(SCENES)), what="scene")
+    numbers = list(dict.fromkeys(float(n) for n in f_numbers))
+    for s in names:
+        for n in numbers:
+            validate_render_options(s, preset=scene_preset, f_number=n)  # ValueError on a bad N
+    if out is not None and Path(out).exists() and not Path(out).is_dir():
+        raise ValueError(f"--out {str(out)!r} is a file; allowed: a folder")
+    return names, numbers

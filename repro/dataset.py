@@ -1,6 +1,7 @@
 """Export the rendered scenes as a versioned dataset (see :mod:`experiments.dataset` and docs/dataset.md).
 
-``python -m repro.dataset export [--scenes NAME ...] [--fnumber N ...] [--scene-preset small|full] --out DIR [-q]``
+``python -m repro.dataset export [--scenes NAME ...] [--fnumber N ...] [--scene-preset small|full]
+[--camera PRESET] --out DIR [-q]``
 """
 
 from __future__ import annotations
@@ -23,6 +24,9 @@ def _parser():
                    help="apertures (default: 8 4)")
     p.add_argument("--scene-preset", default="small", choices=("small", "full"),
                    help="render resolution preset (default small)")
+    p.add_argument("--camera", default=None, metavar="PRESET",
+                   help="camera preset of scenes.CAMERA_PRESETS (default: each scene's own camera); one per "
+                        "dataset folder, recorded in the manifest")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="dataset folder")
     add_quiet_option(p, what="no progress display")
     return p
@@ -35,36 +39,37 @@ def main(argv=None) -> int:
 
     from experiments import dataset as ds
     from experiments.registry import code_fingerprint, library_versions
-    from repro._cli import require_extras, version_string
-    from scenes import SCENES
-    from scenes.render import validate_render_options
+    from method.registry import Registry
+    from repro._cli import require_extras, scene_grid, version_string
+    from scenes import get_scene
+    from scenes.camera import CAMERA_PRESETS as CAMERAS
 
-    scenes = list(dict.fromkeys(args.scenes or list(SCENES)))
-    bad = [s for s in scenes if s not in SCENES]
-    if bad:
-        raise ValueError(f"unknown scene(s) {', '.join(map(repr, bad))}; allowed: {sorted(SCENES)}")
-    f_numbers = list(dict.fromkeys(float(n) for n in args.fnumber))
-    for s in scenes:
-        for n in f_numbers:
-            validate_render_options(s, preset=args.scene_preset, f_number=n)
-    if args.out.exists() and not args.out.is_dir():
-        raise ValueError(f"--out {str(args.out)!r} is a file; allowed: a folder")
+    CAMERA_PRESETS = Registry("camera preset", CAMERAS)
+
+    scenes, f_numbers = scene_grid(args.scenes, args.fnumber, args.scene_preset, out=args.out)
+    camera_name = None if args.camera is None else CAMERA_PRESETS.check(args.camera, what="--camera")
     combos = [(s, n) for s in scenes for n in f_numbers]
     entries = []
     with tqdm(combos, desc="export", unit="image", file=sys.stderr, disable=args.quiet) as bar:
         for s, n in bar:
             name = ds.image_name(s, n, args.scene_preset)
             if ds.is_complete(args.out, name):
-                entries.append(json.loads((args.out / "done" / f"{name}.json").read_text()))
+                entry = json.loads((args.out / "done" / f"{name}.json").read_text())
+                if entry.get("camera_preset") != camera_name:
+                    raise ValueError(f"{args.out}: {name} was exported with --camera {entry.get('camera_preset')}; "
+                                     "allowed: the same --camera, or another --out folder")
+                entries.append(entry)
                 continue
             require_extras("render", command="repro.dataset export (renders not yet exported)")
             from scenes import render_scene
 
-            render = render_scene(s, preset=args.scene_preset, f_number=n, variant=args.variant, progress=False)
-            entries.append(ds.export_image(args.out, name, render))
-    path = ds.write_manifest(args.out, entries, render_settings={"scene_preset": args.scene_preset},
-                             harness={"version": version_string(), "code": code_fingerprint(),
-                                      "libraries": library_versions()})
+            camera = get_scene(s).camera(args.scene_preset, f_number=n, camera_name=camera_name)
+            render = render_scene(s, camera, preset=args.scene_preset, variant=args.variant, progress=False)
+            entries.append(ds.export_image(args.out, name, render, camera_preset=camera_name))
+    path = ds.write_manifest(args.out, entries,
+                             render_settings={"scene_preset": args.scene_preset, "camera_preset": camera_name},
+                             harness={"version": version_string(), "git_commit": ds.git_commit(),
+                                      "code": code_fingerprint(), "libraries": library_versions()})
     print(f"  {path}")
     return 0
 

@@ -6,6 +6,9 @@
 
 ``python -m repro.evaluate --photos [NAME ...] [--preset NAME ...] [--out DIR] [--force] [-q]``
 
+``python -m repro.evaluate --maps MAPDIR [--dataset DIR] [--protocol harness rtf syndof detection]
+[--detection-threshold PX] [--png-scale S] [--out DIR] [-q]``
+
 For every combination, the scene is rendered (cached), the whole pipeline runs with the estimator
 (:func:`experiments.evaluation.evaluate_case`, cached per estimator, scene, f-number, preset and
 encoding, keyed also by the code fingerprint), and the errors against the render's σ_gt are
@@ -26,6 +29,16 @@ above the defocused region's median, per photo × preset. The maps are the ``pho
 (cached, recomputed with ``--force``); the table is printed and written to ``<out>/photos.json``
 and ``<out>/photos.md`` (atomically). An unknown photo or preset, or ``--photos`` with the scene
 options: one line on stderr, exit status 2.
+
+``--maps`` scores defocus maps made by any tool (:mod:`experiments.external_maps`): ``MAPDIR/NAME``
+``.npy``/``.npz``/float ``.exr``/16-bit ``.png`` (σ × ``--png-scale``), ``NAME`` an image of the
+``--dataset`` folder (``repro.dataset export``; needs neither the renderer nor the sweep engine) or,
+without it, of the harness's own renders (``<scene>_f<N>_<scene_preset>``: the images of
+``--scenes`` × ``--fnumber`` × ``--scene-preset`` when one is given, else every map named like one).
+Per image and protocol the metrics are printed with their means and written to ``<out>/maps.json``
+and ``<out>/maps.csv``. A missing, misnamed, wrongly sized, NaN-only or unreadable map is one line on
+stderr naming it and the others are still scored; exit status 2 when none could be scored. A dataset
+of an unknown major layout version is refused.
 
 Estimators are read from :data:`method.BLUR_ESTIMATORS` at run time, so a newly registered
 estimator is compared on the same ground truth with no other change. Unknown estimator or scene,
@@ -92,6 +105,19 @@ def _parser():
                    help="score the presets on the real photos with hand-drawn regions instead of the renders "
                         f"(photos: {', '.join(_photo_names())}; default: all; presets default: "
                         "paper robust zhuo_sim)")
+    p.add_argument("--maps", type=Path, default=None, metavar="MAPDIR",
+                   help="score the defocus maps in MAPDIR (NAME.npy|npz|exr|png, σ in px, NAME an image of the "
+                        "dataset) instead of running the method (docs/dataset.md)")
+    p.add_argument("--dataset", type=Path, default=None, metavar="DIR",
+                   help="with --maps: the ground truth of a repro.dataset export folder (default: the harness's "
+                        "own renders of --scenes × --fnumber × --scene-preset, matched by name)")
+    p.add_argument("--protocol", nargs="+", default=["harness"], metavar="NAME",
+                   help="with --maps: harness (MAE, bias, per-σ bins, textured pixels), rtf, syndof, detection "
+                        "(default: harness)")
+    p.add_argument("--detection-threshold", type=float_type("--detection-threshold"), default=1.0, metavar="PX",
+                   help="with --maps: blurred where σ > PX in the detection protocol (default 1)")
+    p.add_argument("--png-scale", type=float_type("--png-scale"), default=1000.0, metavar="S",
+                   help="with --maps: a 16-bit PNG map holds σ × S (default 1000: 0.001 px steps)")
     p.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="DIR", help=f"output folder (default: {DEFAULT_OUT})")
     add_force_option(p)
     add_quiet_option(p, what="no progress display")
@@ -119,10 +145,7 @@ def _validate_photos(args):
         raise ValueError(f"--photos does not take {', '.join(used)}; allowed with --photos: --preset, --out, "
                          "--force, -q")
     names = validate_photo_names(args.photos)
-    presets = list(dict.fromkeys(args.preset or SCORE_PRESETS))
-    bad = [p for p in presets if p not in PRESETS]
-    if bad:
-        raise ValueError(f"unknown preset(s) {', '.join(map(repr, bad))}; allowed: {sorted(PRESETS)}")
+    presets = PRESETS.check_all(dict.fromkeys(args.preset or SCORE_PRESETS), what="preset")
     if args.out.exists() and not args.out.is_dir():
         raise ValueError(f"--out {str(args.out)!r} is a file; allowed: a folder")
     return names, presets
@@ -194,30 +217,20 @@ def main_photos(args) -> int:
 def _validate(args):
     from experiments.evaluation import validate_estimators
     from method import BLUR_ESTIMATORS, PRESETS
-    from scenes import SCENES
-    from scenes.render import validate_render_options
+    from repro._cli import scene_grid
 
-    presets = list(dict.fromkeys(args.preset or ["paper"]))
-    bad = [p for p in presets if p not in PRESETS]
-    if bad:
-        hint = " (the render resolution is --scene-preset small|full)" if set(bad) & {"small", "full"} else ""
-        raise ValueError(f"unknown preset(s) {', '.join(map(repr, bad))}; allowed: {sorted(PRESETS)}{hint}")
+    try:
+        presets = PRESETS.check_all(dict.fromkeys(args.preset or ["paper"]), what="preset")
+    except ValueError as exc:
+        hint = " (the render resolution is --scene-preset small|full)" if {"small", "full"} & set(args.preset or ()) else ""
+        raise ValueError(f"{exc}{hint}") from None
     if args.estimator:
         estimators = validate_estimators(dict.fromkeys(args.estimator))
     elif args.preset is None:
         estimators = validate_estimators(list(BLUR_ESTIMATORS))
     else:
         estimators = (None,)
-    scenes = list(dict.fromkeys(args.scenes or list(SCENES)))
-    bad = [s for s in scenes if s not in SCENES]
-    if bad:
-        raise ValueError(f"unknown scene(s) {', '.join(map(repr, bad))}; allowed: {sorted(SCENES)}")
-    f_numbers = list(dict.fromkeys(float(n) for n in args.fnumber))
-    for s in scenes:
-        for n in f_numbers:
-            validate_render_options(s, preset=args.scene_preset, f_number=n)  # ValueError on a bad N
-    if args.out.exists() and not args.out.is_dir():
-        raise ValueError(f"--out {str(args.out)!r} is a file; allowed: a folder")
+    scenes, f_numbers = scene_grid(args.scenes, args.fnumber, args.scene_preset, out=args.out)
     return presets, estimators, scenes, f_numbers, list(dict.fromkeys(args.encoding))
 
 
@@ -328,9 +341,126 @@ def write_stage_outputs(rows, out_dir: Path, info: dict) -> list[Path]:
     return [csv_path, json_path]
 
 
+#: Options only ``--maps`` takes (flag, attribute, argparse default).
+_MAPS_ONLY = (("--dataset", "dataset", None), ("--protocol", "protocol", ["harness"]),
+              ("--detection-threshold", "detection_threshold", 1.0), ("--png-scale", "png_scale", 1000.0))
+#: Options ``--maps --dataset`` does not take (the dataset fixes the images).
+_NOT_WITH_DATASET = (("--scenes", "scenes", None), ("--fnumber", "fnumber", [8.0, 4.0]),
+                     ("--scene-preset", "scene_preset", "small"), ("--variant", "variant", None))
+#: Options of the method runs that ``--maps`` does not take.
+_METHOD_ONLY = (("--preset", "preset", None), ("--estimator", "estimator", None), ("--stages", "stages", False),
+                ("--encoding", "encoding", ["srgb"]), ("--photos", "photos", None), ("--force", "force", False))
+
+
+def _used(args, table) -> list[str]:
+    return [flag for flag, attr, default in table if getattr(args, attr, default) != default]
+
+
+def _validate_maps(args):
+    """The ground truth and the protocols of ``--maps`` (ValueError, one line, on a bad combination)."""
+    from experiments.external_maps import PROTOCOLS, DatasetTruth, RenderTruth
+
+    used = _used(args, _METHOD_ONLY)
+    if used:
+        raise ValueError(f"--maps does not take {', '.join(used)}; allowed with --maps: --dataset, --protocol, "
+                         "--detection-threshold, --png-scale, --scenes, --fnumber, --scene-preset, --out, -q")
+    protocols = PROTOCOLS.check_all(dict.fromkeys(args.protocol), what="protocol")
+    if not args.maps.is_dir():
+        raise ValueError(f"--maps {str(args.maps)!r} is not a folder; allowed: a folder of NAME.npy|npz|exr|png maps")
+    if args.out.exists() and not args.out.is_dir():
+        raise ValueError(f"--out {str(args.out)!r} is a file; allowed: a folder")
+    if args.dataset is not None:
+        used = _used(args, _NOT_WITH_DATASET)
+        if used:
+            raise ValueError(f"--maps --dataset does not take {', '.join(used)} (the dataset fixes the images); "
+                             "allowed: --protocol, --detection-threshold, --png-scale, --out, -q")
+        return DatasetTruth(args.dataset), protocols
+    from repro._cli import require_extras, scene_grid
+
+    require_extras("render", command="repro.evaluate --maps without --dataset")
+    if not _used(args, _NOT_WITH_DATASET[:3]):  # the maps say which images: files named like a render
+        truth = RenderTruth.named_by([args.maps], variant=args.variant)
+    else:
+        scenes, f_numbers = scene_grid(args.scenes, args.fnumber, args.scene_preset)
+        truth = RenderTruth(RenderTruth.grid(scenes, f_numbers, args.scene_preset), variant=args.variant)
+    if args.variant:
+        from scenes.backend import select_variant
+
+        select_variant(args.variant)
+    return truth, protocols
+
+
+#: Identifying columns of the ``--maps`` table.
+MAP_ID_COLUMNS = ("image", "scene", "protocol", "map")
+
+
+def format_map_table(rows, summary) -> str:
+    """Per image and protocol the headline metrics (:data:`experiments.external_maps.HEADLINE`), then the means."""
+    from experiments.external_maps import HEADLINE
+
+    lines = []
+    for protocol in dict.fromkeys(r["protocol"] for r in summary):
+        cols = HEADLINE[protocol]
+        head = ["image", *(label for _, label in cols)]
+        body = [[r["image"], *(_fmt(r.get(k)) for k, _ in cols)] for r in rows if r["protocol"] == protocol]
+        body += [[f"mean of {m['n_images']}", *(_fmt(m.get(k)) for k, _ in cols)]
+                 for m in summary if m["protocol"] == protocol]
+        widths = [max(len(h), *(len(b[i]) for b in body)) for i, h in enumerate(head)]
+        lines += [f"protocol {protocol}:", "  ".join(h.ljust(w) for h, w in zip(head, widths))]
+        lines += ["  ".join(c.ljust(w) for c, w in zip(b, widths)) for b in body] + [""]
+    return "\n".join(lines).rstrip()
+
+
+def main_maps(args) -> int:
+    """``--maps``: score external maps; exit status 0 when at least one map was scored, else 2."""
+    from defocus_cache import atomic_write_text
+    from experiments.external_maps import MAP_SUFFIXES, score_folder, summarize
+    from experiments.registry import to_jsonable
+
+    truth, protocols = _validate_maps(args)
+    result = score_folder(args.maps, truth, protocols=protocols, threshold_px=args.detection_threshold,
+                          png_scale=args.png_scale)
+    for line in result.problems:
+        print(f"{PROG}: skipped {line}", file=sys.stderr)
+    if not result.scored:
+        print(f"{PROG}: error: no map in {args.maps} could be scored (expected NAME{'|'.join(MAP_SUFFIXES)} "
+              f"for the {len(truth.names)} image(s) of {truth.source})", file=sys.stderr)
+        return 2
+    summary = summarize(result.rows)
+    info = {"maps": str(args.maps), "ground_truth": truth.source, "protocols": protocols,
+            "detection_threshold_px": args.detection_threshold, "png_scale": args.png_scale,
+            "occlusion_bands": "excluded in every protocol", "skipped": result.problems}
+    if isinstance(getattr(truth, "manifest", None), dict):
+        info["layout_version"] = truth.manifest.get("layout_version")
+    args.out.mkdir(parents=True, exist_ok=True)
+    json_path, csv_path = args.out / "maps.json", args.out / "maps.csv"
+    atomic_write_text(json_path, json.dumps(to_jsonable({**info, "summary": summary, "rows": result.rows}),
+                                            indent=1, sort_keys=True) + "\n")
+    fields = list(MAP_ID_COLUMNS) + sorted({k for r in result.rows for k in r} - set(MAP_ID_COLUMNS))
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
+    w.writeheader()
+    for r in result.rows:
+        w.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in fields})
+    atomic_write_text(csv_path, buf.getvalue())
+    if not args.quiet:
+        print(format_map_table(result.rows, summary))
+    for p in (json_path, csv_path):
+        print(f"  {p}")
+    return 0
+
+
 def main(argv=None) -> int:
     """Entry point; returns the exit status."""
     args = _parser().parse_args(argv)
+    if args.maps is not None:
+        return main_maps(args)
+    used = _used(args, _MAPS_ONLY)
+    if used:
+        raise ValueError(f"{', '.join(used)} is invalid without --maps; allowed: with --maps MAPDIR")
+    from repro._cli import require_extras
+
+    require_extras("render", command="repro.evaluate")
     if args.photos is not None:
         return main_photos(args)
     presets, estimators, scenes, f_numbers, encodings = _validate(args)

@@ -1,11 +1,17 @@
 """Build the report: ``report/index.html`` and ``report/README.md`` from the figures' metrics.
 
-``python -m repro.report [--figures report/figures] [--out report]``
+``python -m repro.report [--figures report/figures] [--out report] [--external NAME=MAPDIR ...] [--dataset DIR]``
 
 Reads every ``<fig>.metrics.json`` that ``python -m repro.figures`` wrote, checks each of the paper's
 claims (:mod:`experiments.claims`) and writes, atomically, an HTML page (images by relative path)
 and a Markdown page with the verdict table, the evidence numbers and the key figures. Nothing in
 the report is typed by hand: rerun the figures and this command to refresh it.
+
+``--external NAME=MAPDIR`` (repeatable) adds a leaderboard (:mod:`experiments.leaderboard`): every
+method preset and every external map folder, one row each, per scene set and protocol, on the images
+of ``--dataset DIR`` (a ``repro.dataset export`` folder; no renderer needed) or, without it, on the
+harness's renders named by the maps. Also written to ``<out>/leaderboard.json``. A map that cannot be
+scored is one line on stderr naming the entry and the file.
 """
 
 from __future__ import annotations
@@ -163,8 +169,24 @@ def preset_tables(metrics: dict) -> list[dict]:
     return [{"title": t, "header": header, "rows": rows} for t, rows in sets.values() if rows]
 
 
+def leaderboard_tables(board: dict) -> list[dict]:
+    """:func:`experiments.leaderboard.leaderboard_tables` (one table per protocol)."""
+    from experiments.leaderboard import leaderboard_tables as tables
+
+    return tables(board)
+
+
+def leaderboard_intro(board: dict) -> str:
+    """One paragraph: what the leaderboard's rows are and where the ground truth comes from."""
+    return ("One row per method preset and external map folder, per scene set and protocol: the mean over the "
+            f"images of the per-image metric. Ground truth: {board['ground_truth']}; occlusion bands excluded. "
+            "Presets: the method on each image's 8-bit sRGB input (as `repro.estimate --preset NAME` on the "
+            "exported PNG). Protocols: docs/dataset.md."
+            + (f" Not scored: {len(board['problems'])} map(s) (listed in leaderboard.json)." if board["problems"] else ""))
+
+
 def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | None,
-                   figures_dir: Path | None = None) -> str:
+                   figures_dir: Path | None = None, leaderboard: dict | None = None) -> str:
     """The Markdown report (GitHub renders it next to the figures).
 
     Parameters
@@ -180,6 +202,8 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
         The speed summary (Markdown), if any.
     figures_dir : Path, optional, keyword-only
         The figures folder on disk, to find the per-scene-set figure files ``<fig>_<set>.png``.
+    leaderboard : dict, optional, keyword-only
+        :func:`experiments.leaderboard.build_leaderboard`'s result, shown as one table per protocol.
     """
     from experiments.claims import mismatch_findings
 
@@ -248,6 +272,13 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
                       "|" + "---|" * len(t["header"])]
             lines += ["| " + " | ".join(_md_cell(c) for c in r) + " |" for r in t["rows"]]
             lines.append("")
+    if leaderboard:
+        lines += ["## Leaderboard", "", _md_cell(leaderboard_intro(leaderboard)), ""]
+        for t in leaderboard_tables(leaderboard):
+            lines += [f"**{_md_cell(t['title'])}**", "", "| " + " | ".join(t["header"]) + " |",
+                      "|" + "---|" * len(t["header"])]
+            lines += ["| " + " | ".join(_md_cell(c) for c in r) + " |" for r in t["rows"]]
+            lines.append("")
     lines += ["## Figures", ""]
     for name in [n for n in KEY_FIGURES if n in metrics] + [n for n in _fig_order(metrics) if n not in KEY_FIGURES]:
         m = metrics[name]
@@ -303,8 +334,8 @@ def figure_files(name: str, metrics_file: dict, figures_dir: Path | None) -> lis
 
 
 def build_html(metrics: dict, verdicts, *, figures_rel: str, bench: str | None,
-               figures_dir: Path | None = None) -> str:
-    """A self-contained HTML page (images by relative path)."""
+               figures_dir: Path | None = None, leaderboard: dict | None = None) -> str:
+    """A self-contained HTML page (images by relative path); ``leaderboard`` as in :func:`build_markdown`."""
     from experiments.claims import mismatch_findings
 
     e = html.escape
@@ -370,6 +401,12 @@ def build_html(metrics: dict, verdicts, *, figures_rel: str, bench: str | None,
         preset_html = ("<h2>Presets side by side</h2><p><code>paper</code> is the reproduction, <code>robust</code> "
                        "goes beyond the paper, <code>zhuo_sim</code> is the Zhuo &amp; Sim 2011 baseline. Errors "
                        "against σ_gt in px (edge MAE; dense MAE over textured pixels, bias in brackets).</p>" + preset_html)
+    board_html = ""
+    if leaderboard:
+        board_html = f"<h2>Leaderboard</h2><p>{e(leaderboard_intro(leaderboard))}</p>" + "".join(
+            f"<h3>{e(t['title'])}</h3><table class='leaderboard'><tr>" + "".join(f"<th>{e(h)}</th>" for h in t["header"])
+            + "</tr>" + "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>" for r in t["rows"])
+            + "</table>" for t in leaderboard_tables(leaderboard))
     findings = mismatch_findings(metrics)
     mismatch_html = ""
     if findings:
@@ -402,6 +439,7 @@ img {{ max-width: 100%; border: 1px solid #eee; }}
 {sets_html}
 {mismatch_html}
 {preset_html}
+{board_html}
 <h2>Figures</h2>
 {figs}
 {bench_html}
@@ -450,6 +488,34 @@ def update_readme_block(readme: Path, block: str) -> bool:
     return True
 
 
+def parse_external(values) -> dict:
+    """``["NAME=MAPDIR", ...]`` -> ``{NAME: Path(MAPDIR)}``; ValueError (one line) on a bad or repeated NAME."""
+    out = {}
+    for text in values:
+        name, sep, folder = str(text).partition("=")
+        if not sep or not name.strip() or not folder:
+            raise ValueError(f"--external {text!r} is invalid; allowed: NAME=MAPDIR")
+        if name in out:
+            raise ValueError(f"--external {text!r} is invalid (NAME {name!r} given twice); allowed: one folder per NAME")
+        out[name.strip()] = Path(folder)
+    return out
+
+
+def external_leaderboard(external: dict, dataset: Path | None) -> dict:
+    """:func:`experiments.leaderboard.build_leaderboard` on ``dataset`` (or the renders the maps name)."""
+    from experiments.external_maps import DatasetTruth, RenderTruth
+    from experiments.leaderboard import build_leaderboard
+
+    if dataset is not None:
+        truth = DatasetTruth(dataset)
+    else:
+        from repro._cli import require_extras
+
+        require_extras("render", command="repro.report --external without --dataset")
+        truth = RenderTruth.named_by(external.values())
+    return build_leaderboard(truth, external=external)
+
+
 def main(argv=None) -> int:
     parser = ArgumentParser(prog="python -m repro.report", description=__doc__.splitlines()[0])
     parser.add_argument("--figures", type=Path, default=Path("report") / "figures",
@@ -458,7 +524,16 @@ def main(argv=None) -> int:
     parser.add_argument("--readme", type=Path, default=None,
                         help="README whose marked claims block is refreshed (default: the project's "
                              "README.md, and only when --out is the project's report/ folder)")
+    parser.add_argument("--external", action="append", default=[], metavar="NAME=MAPDIR",
+                        help="add a leaderboard row set for the defocus maps in MAPDIR (NAME.npy|npz|exr|png, σ in "
+                             "px) under NAME; repeatable. The presets are scored alongside")
+    parser.add_argument("--dataset", type=Path, default=None, metavar="DIR",
+                        help="with --external: the ground truth of a repro.dataset export folder (default: the "
+                             "harness's renders named by the maps)")
     args = parser.parse_args(argv)
+    external = parse_external(args.external)
+    if args.dataset is not None and not external:
+        raise ValueError("--dataset is invalid without --external; allowed: with --external NAME=MAPDIR")
     from experiments.claims import claim_matrix, claims_document, evaluate_claims
     from defocus_cache import atomic_write_text
 
@@ -475,10 +550,19 @@ def main(argv=None) -> int:
     except ValueError:
         rel = args.figures.resolve().as_posix()
     bench = _bench_summary(args.out)
+    board = None
+    if external:
+        board = external_leaderboard(external, args.dataset)
+        for line in board["problems"]:
+            print(f"python -m repro.report: skipped {line}", file=sys.stderr)
+        from experiments.registry import to_jsonable
+
+        atomic_write_text(args.out / "leaderboard.json",
+                          json.dumps(to_jsonable(board), indent=1, sort_keys=True, ensure_ascii=False) + "\n")
     atomic_write_text(args.out / "README.md", build_markdown(metrics, matrix, figures_rel=rel, bench=bench,
-                                                             figures_dir=args.figures))
+                                                             figures_dir=args.figures, leaderboard=board))
     atomic_write_text(args.out / "index.html", build_html(metrics, matrix, figures_rel=rel, bench=bench,
-                                                          figures_dir=args.figures))
+                                                          figures_dir=args.figures, leaderboard=board))
     summary = {"claims": [{"id": c.id, "section": c.section, "figure": c.figure, "claim": c.text,
                            "rule": c.rule, "varies_with": list(c.varies_with), "verdict": v.verdict,
                            "evidence": v.evidence, "evaluation": v.evaluation}
@@ -499,7 +583,8 @@ def main(argv=None) -> int:
         print(f"{column_label(p, sset)}:")
         for c, v in rows:
             print(f"  [{_mark(v.verdict)}] {v.verdict:17s} {c.id}")
-    print(f"wrote {args.out / 'README.md'}, {args.out / 'index.html'}, {args.out / 'claims.json'}")
+    print(f"wrote {args.out / 'README.md'}, {args.out / 'index.html'}, {args.out / 'claims.json'}"
+          + (f", {args.out / 'leaderboard.json'}" if board is not None else ""))
     return 0
 
 

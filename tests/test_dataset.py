@@ -1,4 +1,4 @@
-"""Dataset export, external-map loading and the field's protocols (experiments.dataset, repro.dataset)."""
+"""Dataset export (experiments.dataset, repro.dataset); the maps and protocols: tests/test_external_maps.py."""
 
 import json
 
@@ -8,59 +8,18 @@ import pytest
 from experiments import dataset as ds
 
 
-def _gt(sigma, coc=None, occ=None):
-    sigma = np.asarray(sigma, float)
-    return {"sigma": sigma, "coc": sigma * 4 if coc is None else np.asarray(coc, float),
-            "occlusion": np.zeros(sigma.shape, bool) if occ is None else occ,
-            "textured": np.ones(sigma.shape, bool), "depth": np.ones(sigma.shape)}
-
-
-def test_constant_map_mae_is_analytic():
-    sigma = np.array([[0.5, 1.5], [2.5, 3.5]])
-    m = ds.score_map(np.full((2, 2), 2.0), _gt(sigma))["all"]
-    assert m["mae"] == pytest.approx(np.mean(np.abs(2.0 - sigma)), abs=1e-12)
-    assert m["bias"] == pytest.approx(2.0 - sigma.mean(), abs=1e-12)
-
-
-def test_rtf_clips_at_3275_and_normalises():
-    gt = _gt([[5.0, 0.0]])
-    m = ds.score_map(np.array([[10.0, 3.275 / 2]]), gt, protocol="rtf")
-    assert m["nmae"] == pytest.approx(0.25, abs=1e-12)  # (0 + 0.5) / 2: 10 and 5 both clip to 3.275
-
-
-def test_syndof_coc_below_one_is_zero():
-    gt = _gt([[1.0, 1.0]], coc=[[0.5, 5.0]])
-    m = ds.score_map(np.array([[0.0, 1.0]]), gt, protocol="syndof")
-    assert m["mae"] == pytest.approx(0.0, abs=1e-12)
-    m = ds.score_map(np.array([[0.25, 1.0]]), gt, protocol="syndof")
-    assert m["mae"] == pytest.approx(0.125, abs=1e-12)
-
-
-def test_detection_threshold_both_sides():
-    gt = _gt([[0.9, 1.1]])
-    assert ds.score_map(np.array([[0.95, 1.05]]), gt, protocol="detection")["accuracy"] == 1.0
-    bad = ds.score_map(np.array([[1.05, 0.95]]), gt, protocol="detection")
-    assert bad["accuracy"] == 0.0 and bad["f_measure"] == 0.0
-
-
-def test_bad_maps_named(tmp_path):
-    np.save(tmp_path / "a.npy", np.full((3, 3), np.nan))
-    (tmp_path / "b.exr").write_bytes(b"not an exr")
-    with pytest.raises(ValueError, match="NaN-only"):
-        ds.score_map(ds.load_map(tmp_path, "a"), _gt(np.ones((3, 3))))
-    with pytest.raises(ValueError, match="b.exr"):
-        ds.load_map(tmp_path, "b")
-    with pytest.raises(ValueError, match="no map"):
-        ds.load_map(tmp_path, "c")
-    np.save(tmp_path / "d.npy", np.ones((2, 2)))
-    with pytest.raises(ValueError, match="shape"):
-        ds.score_map(ds.load_map(tmp_path, "d"), _gt(np.ones((3, 3))))
+def test_image_names_parse_back():
+    for scene, n in (("planes", 8.0), ("tilted_plane", 5.6), ("heron_at_the_lake", 2.8)):
+        assert ds.parse_image_name(ds.image_name(scene, n, "small")) == (scene, n, "small")
+    assert ds.parse_image_name("planes_small") is None
 
 
 def test_unknown_major_layout_refused(tmp_path):
     (tmp_path / "manifest.json").write_text(json.dumps({"layout_version": "9.0"}))
     with pytest.raises(ValueError, match="layout version"):
         ds.read_dataset(tmp_path)
+    with pytest.raises(ValueError, match="no manifest.json"):
+        ds.read_dataset(tmp_path / "nothing")
 
 
 @pytest.mark.parametrize("bits", [8, 16])
@@ -100,7 +59,9 @@ def test_export_round_trip_and_interruption(tmp_path, monkeypatch):
     ds.export_image(tmp_path, name, render)
     assert ds.is_complete(tmp_path, name)
     gt = ds.load_ground_truth(tmp_path, name)
-    assert ds.score_map(gt["sigma"], gt)["all"]["mae"] == 0.0
+    from experiments.external_maps import score_map
+
+    assert score_map(gt["sigma"], gt)["all"]["mae"] == 0.0
     import imageio.v3 as iio
 
     png = iio.imread(tmp_path / "images" / f"{name}.png") / 255.0
@@ -119,3 +80,37 @@ def test_cli_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys):
     (tmp_path / "file").write_text("x")
     status, _, err = run(["export", "--scenes", "planes", "--out", tmp_path / "file"], capsys)
     assert_one_line_error(status, err, "is a file")
+    status, _, err = run(["export", "--scenes", "planes", "--camera", "pinhole", "--out", out], capsys)
+    assert_one_line_error(status, err, "--camera='pinhole' is invalid (unknown camera preset)")
+    assert not out.exists()
+
+
+@pytest.mark.render
+def test_export_camera_reaches_the_render_and_the_manifest(tmp_path, monkeypatch, capsys):
+    import scenes
+    from repro.dataset import PROG, main
+    from tests.photo_cli import cli_runner
+
+    real = scenes.render_scene("planes", preset="small", f_number=8.0, progress=False)
+    seen = []
+
+    def fake_render(scene, camera=None, **kw):  # the cached render stands in; the camera is what is checked
+        seen.append(camera)
+        return real
+
+    monkeypatch.setattr(scenes, "render_scene", fake_render)
+    run, assert_one_line_error = cli_runner(main, PROG)
+    out = tmp_path / "data"
+    status, _, err = run(["export", "--scenes", "planes", "--fnumber", "8", "--camera", "aps_c_22", "--out", out, "-q"],
+                         capsys)
+    assert status == 0, err
+    (camera,) = seen
+    from scenes.camera import CAMERA_PRESETS
+
+    assert camera.sensor_width_mm == CAMERA_PRESETS["aps_c_22"].sensor_width_mm and camera.f_number == 8.0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["render_settings"]["camera_preset"] == "aps_c_22"
+    assert manifest["images"]["planes_f8_small"]["camera_preset"] == "aps_c_22"
+    assert manifest["images"]["planes_f8_small"]["render"]["spp"] == real.metadata["spp"]
+    status, _, err = run(["export", "--scenes", "planes", "--fnumber", "8", "--out", out, "-q"], capsys)
+    assert_one_line_error(status, err, "was exported with --camera aps_c_22")

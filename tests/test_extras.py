@@ -68,7 +68,7 @@ def test_core_dependencies_install_no_extra_module():
 def test_command_table_names_real_commands_and_extras():
     assert set(COMMAND_EXTRAS) <= {f"repro.{name}" for name in _cli.COMMANDS}
     assert all(set(extras) <= set(EXTRAS) for extras in COMMAND_EXTRAS.values())
-    for free in ("repro.estimate", "repro.magnify", "repro.report", "repro.bench"):
+    for free in ("repro.estimate", "repro.magnify", "repro.report", "repro.bench", "repro.evaluate"):
         assert free not in COMMAND_EXTRAS
 
 
@@ -235,6 +235,50 @@ def test_photo_tools_run_and_the_project_imports_no_extra_module(tmp_path):
     assert project == [], project  # no project module asked for mitsuba, drjit, dask, distributed, pyarrow
     for name in ("map.exr", "mag.png", "map.png"):
         assert (tmp_path / name).stat().st_size > 0
+
+
+_REFUSE_MAPS = _REFUSE.split("from repro import estimate, magnify")[0] + r"""
+from repro import evaluate
+data, maps, out = sys.argv[2], sys.argv[3], sys.argv[4]
+s = run_cli(evaluate.main, ['--maps', maps, '--dataset', data, '--protocol', 'harness', 'rtf', 'syndof',
+                            'detection', '--out', out, '-q'], prog='evaluate')
+print(json.dumps({'status': [s], 'asked': ASKED}))
+"""
+
+
+def test_evaluate_maps_with_a_dataset_imports_no_extra_module(tmp_path):
+    """``repro.evaluate --maps --dataset`` runs with mitsuba, drjit, dask, distributed and pyarrow refused."""
+    import numpy as np
+
+    from tests.test_external_maps import _gt, make_dataset
+
+    data = make_dataset(tmp_path / "data", {"planes_f8_small": _gt(np.ones((4, 5)))})
+    (tmp_path / "maps").mkdir()
+    np.save(tmp_path / "maps" / "planes_f8_small.npy", np.full((4, 5), 1.5))
+    script = tmp_path / "refuse.py"
+    script.write_text(_REFUSE_MAPS)
+    env = {**os.environ, "DEFOCUS_CACHE_DIR": str(tmp_path / "cache"),
+           "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.run([sys.executable, str(script), ",".join(EXTRA_MODULES), str(data), str(tmp_path / "maps"),
+                           str(tmp_path / "out")], cwd=tmp_path, capture_output=True, text=True, env=env, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert result["status"] == [0], proc.stderr
+    project = [(name, f) for name, f in result["asked"] if str(ROOT) in f and "site-packages" not in f]
+    assert project == [], project
+    rows = json.loads((tmp_path / "out" / "maps.json").read_text())["rows"]
+    assert {r["protocol"] for r in rows} == {"harness", "rtf", "syndof", "detection"}
+
+
+def test_evaluate_maps_without_a_dataset_needs_the_render_extra(monkeypatch, capsys, tmp_path):
+    from repro.evaluate import main
+
+    (tmp_path / "maps").mkdir()
+    monkeypatch.setitem(sys.modules, "mitsuba", None)
+    prog = "python -m repro.evaluate"
+    assert run_cli(main, ["--maps", str(tmp_path / "maps")], prog=prog) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"{prog}: error: {_expected('repro.evaluate --maps without --dataset', 'render', 'mitsuba')}"]
 
 
 # ------------------------------------------------------------------------------------------------

@@ -148,3 +148,129 @@ def test_figure_files_list_the_stress_set_image_with_its_caption(tmp_path):
     assert [s for s, _ in files] == ["fig5", "fig5_tabletop_stress"]
     assert "paper_cameras (default)" in files[0][1] and "tabletop_stress (stress test)" in files[1][1]
     assert figure_files("fig10", {"metrics": {"max_rel_err": 0.1}}, tmp_path) == [("fig10", "")]
+
+
+# ------------------------------------------------------------------------------------------------
+# the leaderboard (--external NAME=MAPDIR)
+# ------------------------------------------------------------------------------------------------
+
+
+def _leaderboard_case(tmp_path):
+    """A hand-made dataset of two images in two scene sets; maps 'exact' (σ_gt) and 'const' (1 px, one missing)."""
+    import imageio.v3 as iio
+    import numpy as np
+
+    from tests.test_external_maps import _gt, make_dataset
+
+    sigma = np.tile(np.linspace(0.5, 3.0, 64), (48, 1))
+    names = ["planes_f8_small", "portrait_garden_f4_small"]
+    data = make_dataset(tmp_path / "data", {n: _gt(sigma) for n in names})
+    yy, xx = np.mgrid[:48, :64]
+    img = (((xx // 8 + yy // 8) % 2) * 160 + 40).astype(np.uint8)
+    for n in names:
+        iio.imwrite(data / "images" / f"{n}.png", np.repeat(img[..., None], 3, axis=2))
+    exact, const = tmp_path / "exact", tmp_path / "const"
+    exact.mkdir(), const.mkdir()
+    for n in names:
+        np.save(exact / f"{n}.npy", sigma)
+    np.save(const / f"{names[1]}.npy", np.ones_like(sigma))
+    return data, exact, const, sigma, names
+
+
+def test_leaderboard_one_row_per_entry_scene_set_and_protocol(tmp_path):
+    import numpy as np
+
+    from experiments.external_maps import DatasetTruth
+    from experiments.leaderboard import build_leaderboard
+    from method import PRESETS
+    from repro.report import build_html, build_markdown
+
+    data, exact, const, sigma, names = _leaderboard_case(tmp_path)
+    board = build_leaderboard(DatasetTruth(data), external={"exact": exact, "const": const})
+    assert set(board["scene_sets"]) == {"tabletop_stress", "paper_cameras", "all"}
+    rows = {(r["entry"], r["scene_set"], r["protocol"]): r for r in board["rows"]}
+    assert len(rows) == len(board["rows"])  # one row each
+    entries = {*PRESETS, "exact", "const"}
+    for entry in entries:
+        for protocol in ("harness", "rtf", "syndof", "detection"):
+            for scene_set in ("paper_cameras", "all"):
+                assert (entry, scene_set, protocol) in rows
+            assert ((entry, "tabletop_stress", protocol) in rows) == (entry != "const")  # const has no planes map
+    assert rows[("exact", "all", "harness")]["all_mae"] == 0.0 and rows[("exact", "all", "harness")]["n_images"] == 2
+    assert rows[("const", "all", "harness")]["n_images"] == 1
+    assert rows[("const", "all", "harness")]["all_mae"] == pytest.approx(np.mean(np.abs(1.0 - sigma)))
+    assert rows[("exact", "all", "detection")]["accuracy"] == 1.0
+    assert {r["kind"] for r in board["rows"] if r["entry"] in PRESETS} == {"preset"}
+    (problem,) = board["problems"]
+    assert problem.startswith("const: ") and names[0] in problem
+    md = build_markdown({}, [], figures_rel="f", bench=None, leaderboard=board)
+    assert "## Leaderboard" in md and "| all | exact | external | 2 | 0.000 |" in md
+    assert md.count("**rtf: ") == 1 and "threshold 1 px" in md
+    html = build_html({}, [], figures_rel="f", bench=None, leaderboard=board)
+    assert html.count("<table class='leaderboard'>") == 4
+    assert "Leaderboard" not in build_markdown({}, [], figures_rel="f", bench=None)
+
+
+def test_report_cli_external_writes_the_leaderboard(tmp_path, capsys):
+    from repro._cli import run_cli
+    from repro.report import main
+
+    data, exact, const, _, names = _leaderboard_case(tmp_path)
+    figs = tmp_path / "figures"
+    figs.mkdir()
+    (figs / "fig10.metrics.json").write_text(json.dumps(
+        {"title": "CoC vs distance", "mode": "quick", "metrics": {"max_rel_err": 0.001, "n_points": 3}}))
+    out = tmp_path / "rep"
+    status = run_cli(main, ["--figures", str(figs), "--out", str(out), "--readme", str(tmp_path / "none.md"),
+                            "--external", f"exact={exact}", "--external", f"const={const}", "--dataset", str(data)],
+                     prog="python -m repro.report")
+    _, err = capsys.readouterr()
+    assert status == 0, err
+    assert err.splitlines() == [line for line in err.splitlines() if "skipped const: " in line] and len(err.splitlines()) == 1
+    assert "## Leaderboard" in (out / "README.md").read_text()
+    board = json.loads((out / "leaderboard.json").read_text())
+    assert {r["entry"] for r in board["rows"]} >= {"exact", "const", "paper"}
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["--external", "nofolder"], "--external 'nofolder' is invalid; allowed: NAME=MAPDIR"),
+    (["--external", "paper=MAPS", "--dataset", "DATA"], "external name(s) 'paper' are invalid (a preset's name)"),
+    (["--dataset", "DATA"], "--dataset is invalid without --external"),
+])
+def test_report_cli_bad_external_one_line(tmp_path, capsys, argv, fragment):
+    from repro._cli import run_cli
+    from repro.report import main
+
+    data, exact, *_ = _leaderboard_case(tmp_path)
+    figs = tmp_path / "figures"
+    figs.mkdir()
+    (figs / "fig10.metrics.json").write_text(json.dumps({"title": "t", "metrics": {"max_rel_err": 0.001}}))
+    argv = [str(exact) if a == "MAPS" else str(data) if a == "DATA" else a for a in argv]
+    argv = [a.replace("MAPS", str(exact)) for a in argv]
+    status = run_cli(main, ["--figures", str(figs), "--out", str(tmp_path / "rep"), *argv], prog="repro.report")
+    err = capsys.readouterr().err
+    assert status == 2 and len(err.splitlines()) == 1 and fragment in err, err
+
+
+@pytest.mark.render
+def test_leaderboard_without_a_dataset_scores_on_the_renders_the_maps_name(tmp_path):
+    import numpy as np
+
+    from experiments.evaluation import ground_truth_sigma
+    from repro.report import external_leaderboard
+    from scenes import render_scene
+
+    maps = tmp_path / "maps"
+    maps.mkdir()
+    np.save(maps / "planes_f8_small.npy",
+            ground_truth_sigma(render_scene("planes", preset="small", f_number=8.0, progress=False)))
+    board = external_leaderboard({"truth": maps}, None)
+    assert board["problems"] == [] and board["scene_sets"] == {"tabletop_stress": ["planes_f8_small"]}
+    rows = {(r["entry"], r["protocol"]): r for r in board["rows"]}
+    assert rows[("truth", "harness")]["all_mae"] == 0.0 and rows[("truth", "rtf")]["nmae"] == 0.0
+    assert rows[("paper", "harness")]["n_images"] == 1
+    from experiments.evaluation import evaluate_case
+
+    own = evaluate_case(None, "planes", f_number=8.0, preset="small", method_preset="paper").metrics
+    assert abs(rows[("paper", "harness")]["all_mae"] - own["dense"]["all"]["mae"]) <= 1e-9  # = repro.evaluate
+    assert abs(rows[("paper", "rtf")]["nmae"] - own["rtf"]["nmae"]) <= 1e-9

@@ -165,6 +165,37 @@ def parse_params(specs) -> list[tuple[str, list]]:
     return list(out.items())
 
 
+def _uniq(xs) -> list:
+    return list(dict.fromkeys(xs))
+
+
+def _check_names(scenes, cameras, presets, estimators, encodings, metric, variant) -> tuple:
+    """Every name axis of a grid checked against its registry (one ValueError naming the allowed names).
+
+    Returns scenes, cameras (``[None]``: each scene's own), presets, estimators (``[None]``: each
+    preset's own) and encodings, each without repeats, in the order given.
+    """
+    from experiments.evaluation import ENCODINGS, validate_estimators
+    from method import PRESETS
+    from method.registry import Registry
+    from repro.evaluate import METRIC_COLUMNS
+    from scenes import CAMERA_PRESETS, SCENES
+    from scenes.backend import VARIANT_CANDIDATES
+
+    scenes = Registry("scene", SCENES).check_all(_uniq(scenes))
+    cams = [None] if not cameras else Registry("camera", CAMERA_PRESETS).check_all(_uniq(cameras))
+    try:
+        presets = PRESETS.check_all(_uniq(presets))
+    except ValueError as exc:
+        hint = " (the render resolution is --scene-preset small|full)" if set(presets) & {"small", "full"} else ""
+        raise ValueError(f"{exc}{hint}") from None
+    ests = [None] if not estimators else list(validate_estimators(_uniq(estimators)))
+    encodings = Registry("encoding", ENCODINGS).check_all(_uniq(encodings))
+    Registry("metric", [c for c in METRIC_COLUMNS if c != "seconds_total"]).check(metric, what="--metric")
+    Registry("Mitsuba variant", VARIANT_CANDIDATES).check(variant, what="--variant", optional=True)
+    return scenes, cams, presets, ests, encodings
+
+
 def build_grid(*, scenes, cameras=None, f_numbers=(8.0, 4.0), estimators=None, presets=("paper",), params=(),
                seeds=(0,), scene_preset="small", encodings=("srgb",), metric=DEFAULT_METRIC,
                variant=None) -> Grid:
@@ -203,42 +234,13 @@ def build_grid(*, scenes, cameras=None, f_numbers=(8.0, 4.0), estimators=None, p
         Naming the bad value and what is allowed; every parameter combination is validated by
         building its ``DefocusParams`` (so cross-field rules are checked too).
     """
-    from experiments.evaluation import ENCODINGS, validate_estimators
     from experiments.sweep_cells import cell_params, render_camera
-    from method import PRESETS
-    from scenes import CAMERA_PRESETS, SCENES
     from scenes.render import validate_render_options
 
-    from repro.evaluate import METRIC_COLUMNS
-
-    def uniq(xs):
-        return list(dict.fromkeys(xs))
-
-    scenes = uniq(scenes)
-    if not scenes:
-        raise ValueError(f"no scene given; allowed: {sorted(SCENES)}")
-    bad = [s for s in scenes if s not in SCENES]
-    if bad:
-        raise ValueError(f"unknown scene(s) {', '.join(map(repr, bad))}; allowed: {sorted(SCENES)}")
-    cams = [None] if not cameras else uniq(cameras)
-    bad = [c for c in cams if c is not None and c not in CAMERA_PRESETS]
-    if bad:
-        raise ValueError(f"unknown camera(s) {', '.join(map(repr, bad))}; allowed: {sorted(CAMERA_PRESETS)}")
-    presets = uniq(presets)
-    bad = [p for p in presets if p not in PRESETS]
-    if bad:
-        hint = " (the render resolution is --scene-preset small|full)" if set(bad) & {"small", "full"} else ""
-        raise ValueError(f"unknown preset(s) {', '.join(map(repr, bad))}; allowed: {sorted(PRESETS)}{hint}")
-    ests = [None] if not estimators else list(validate_estimators(uniq(estimators)))
-    encodings = uniq(encodings)
-    bad = [e for e in encodings if e not in ENCODINGS]
-    if bad:
-        raise ValueError(f"unknown encoding(s) {', '.join(map(repr, bad))}; allowed: {list(ENCODINGS)}")
-    f_numbers = uniq(float(n) for n in f_numbers)
-    seeds = uniq(seeds)
-    shown = [c for c in METRIC_COLUMNS if c != "seconds_total"]
-    if metric not in shown:
-        raise ValueError(f"--metric {metric!r} is invalid; allowed: {shown}")
+    scenes, cams, presets, ests, encodings = _check_names(scenes, cameras, presets, estimators, encodings,
+                                                          metric, variant)
+    f_numbers = _uniq(float(n) for n in f_numbers)
+    seeds = _uniq(seeds)
     renders = []
     for s, c, n, sd in itertools.product(scenes, cams, f_numbers, seeds):
         validate_render_options(s, render_camera(s, scene_preset=scene_preset, f_number=n, camera=c),
@@ -257,9 +259,4 @@ def build_grid(*, scenes, cameras=None, f_numbers=(8.0, 4.0), estimators=None, p
         methods.append((p, full.estimator, tuple(zip(names, combo))))
     cells = tuple(Cell(render=r, method_preset=p, estimator=e, params=pc, encoding=enc)
                   for r in renders for p, e, pc in methods for enc in encodings)
-    if variant is not None:
-        from scenes.backend import VARIANT_CANDIDATES
-
-        if variant not in VARIANT_CANDIDATES:
-            raise ValueError(f"--variant {variant!r} is invalid; allowed: {list(VARIANT_CANDIDATES)}")
     return Grid(cells=cells, param_names=names, metric=metric, variant=variant)

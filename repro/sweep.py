@@ -87,9 +87,9 @@ def _parser():
     p.add_argument("--fnumber", nargs="+", type=float_type("--fnumber"), default=[8.0, 4.0], metavar="N",
                    help="apertures (default: 8 4)")
     p.add_argument("--estimator", nargs="+", default=None, metavar="NAME",
-                   help=f"blur estimators (registered: {', '.join(BLUR_ESTIMATORS)}; default: each preset's own)")
+                   help=f"blur estimators ({BLUR_ESTIMATORS.describe()}; default: each preset's own)")
     p.add_argument("--preset", nargs="+", default=["paper"], metavar="NAME",
-                   help=f"method presets ({', '.join(PRESETS)}; default: paper)")
+                   help=f"method presets ({PRESETS.describe()}; default: paper)")
     p.add_argument("--param", action="append", default=[], metavar="FIELD=V1,V2",
                    help="sweep a DefocusParams field over values (repeatable), e.g. --param alpha=0.1,0.5,1")
     p.add_argument("--seeds", nargs="+", type=int_type("--seeds", minimum=0), default=[0], metavar="S",

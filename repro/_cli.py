@@ -297,8 +297,12 @@ def console_main(argv: Sequence[str] | None = None) -> int:
         print(version_string())
         return 0
     name, rest = argv[0], argv[1:]
-    if name not in COMMANDS:
-        print(f"{SCRIPT}: error: unknown command {name!r}; allowed: {', '.join(COMMANDS)}", file=sys.stderr)
+    from method.registry import Registry
+
+    try:
+        Registry("command", COMMANDS).check(name, what="command")
+    except ValueError as exc:
+        print(f"{SCRIPT}: error: {exc}", file=sys.stderr)
         return 2
     try:
         module = importlib.import_module(f"repro.{name}")

@@ -17,7 +17,7 @@ import time
 import warnings
 
 from .mosaics import ANALYTIC_DATASETS, STEP_BASE_ANGLE, STEP_SEAM_BAND_PX, analytic_case, noise_label, sigma_bins
-from .speed import machine_info, test_image
+from .speed import machine_info, bench_image
 from .targets import judge_accuracy, targets
 
 __all__ = ["ACCURACY_CONFIG", "accuracy_report", "json_safe", "measure_accuracy", "pool", "preset_seeds",
@@ -168,7 +168,7 @@ def _measure_speed(config: dict, bar) -> dict:
     images, rows = {}, []
     for preset, size, repeat in plan:
         if size not in images:
-            images[size] = test_image(size)
+            images[size] = bench_image(size)
         params = DefocusParams.preset(preset)
         load_before, runs, totals = os.getloadavg(), [], []
         for _ in range(repeat):
@@ -210,7 +210,7 @@ def measure_accuracy(config: dict, *, progress: bool = True) -> dict:
        bins with one tile σ_gt each, then :func:`experiments.stage_attribution.stage_errors` for every preset.
     2. Rendered scenes: cached renders, σ_gt in the line-spread convention, occlusion boundaries
        excluded; every preset and every estimator (paper pipeline) through ``stage_errors``.
-    3. Speed: :func:`experiments.bench.speed.test_image` at each size, median wall time, load averages around it.
+    3. Speed: :func:`experiments.bench.speed.bench_image` at each size, median wall time, load averages around it.
     """
     from tqdm import tqdm
 

@@ -1,6 +1,6 @@
 """Speed benchmark of the method: per-stage and whole-pipeline wall time and peak memory.
 
-One run is :func:`time_pipeline` (the pipeline ``repeat`` times on :func:`test_image`, the fastest
+One run is :func:`time_pipeline` (the pipeline ``repeat`` times on :func:`bench_image`, the fastest
 counts); ``python -m repro.bench`` runs each (preset, size) in a fresh process, so its peak resident
 memory is its own, then :func:`speed_summary` judges the rows against the targets below (this 2-core
 machine kind) and :func:`speed_markdown` writes the table. Measurements: ``docs/performance.md``.
@@ -15,8 +15,8 @@ import time
 import warnings
 
 __all__ = ["BENCH_PRESETS", "TARGET_GROWTH_512_TO_1024", "TARGET_PEAK_GIB_1MP", "TARGET_SECONDS_1MP",
-           "TARGET_SECONDS_1MP_BY_PRESET", "TARGET_SECONDS_512", "machine_info", "speed_markdown",
-           "speed_report", "speed_summary", "speed_table", "test_image", "time_pipeline"]
+           "TARGET_SECONDS_1MP_BY_PRESET", "TARGET_SECONDS_512", "bench_image", "machine_info", "speed_markdown",
+           "speed_report", "speed_summary", "speed_table", "time_pipeline"]
 
 #: Whole pipeline at 1 MP (1024² px), s.
 TARGET_SECONDS_1MP = 2.0
@@ -33,7 +33,7 @@ BENCH_PRESETS = ("paper", "robust")
 TARGET_GROWTH_512_TO_1024 = 4.5
 
 
-def test_image(size: int):
+def bench_image(size: int):
     """The benchmark image: ``skimage.data.astronaut`` resized to ``size``² px.
 
     Parameters
@@ -50,9 +50,6 @@ def test_image(size: int):
 
     img = data.astronaut().astype(np.float64) / 255.0
     return np.clip(transform.resize(img, (size, size), order=1, anti_aliasing=True), 0.0, 1.0)
-
-
-test_image.__test__ = False  # not a pytest test
 
 
 def time_pipeline(size: int, repeat: int, preset: str = "paper") -> dict:
@@ -76,7 +73,7 @@ def time_pipeline(size: int, repeat: int, preset: str = "paper") -> dict:
     """
     from method import DefocusParams, estimate_defocus_map, magnify_defocus
 
-    image = test_image(size)
+    image = bench_image(size)
     params = DefocusParams.preset(preset)
     load_before = os.getloadavg()[0]
     best = None

@@ -67,7 +67,8 @@ PRESET_BLURBS = {
 # ------------------------------------------------------------------------------------------------
 
 
-def _pixel_count(text: str) -> int:
+def pixel_count(text: str) -> int:
+    """argparse ``type=`` for a pixel count (``1500000`` or ``1.5e6``), ≥ 1."""
     try:
         value = float(text)
     except ValueError:
@@ -93,7 +94,7 @@ def _preset_blurb(name: str) -> str:
     return f"changes {', '.join(changed)} from the paper" if changed else "the paper's parameters"
 
 
-def _by_preset(field: str) -> str:
+def by_preset(field: str) -> str:
     """'model_fit (paper, robust), gradient_ratio (zhuo_sim)': a field's value in each preset."""
     groups: dict = {}
     for name, params in _presets().items():
@@ -116,17 +117,17 @@ def add_estimation_arguments(p: argparse.ArgumentParser) -> None:
                         "--estimator and --alpha override the preset's value")
     p.add_argument("--estimator", default=None, metavar="NAME",
                    help=f"blur estimator at edges: {BLUR_ESTIMATORS.describe()}. Default: the preset's, "
-                        f"{_by_preset('estimator')}")
+                        f"{by_preset('estimator')}")
     p.add_argument("--alpha", default=None, metavar="A",
                    help=f"propagation data weight α > 0 (Eq. 4; Fig. 6 sweeps 0.1–1). Default: the "
-                        f"preset's, {_by_preset('alpha')}")
-    p.add_argument("--max-working-pixels", type=_pixel_count, default=DEFAULT_MAX_WORKING_PIXELS,
+                        f"preset's, {by_preset('alpha')}")
+    p.add_argument("--max-working-pixels", type=pixel_count, default=DEFAULT_MAX_WORKING_PIXELS,
                    metavar="N",
                    help=f"estimate at most N pixels (default {DEFAULT_MAX_WORKING_PIXELS:,}); a bigger "
                         "photo is estimated downscaled and its map upsampled edge-aware (guided filter) "
                         "to full resolution. Estimation time and memory grow about linearly with N "
                         "(measured at 1.5 MP: ~1.3 GiB peak, 10-20 s on 2 cores)")
-    p.add_argument("--max-pixels", type=_pixel_count, default=DEFAULT_MAX_PIXELS, metavar="N",
+    p.add_argument("--max-pixels", type=pixel_count, default=DEFAULT_MAX_PIXELS, metavar="N",
                    help=f"refuse photos over N pixels, checked from the header before decoding "
                         f"(default {DEFAULT_MAX_PIXELS:,})")
     p.add_argument("--repair-nonfinite", action="store_true",
@@ -312,6 +313,13 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
         ``preset`` (as given), ``measures`` (edge pixels with a blur measure), ``psf_model`` and
         ``psf_disk_measures`` (:attr:`method.pipeline.DefocusResult.psf_model`; None when the
         estimator fits no PSF model).
+
+    Notes
+    -----
+    A new map is estimated by :func:`method.magnify.upsampling.estimate_defocus_map_at_scale`
+    (downscale, pipeline, σ to full-resolution px, guided upsampling); the cache keeps its
+    working-resolution map, and a cached map is upsampled the same way
+    (:func:`method.magnify.upsampling.upsample_defocus_map`), so both give the same bytes.
     """
     from method.magnify.upsampling import downscale_image, upsample_defocus_map, working_shape
     from scenes.backend import cache_root

@@ -34,14 +34,14 @@ from pathlib import Path
 from repro._cli import ArgumentParser, check_output_path, run_cli
 from repro.estimate import (
     MAP_OUTPUT_SUFFIXES,
-    _by_preset,
-    _pixel_count,
     add_estimation_arguments,
     announce,
+    by_preset,
     defocus_params,
     estimate_from_args,
     load_photo,
     map_summary,
+    pixel_count,
     report_map,
     write_map,
 )
@@ -79,12 +79,12 @@ def _parser() -> ArgumentParser:
                         "quadrature, sqrt(max(σ² − floor², 0)): pixels at that floor get no extra "
                         "blur, in-focus pixels estimated above it still get some); shift subtracts "
                         f"it linearly (method.magnify.magnification.MAP_FLOOR_MODES: {', '.join(MAP_FLOOR_MODES)}). "
-                        f"Default: the preset's map_floor, {_by_preset('map_floor')}")
+                        f"Default: the preset's map_floor, {by_preset('map_floor')}")
     p.add_argument("--save-map", default=None, metavar="MAP",
                    help="also write the defocus map: .exr (float σ px), .png (preview) or .npy")
     p.add_argument("--bit-depth", type=int, choices=(8, 16), default=None,
                    help="bits per sample of a PNG/TIFF output (default: 16 for 16-bit or float input, else 8)")
-    p.add_argument("--tile-pixels", type=_pixel_count, default=DEFAULT_TILE_PIXELS, metavar="N",
+    p.add_argument("--tile-pixels", type=pixel_count, default=DEFAULT_TILE_PIXELS, metavar="N",
                    help=f"magnify in tiles of N pixels to bound memory (default {DEFAULT_TILE_PIXELS:,}, "
                         "about 1.1 GiB)")
     add_estimation_arguments(p)

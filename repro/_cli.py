@@ -40,6 +40,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -297,8 +298,12 @@ def console_main(argv: Sequence[str] | None = None) -> int:
         print(version_string())
         return 0
     name, rest = argv[0], argv[1:]
-    if name not in COMMANDS:
-        print(f"{SCRIPT}: error: unknown command {name!r}; allowed: {', '.join(COMMANDS)}", file=sys.stderr)
+    from method.registry import Registry
+
+    try:
+        Registry("command", COMMANDS).check(name, what="command")
+    except ValueError as exc:
+        print(f"{SCRIPT}: error: {exc}", file=sys.stderr)
         return 2
     try:
         module = importlib.import_module(f"repro.{name}")
@@ -370,24 +375,59 @@ def parse_resolution(text: str) -> tuple[int, int]:
     return w, h
 
 
-def check_output_path(path, *, suffixes: Sequence[str] = (".exr",), flag: str = "--out") -> Path:
-    """Check that ``path`` can be written (existing writable folder, allowed suffix, not a folder).
+def check_output_path(path, *, suffixes: Sequence[str] = (".exr",), flag: str = "--out", photo=None,
+                      overwrite: bool = False) -> Path:
+    """Refuse an output path before any work; nothing is left behind.
 
-    Nothing is created. Raises :class:`CLIError` naming the path and what is allowed.
+    Parameters
+    ----------
+    path : str or Path
+        Where the output will be written (``~`` expanded).
+    suffixes : sequence of str, keyword-only
+        Allowed extensions (case-insensitive), e.g. ``(".exr", ".png", ".npy")``.
+    flag : str, keyword-only
+        How the output is named in messages (``"--out"``, ``"output map"``, ``"--save-map"``).
+    photo : str or Path, optional, keyword-only
+        The input photo: an output may replace it only with ``overwrite``.
+    overwrite : bool, keyword-only
+        Allow ``path`` to be ``photo``.
+
+    Returns
+    -------
+    Path
+        ``path`` with ``~`` expanded.
+
+    Raises
+    ------
+    CLIError
+        Naming the path and what is allowed: bad extension, a folder, a missing or unwritable folder
+        (a real probe file, so read-only mounts and ACLs that ``os.access`` misses are caught too),
+        the input photo without ``overwrite``.
     """
     p = Path(path).expanduser()
+    shown = f"{flag} {str(path)!r}"
+    writable = "allowed: a file path in an existing writable folder"
     if p.suffix.lower() not in tuple(s.lower() for s in suffixes):
-        raise CLIError(f"{flag} {str(path)!r} is invalid; allowed: a file name ending in {' or '.join(suffixes)}")
-    if p.is_dir():
-        raise CLIError(f"{flag} {str(path)!r} is a folder; allowed: a file path in a writable folder")
+        raise CLIError(f"{shown}: extension {p.suffix or '(none)'!r} is not supported; "
+                       f"allowed: a file name ending in {', '.join(suffixes)}")
     folder = p.parent if str(p.parent) else Path(".")
+    if not folder.exists():
+        raise CLIError(f"{shown} is not writable: folder {str(folder)!r} does not exist; {writable}")
     if not folder.is_dir():
-        raise CLIError(
-            f"{flag} {str(path)!r} is not writable: folder {str(folder)!r} does not exist; "
-            "allowed: a file path in an existing writable folder"
-        )
+        raise CLIError(f"{shown} is not writable: {str(folder)!r} is not a folder; {writable}")
+    if p.is_dir():
+        raise CLIError(f"{shown} is a directory; allowed: a file path in a writable folder")
     if not os.access(folder, os.W_OK | os.X_OK) or (p.exists() and not os.access(p, os.W_OK)):
-        raise CLIError(f"{flag} {str(path)!r} is not writable; allowed: a file path in a writable folder")
+        raise CLIError(f"{shown} is not writable; {writable}")
+    if photo is not None and p.exists() and Path(photo).exists() and os.path.samefile(p, photo) and not overwrite:
+        raise CLIError(f"{shown} is the input photo; allowed: another path, or --overwrite to replace the photo")
+    try:  # a real probe: read-only mounts and ACLs that os.access does not see
+        fd, probe = tempfile.mkstemp(prefix=f".{p.name}.probe.", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise CLIError(f"{shown} is not writable: cannot write in {str(folder)!r} ({exc.strerror or exc}); "
+                       f"{writable}") from None
     return p
 
 

@@ -29,7 +29,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 import tempfile
 import warnings
@@ -37,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from repro._cli import ArgumentParser, add_force_option, add_quiet_option, run_cli
+from repro._cli import ArgumentParser, add_force_option, add_quiet_option, check_output_path, run_cli
 
 PROG = "python -m repro.estimate"
 
@@ -68,7 +67,8 @@ PRESET_BLURBS = {
 # ------------------------------------------------------------------------------------------------
 
 
-def _pixel_count(text: str) -> int:
+def pixel_count(text: str) -> int:
+    """argparse ``type=`` for a pixel count (``1500000`` or ``1.5e6``), ≥ 1."""
     try:
         value = float(text)
     except ValueError:
@@ -94,7 +94,7 @@ def _preset_blurb(name: str) -> str:
     return f"changes {', '.join(changed)} from the paper" if changed else "the paper's parameters"
 
 
-def _by_preset(field: str) -> str:
+def by_preset(field: str) -> str:
     """'model_fit (paper, robust), gradient_ratio (zhuo_sim)': a field's value in each preset."""
     groups: dict = {}
     for name, params in _presets().items():
@@ -116,19 +116,18 @@ def add_estimation_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"named parameter set (method.PRESETS): {presets}. Default {DEFAULT_PRESET}; "
                         "--estimator and --alpha override the preset's value")
     p.add_argument("--estimator", default=None, metavar="NAME",
-                   help=f"blur estimator at edges: {', '.join(sorted(BLUR_ESTIMATORS))} (model_fit is the "
-                        f"paper's, zero_crossing Elder–Zucker's). Default: the preset's, "
-                        f"{_by_preset('estimator')}")
+                   help=f"blur estimator at edges: {BLUR_ESTIMATORS.describe()}. Default: the preset's, "
+                        f"{by_preset('estimator')}")
     p.add_argument("--alpha", default=None, metavar="A",
                    help=f"propagation data weight α > 0 (Eq. 4; Fig. 6 sweeps 0.1–1). Default: the "
-                        f"preset's, {_by_preset('alpha')}")
-    p.add_argument("--max-working-pixels", type=_pixel_count, default=DEFAULT_MAX_WORKING_PIXELS,
+                        f"preset's, {by_preset('alpha')}")
+    p.add_argument("--max-working-pixels", type=pixel_count, default=DEFAULT_MAX_WORKING_PIXELS,
                    metavar="N",
                    help=f"estimate at most N pixels (default {DEFAULT_MAX_WORKING_PIXELS:,}); a bigger "
                         "photo is estimated downscaled and its map upsampled edge-aware (guided filter) "
                         "to full resolution. Estimation time and memory grow about linearly with N "
                         "(measured at 1.5 MP: ~1.3 GiB peak, 10-20 s on 2 cores)")
-    p.add_argument("--max-pixels", type=_pixel_count, default=DEFAULT_MAX_PIXELS, metavar="N",
+    p.add_argument("--max-pixels", type=pixel_count, default=DEFAULT_MAX_PIXELS, metavar="N",
                    help=f"refuse photos over N pixels, checked from the header before decoding "
                         f"(default {DEFAULT_MAX_PIXELS:,})")
     p.add_argument("--repair-nonfinite", action="store_true",
@@ -147,15 +146,10 @@ def defocus_params(args):
     from method.blur.estimators import BLUR_ESTIMATORS
     from method.params import DefocusParams
 
-    presets = _presets()
-    if args.preset not in presets:
-        raise ValueError(f"--preset {args.preset!r} is unknown; allowed: {', '.join(presets)}")
+    _presets().check(args.preset, what="--preset")
     changes = {}
     if args.estimator is not None:
-        if args.estimator not in BLUR_ESTIMATORS:
-            raise ValueError(f"--estimator {args.estimator!r} is unknown; choose one of "
-                             f"{', '.join(sorted(BLUR_ESTIMATORS))}")
-        changes["estimator"] = args.estimator
+        changes["estimator"] = BLUR_ESTIMATORS.check(args.estimator, what="--estimator")
     if args.alpha is not None:
         try:
             alpha = float(args.alpha)
@@ -178,45 +172,6 @@ def preset_line(args) -> str:
     overrides = [f"--{flag} {getattr(args, flag)}" for flag in ("estimator", "alpha")
                  if getattr(args, flag) is not None]
     return text + (f", with {' '.join(overrides)}" if overrides else "")
-
-
-def check_output_path(path, *, photo, overwrite, allowed, what="output") -> Path:
-    """Refuse an output path before any work: bad extension, missing/unwritable folder, the input.
-
-    Parameters
-    ----------
-    path : str or Path
-        Where the output will be written.
-    photo : Path
-        The input photo (an output may replace it only with ``overwrite``).
-    overwrite : bool
-        Allow ``path`` to be the input photo.
-    allowed : tuple of str
-        Allowed extensions.
-    what : str
-        Name of the output in messages.
-    """
-    path = Path(path)
-    if path.suffix.lower() not in allowed:
-        raise ValueError(f"{what} {path}: extension {path.suffix or '(none)'!r} not supported; allowed: {', '.join(allowed)}")
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.exists():
-        raise ValueError(f"{what} {path}: folder {folder} does not exist")
-    if not folder.is_dir():
-        raise ValueError(f"{what} {path}: {folder} is not a folder")
-    if path.is_dir():
-        raise ValueError(f"{what} {path} is a directory")
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise ValueError(f"{what} {path}: folder {folder} is not writable")
-    if path.exists() and Path(photo).exists() and os.path.samefile(path, photo) and not overwrite:
-        raise ValueError(f"{what} {path} is the input photo; refusing to replace it (pass --overwrite to allow)")
-    try:  # a real probe: read-only mounts and ACLs that os.access does not see
-        fd, probe = tempfile.mkstemp(prefix=f".{path.name}.probe.", dir=folder)
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as exc:
-        raise ValueError(f"{what} {path}: cannot write in {folder} ({exc.strerror or exc})") from None
-    return path
 
 
 class StageProgress:
@@ -292,13 +247,18 @@ def map_cache_key(photo, params, working_shape_) -> dict:
     }
 
 
-def _build_map(folder: Path, working, params, progress, preset=None) -> None:
-    from method.pipeline import NoEdgesWarning, estimate_defocus_map
+def _build_map(folder: Path, image, params, progress, preset, *, max_working_pixels):
+    """Estimate (:func:`method.magnify.upsampling.estimate_defocus_map_at_scale`) and store the
+    working-resolution map and its notes in a cache entry ``folder``; return the full-resolution map."""
+    from method.magnify.upsampling import estimate_defocus_map_at_scale
+    from method.pipeline import NoEdgesWarning
 
     # no RNG seeding needed: the pipeline is deterministic (tests/test_determinism_method.py)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", NoEdgesWarning)
-        result = estimate_defocus_map(working, params, progress=progress)
+        scaled = estimate_defocus_map_at_scale(image, params, max_working_pixels=max_working_pixels,
+                                               progress=progress)
+    result = scaled.working_result
     no_edges = any(issubclass(w.category, NoEdgesWarning) for w in caught)
     for w in caught:  # anything else is re-raised as a normal warning
         if not issubclass(w.category, NoEdgesWarning):
@@ -312,6 +272,7 @@ def _build_map(folder: Path, working, params, progress, preset=None) -> None:
             "timings_s": {k: float(v) for k, v in result.timings.items()},
             "preset": preset}  # informational: the name it was built under (the key holds the params)
     (folder / "meta.json").write_text(json.dumps(meta, indent=1, sort_keys=True))
+    return scaled.defocus_map
 
 
 def _load_entry(folder: Path, shape):
@@ -352,6 +313,13 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
         ``preset`` (as given), ``measures`` (edge pixels with a blur measure), ``psf_model`` and
         ``psf_disk_measures`` (:attr:`method.pipeline.DefocusResult.psf_model`; None when the
         estimator fits no PSF model).
+
+    Notes
+    -----
+    A new map is estimated by :func:`method.magnify.upsampling.estimate_defocus_map_at_scale`
+    (downscale, pipeline, σ to full-resolution px, guided upsampling); the cache keeps its
+    working-resolution map, and a cached map is upsampled the same way
+    (:func:`method.magnify.upsampling.upsample_defocus_map`), so both give the same bytes.
     """
     from method.magnify.upsampling import downscale_image, upsample_defocus_map, working_shape
     from scenes.backend import cache_root
@@ -364,16 +332,10 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
         log(f"{W}x{H} px ({H * W / 1e6:.1f} MP) is over --max-working-pixels {max_working_pixels:,}: "
             f"estimating at {w}x{h} (scale {scale:.3g}), map upsampled edge-aware (guided filter) "
             "to full resolution")
-        if progress:
-            progress("downscale")
-        working = downscale_image(image, (h, w))
-    else:
-        working = image
-    built = []
+    built = []  # full-resolution maps estimated by this call
 
     def build(folder):
-        built.append(True)
-        _build_map(Path(folder), working, params, progress, preset)
+        built.append(_build_map(Path(folder), image, params, progress, preset, max_working_pixels=max_working_pixels))
 
     if use_cache:
         cache = Cache(cache_root() / "maps")
@@ -393,7 +355,12 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
         with tempfile.TemporaryDirectory() as tmp:
             build(tmp)
             m, meta = _load_entry(Path(tmp), (h, w))
-    if scale < 1:
+    if built:
+        sigma = built[-1]
+    elif scale < 1:  # a cached working-resolution map: upsampled as estimate_defocus_map_at_scale does
+        if progress:
+            progress("downscale")
+        working = downscale_image(image, (h, w))
         if progress:
             progress("upsample")
         sigma = upsample_defocus_map(m, working, image, scale=scale)
@@ -476,6 +443,30 @@ def map_summary(sigma) -> str:
             f"(median {float(np.median(sigma)):.3g})")
 
 
+def announce(args, photo, *, prog) -> StageProgress:
+    """The preset line and the photo's notes on stderr; the progress display of the run."""
+    note(prog, preset_line(args), quiet=args.quiet)
+    for n in photo.notes:
+        note(prog, n, quiet=args.quiet)
+    return StageProgress(prog, quiet=args.quiet)
+
+
+def estimate_from_args(photo, params, args, *, prog, progress):
+    """:func:`estimate_photo_map` with the command line's working size, ``--force`` and notes."""
+    return estimate_photo_map(photo, params, max_working_pixels=args.max_working_pixels, force=args.force,
+                              progress=progress, log=lambda m: note(prog, m, quiet=args.quiet), preset=args.preset)
+
+
+def report_map(args, info, params, *, prog, summary, no_edges_consequence="") -> None:
+    """The lines after a run: the no-edges warning, the PSF model used, the map's summary."""
+    if info["no_edges"]:
+        print(f"{prog}: warning: no edges found above the noise thresholds; the defocus map is all zeros"
+              f"{no_edges_consequence}", file=sys.stderr)
+    if (line := psf_line(info, params)) is not None:
+        note(prog, line, quiet=args.quiet)
+    note(prog, summary, quiet=args.quiet)
+
+
 # ------------------------------------------------------------------------------------------------
 # repro.estimate
 # ------------------------------------------------------------------------------------------------
@@ -512,27 +503,17 @@ def main(argv=None) -> int:
     from repro.photo_io import probe_photo
 
     probe_photo(photo_path)  # a missing/bad photo is reported before anything about the output
-    check_output_path(out, photo=photo_path, overwrite=args.overwrite, allowed=MAP_OUTPUT_SUFFIXES,
-                      what="output map")
+    check_output_path(out, photo=photo_path, overwrite=args.overwrite, suffixes=MAP_OUTPUT_SUFFIXES,
+                      flag="output map")
     photo = load_photo(args, prog=PROG)
-    note(PROG, preset_line(args), quiet=args.quiet)
-    for n in photo.notes:
-        note(PROG, n, quiet=args.quiet)
-    progress = StageProgress(PROG, quiet=args.quiet)
+    progress = announce(args, photo, prog=PROG)
     try:
-        sigma, info = estimate_photo_map(photo, params, max_working_pixels=args.max_working_pixels,
-                                         force=args.force, progress=progress,
-                                         log=lambda m: note(PROG, m, quiet=args.quiet), preset=args.preset)
+        sigma, info = estimate_from_args(photo, params, args, prog=PROG, progress=progress)
         progress("write")
         write_map(out, sigma)
     finally:
         progress.close()
-    if info["no_edges"]:
-        print(f"{PROG}: warning: no edges found above the noise thresholds; the defocus map is all zeros",
-              file=sys.stderr)
-    if (line := psf_line(info, params)) is not None:
-        note(PROG, line, quiet=args.quiet)
-    note(PROG, f"{map_summary(sigma)}", quiet=args.quiet)
+    report_map(args, info, params, prog=PROG, summary=map_summary(sigma))
     print(out)
     return 0
 

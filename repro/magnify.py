@@ -31,21 +31,18 @@ import math
 import sys
 from pathlib import Path
 
-from repro._cli import ArgumentParser, run_cli
+from repro._cli import ArgumentParser, check_output_path, run_cli
 from repro.estimate import (
     MAP_OUTPUT_SUFFIXES,
-    StageProgress,
-    _by_preset,
-    _pixel_count,
     add_estimation_arguments,
-    check_output_path,
+    announce,
+    by_preset,
     defocus_params,
-    estimate_photo_map,
+    estimate_from_args,
     load_photo,
     map_summary,
-    note,
-    preset_line,
-    psf_line,
+    pixel_count,
+    report_map,
     write_map,
 )
 
@@ -82,12 +79,12 @@ def _parser() -> ArgumentParser:
                         "quadrature, sqrt(max(σ² − floor², 0)): pixels at that floor get no extra "
                         "blur, in-focus pixels estimated above it still get some); shift subtracts "
                         f"it linearly (method.magnify.magnification.MAP_FLOOR_MODES: {', '.join(MAP_FLOOR_MODES)}). "
-                        f"Default: the preset's map_floor, {_by_preset('map_floor')}")
+                        f"Default: the preset's map_floor, {by_preset('map_floor')}")
     p.add_argument("--save-map", default=None, metavar="MAP",
                    help="also write the defocus map: .exr (float σ px), .png (preview) or .npy")
     p.add_argument("--bit-depth", type=int, choices=(8, 16), default=None,
                    help="bits per sample of a PNG/TIFF output (default: 16 for 16-bit or float input, else 8)")
-    p.add_argument("--tile-pixels", type=_pixel_count, default=DEFAULT_TILE_PIXELS, metavar="N",
+    p.add_argument("--tile-pixels", type=pixel_count, default=DEFAULT_TILE_PIXELS, metavar="N",
                    help=f"magnify in tiles of N pixels to bound memory (default {DEFAULT_TILE_PIXELS:,}, "
                         "about 1.1 GiB)")
     add_estimation_arguments(p)
@@ -134,22 +131,17 @@ def main(argv=None) -> int:
     photo_path = Path(args.photo)
     probe_photo(photo_path)  # a missing/bad photo is reported before anything about the output
     out = Path(args.output) if args.output else default_output_path(photo_path, factor)
-    check_output_path(out, photo=photo_path, overwrite=args.overwrite, allowed=OUTPUT_SUFFIXES)
+    check_output_path(out, photo=photo_path, overwrite=args.overwrite, suffixes=OUTPUT_SUFFIXES, flag="output")
     if args.save_map:
         map_path = check_output_path(args.save_map, photo=photo_path, overwrite=args.overwrite,
-                                     allowed=MAP_OUTPUT_SUFFIXES, what="--save-map")
+                                     suffixes=MAP_OUTPUT_SUFFIXES, flag="--save-map")
         if map_path.resolve() == out.resolve():
             raise ValueError(f"--save-map {map_path} is the output photo's path; choose another name")
     photo = load_photo(args, prog=PROG)
     bits = args.bit_depth or output_bit_depth(out.suffix, photo.bit_depth)
-    note(PROG, preset_line(args), quiet=args.quiet)
-    for n in photo.notes:
-        note(PROG, n, quiet=args.quiet)
-    progress = StageProgress(PROG, quiet=args.quiet)
+    progress = announce(args, photo, prog=PROG)
     try:
-        sigma, info = estimate_photo_map(photo, params, max_working_pixels=args.max_working_pixels,
-                                         force=args.force, progress=progress,
-                                         log=lambda m: note(PROG, m, quiet=args.quiet), preset=args.preset)
+        sigma, info = estimate_from_args(photo, params, args, prog=PROG, progress=progress)
         if args.save_map:
             progress("save map")
             write_map(args.save_map, sigma)
@@ -165,12 +157,8 @@ def main(argv=None) -> int:
         write_photo(out, result, bit_depth=bits, exif=photo.exif, icc_profile=photo.icc_profile)
     finally:
         progress.close()
-    if info["no_edges"]:
-        print(f"{PROG}: warning: no edges found above the noise thresholds; the defocus map is all zeros, "
-              "so the photo is unchanged", file=sys.stderr)
-    if (line := psf_line(info, params)) is not None:
-        note(PROG, line, quiet=args.quiet)
-    note(PROG, f"defocus map {map_summary(sigma)}; factor {factor:g}, {args.kernel} kernel, {floor} floor", quiet=args.quiet)
+    report_map(args, info, params, prog=PROG, no_edges_consequence=", so the photo is unchanged",
+               summary=f"defocus map {map_summary(sigma)}; factor {factor:g}, {args.kernel} kernel, {floor} floor")
     print(out)
     return 0
 

@@ -1,5 +1,5 @@
-"""``python -m repro.bench``: the accuracy benchmark (``--accuracy``) on a tiny configuration, its
-verdict rule on both sides of every target, and the plain speed bench left as it was."""
+"""``python -m repro.bench`` and :mod:`experiments.bench`: the accuracy benchmark (``--accuracy``) on a
+tiny configuration, its verdict rule on both sides of every target, and the plain speed bench."""
 
 import copy
 import json
@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 import repro.bench as bench
+from experiments.bench import accuracy, markdown, mosaics, speed, targets
 
 #: One small dead-leaves mosaic and one small step-edge mosaic (σ = 1, 5, 8 px: an absolute-MAE bin,
 #: a relative-MAE bin, a bin without target), the robust preset only, no renders, no speed.
-TINY = dict(bench.ACCURACY_CONFIG, datasets=("dead_leaves", "step_edges"), sigmas=(1.0, 5.0, 8.0), tile=48,
+TINY = dict(accuracy.ACCURACY_CONFIG, datasets=("dead_leaves", "step_edges"), sigmas=(1.0, 5.0, 8.0), tile=48,
             mosaic_cols=3, noise_stds=(1.0 / 255,), seeds=(0,), presets=("robust",), scene_sets={}, f_numbers=(),
             estimators=(), speed_presets=(), speed_sizes=(), speed_single={})
 _TARGETS = ("TARGET_DENSE_MAE_PX", "TARGET_DENSE_REL_MAE", "TARGET_BIAS_PX", "TARGET_BIAS_REL", "TARGET_ABS_MAE_MAX_SIGMA",
@@ -27,10 +28,10 @@ def _strict_json(path):
 
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
-    """``main(["--accuracy"])`` with ACCURACY_CONFIG replaced by TINY: (out folder, report, stdout rc)."""
+    """``main(["--accuracy"])`` with accuracy.ACCURACY_CONFIG replaced by TINY: (out folder, report, stdout rc)."""
     out = tmp_path_factory.mktemp("bench")
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(bench, "ACCURACY_CONFIG", TINY)
+        mp.setattr(accuracy, "ACCURACY_CONFIG", TINY)
         rc = bench.main(["--accuracy", "--out", str(out)])
     return out, _strict_json(out / "accuracy.json"), rc
 
@@ -61,11 +62,11 @@ def test_accuracy_report_structure(tiny):
         ("dead_leaves", [1.0, 5.0, 8.0]), ("step_edges", [1.0, 5.0, 8.0])]
     for a, g in zip(v["analytic"], pooled):
         b1, b5, b8 = a["bins"]
-        assert b1["mae_limit"] == bench.TARGET_DENSE_MAE_PX
-        assert b5["mae_limit"] == pytest.approx(bench.TARGET_DENSE_REL_MAE * 5.0)
+        assert b1["mae_limit"] == targets.TARGET_DENSE_MAE_PX
+        assert b5["mae_limit"] == pytest.approx(targets.TARGET_DENSE_REL_MAE * 5.0)
         # σ 8 = TARGET_REL_MAE_MAX_SIGMA = TARGET_BIAS_MAX_SIGMA: relative MAE and bias limits
-        assert b8["mae_limit"] == pytest.approx(bench.TARGET_DENSE_REL_MAE * 8.0)
-        assert b8["bias_limit"] == pytest.approx(max(bench.TARGET_BIAS_PX, bench.TARGET_BIAS_REL * 8.0))
+        assert b8["mae_limit"] == pytest.approx(targets.TARGET_DENSE_REL_MAE * 8.0)
+        assert b8["bias_limit"] == pytest.approx(max(targets.TARGET_BIAS_PX, targets.TARGET_BIAS_REL * 8.0))
         # the stored verdicts are the numbers against the limits
         for vb, mb in zip(a["bins"], g["dense_textured"]["bins"]):
             assert vb["mae_ok"] == (mb["mae"] <= vb["mae_limit"])
@@ -80,10 +81,10 @@ def test_accuracy_report_structure(tiny):
     assert "✅" not in md and "❌" not in md
 
 
-def _judge_with(monkeypatch, measured, **targets):
-    for name, value in targets.items():
-        monkeypatch.setattr(bench, name, value)
-    return bench.judge_accuracy(measured)
+def _judge_with(monkeypatch, measured, **limits):
+    for name, value in limits.items():
+        monkeypatch.setattr(targets, name, value)
+    return targets.judge_accuracy(measured)
 
 
 @pytest.mark.slow  # subprocesses or a benchmark run: in make test, not in make test-fast
@@ -94,18 +95,18 @@ def test_analytic_verdict_flips_with_the_targets(tiny, monkeypatch):
     v = _judge_with(monkeypatch, measured, TARGET_DENSE_MAE_PX=1e9, TARGET_DENSE_REL_MAE=1e9, TARGET_BIAS_PX=1e9)
     assert v["analytic_pass"] is True and v["overall"] is True
     assert all(b["pass"] in (True, None) for a in v["analytic"] for b in a["bins"])
-    md = bench.accuracy_markdown({**report, "verdict": v})
+    md = markdown.accuracy_markdown({**report, "verdict": v})
     assert "**Overall: pass**" in md and "FAIL" not in md
     # impossible MAE target (bias target still trivial): every targeted bin fails on its MAE
     v = _judge_with(monkeypatch, measured, TARGET_DENSE_MAE_PX=-1.0, TARGET_DENSE_REL_MAE=-1.0)
     assert v["analytic_pass"] is False and v["overall"] is False
     assert all(b["mae_ok"] is False and b["bias_ok"] is True for a in v["analytic"] for b in a["bins"][:2])
-    assert "FAIL (MAE)" in bench.accuracy_markdown({**report, "verdict": v})
+    assert "FAIL (MAE)" in markdown.accuracy_markdown({**report, "verdict": v})
     # impossible bias target alone
     v = _judge_with(monkeypatch, measured, TARGET_DENSE_MAE_PX=1e9, TARGET_DENSE_REL_MAE=1e9, TARGET_BIAS_PX=-1.0,
                     TARGET_BIAS_REL=-1.0)
     assert v["analytic_pass"] is False
-    assert "FAIL (bias)" in bench.accuracy_markdown({**report, "verdict": v})
+    assert "FAIL (bias)" in markdown.accuracy_markdown({**report, "verdict": v})
     # the relative-MAE bin alone decides when only it is impossible
     v = _judge_with(monkeypatch, measured, TARGET_DENSE_MAE_PX=1e9, TARGET_DENSE_REL_MAE=-1.0, TARGET_BIAS_PX=1e9)
     assert [[b["pass"] for b in a["bins"]] for a in v["analytic"]] == [[True, False, False]] * 2  # σ 5, 8: relative
@@ -120,12 +121,12 @@ def test_analytic_verdict_flips_with_the_targets(tiny, monkeypatch):
 
 
 def test_bias_limit_is_the_larger_of_the_absolute_and_the_relative_one(monkeypatch):
-    monkeypatch.setattr(bench, "TARGET_BIAS_PX", 0.3)
-    monkeypatch.setattr(bench, "TARGET_BIAS_REL", 0.05)
-    monkeypatch.setattr(bench, "TARGET_BIAS_MAX_SIGMA", 8.0)
+    monkeypatch.setattr(targets, "TARGET_BIAS_PX", 0.3)
+    monkeypatch.setattr(targets, "TARGET_BIAS_REL", 0.05)
+    monkeypatch.setattr(targets, "TARGET_BIAS_MAX_SIGMA", 8.0)
 
     def verdict(sigma, bias):
-        return bench._bin_verdict({"sigma": sigma, "sigma_gt": sigma, "n": 10, "mae": 0.0, "bias": bias})
+        return targets.bin_verdict({"sigma": sigma, "sigma_gt": sigma, "n": 10, "mae": 0.0, "bias": bias})
 
     assert verdict(8.0, 0.35)["bias_limit"] == pytest.approx(0.4) and verdict(8.0, -0.35)["bias_ok"] is True
     assert verdict(8.0, 0.45)["bias_ok"] is False
@@ -156,13 +157,13 @@ def _case(scene, f_number, paper, robust, robust_sparse, zc, gr, scene_set="tabl
 
 
 def test_rendered_and_speed_verdicts_both_sides(monkeypatch):
-    monkeypatch.setattr(bench, "TARGET_RENDER_DENSE_RATIO", 0.5)
-    monkeypatch.setattr(bench, "TARGET_SPEED_RATIO", 1.3)
-    speed = {"rows": [{"preset": "paper", "size": bench.TARGET_SPEED_SIZE, "median_s": 2.0},
-                      {"preset": "robust", "size": bench.TARGET_SPEED_SIZE, "median_s": 2.5}]}
+    monkeypatch.setattr(targets, "TARGET_RENDER_DENSE_RATIO", 0.5)
+    monkeypatch.setattr(targets, "TARGET_SPEED_RATIO", 1.3)
+    speed = {"rows": [{"preset": "paper", "size": targets.TARGET_SPEED_SIZE, "median_s": 2.0},
+                      {"preset": "robust", "size": targets.TARGET_SPEED_SIZE, "median_s": 2.5}]}
     good = {"rendered": {"cases": [_case("portrait", 8.0, 1.0, 0.4, 0.3, 0.5, 0.6),
                                    _case("planes", 4.0, 2.0, 0.9, 1.0, 0.5, 0.5)]}, "speed": speed}
-    v = bench.judge_accuracy(good)
+    v = targets.judge_accuracy(good)
     assert v["rendered"]["pass"] is True and v["speed"]["pass"] is True and v["overall"] is True
     assert v["rendered"]["sets"]["tabletop_stress"]["mean"]["ratio"] == pytest.approx(1.3 / 3.0)
     assert v["rendered"]["sparse"]["best_estimator"] == "zero_crossing"
@@ -171,7 +172,7 @@ def test_rendered_and_speed_verdicts_both_sides(monkeypatch):
     # that case, hence the whole part, fails
     bad = copy.deepcopy(good)
     bad["rendered"]["cases"][1]["presets"]["robust"]["dense_textured"]["mae"] = 1.05
-    v = bench.judge_accuracy(bad)
+    v = targets.judge_accuracy(bad)
     assert [c["pass"] for c in v["rendered"]["cases"]] == [True, False]
     assert v["rendered"]["sets"]["tabletop_stress"]["mean"]["pass"] is True and v["rendered"]["pass"] is False
     # and the mean alone
@@ -179,47 +180,47 @@ def test_rendered_and_speed_verdicts_both_sides(monkeypatch):
     bad["rendered"]["cases"][1]["presets"]["robust"]["dense_textured"]["mae"] = 0.9
     bad["rendered"]["cases"][0]["presets"]["paper"]["dense_textured"]["mae"] = 1.0
     bad["rendered"]["cases"][1]["presets"]["paper"]["dense_textured"]["mae"] = 1.8
-    v = bench.judge_accuracy(bad)
+    v = targets.judge_accuracy(bad)
     assert [c["pass"] for c in v["rendered"]["cases"]] == [True, True]
     assert v["rendered"]["sets"]["tabletop_stress"]["mean"]["pass"] is True  # 0.7 ≤ 0.5 · 1.4
     bad["rendered"]["cases"][1]["presets"]["paper"]["dense_textured"]["mae"] = 1.7
-    v = bench.judge_accuracy(bad)
+    v = targets.judge_accuracy(bad)
     assert v["rendered"]["cases"][1]["pass"] is False and v["rendered"]["sets"]["tabletop_stress"]["mean"]["pass"] is False
     # robust sparse worse than the best estimator on the target case
     bad = copy.deepcopy(good)
     bad["rendered"]["cases"][0]["presets"]["robust"]["sparse"]["mae"] = 0.55
-    v = bench.judge_accuracy(bad)
+    v = targets.judge_accuracy(bad)
     assert v["rendered"]["sparse"]["pass"] is False and v["rendered"]["pass"] is False
     assert v["overall"] is False
     # speed ratio above the target; then the target made trivially satisfied again
     slow = copy.deepcopy(good)
     slow["speed"]["rows"][1]["median_s"] = 2.7
-    assert bench.judge_accuracy(slow)["speed"]["pass"] is False
-    monkeypatch.setattr(bench, "TARGET_SPEED_RATIO", 10.0)
-    assert bench.judge_accuracy(slow)["speed"]["pass"] is True
+    assert targets.judge_accuracy(slow)["speed"]["pass"] is False
+    monkeypatch.setattr(targets, "TARGET_SPEED_RATIO", 10.0)
+    assert targets.judge_accuracy(slow)["speed"]["pass"] is True
 
 
 def test_step_mosaic_geometry():
     sigmas, tile = (0.5, 2.0, 8.0), 32
-    image, gt, valid = bench._step_mosaic(sigmas, tile, 0.0, 0)
+    image, gt, valid = mosaics.step_mosaic(sigmas, tile, 0.0, 0)
     assert image.shape == gt.shape == valid.shape == (2 * tile, 3 * tile)
     np.testing.assert_array_equal(gt[:, ::tile][0], sigmas)
     # mirror-image tiles: with one σ everywhere, continuous across the seams (up to 8-bit rounding);
     # with different σ only the edge's profile changes at a seam
-    same, _, _ = bench._step_mosaic((2.0,) * 3, tile, 0.0, 0)
+    same, _, _ = mosaics.step_mosaic((2.0,) * 3, tile, 0.0, 0)
     for k in (1, 2):
         assert np.abs(same[:, k * tile] - same[:, k * tile - 1]).max() <= 1.0 / 255 + 1e-12
     assert np.abs(same[tile] - same[tile - 1]).max() <= 1.0 / 255 + 1e-12
     assert np.abs(np.diff(same, axis=1)).max() > 0.1  # there are edges
     # the masked band: STEP_SEAM_BAND_PX px on each side of interior seams only
-    band = bench.STEP_SEAM_BAND_PX
+    band = mosaics.STEP_SEAM_BAND_PX
     cols = ~valid[tile // 2]  # a row farther than the band from the horizontal seam
     assert cols.sum() == 2 * 2 * band and not cols[:tile - band].any() and cols[tile - band:tile + band].all()
     assert (~valid[:, 1]).sum() == 2 * band  # the horizontal seam only; no band at the canvas border
 
 
 def test_sigma_bins_put_each_value_alone():
-    bins = bench._sigma_bins([4.0, 0.5, 1.0, 1.0])
+    bins = mosaics.sigma_bins([4.0, 0.5, 1.0, 1.0])
     assert bins == (0.0, 0.75, 2.5, np.inf)
 
 
@@ -231,7 +232,7 @@ def test_plain_bench_unchanged_without_the_flag(tmp_path, monkeypatch):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bench.json", "bench.md"]
     first = _strict_json(tmp_path / "bench.json")
     assert first["rows"][0]["size"] == 16
-    assert [r["preset"] for r in first["rows"]] == list(bench.BENCH_PRESETS) and first["before"] is None
+    assert [r["preset"] for r in first["rows"]] == list(speed.BENCH_PRESETS) and first["before"] is None
     # a second run keeps the first as "before", in the JSON and the Markdown
     assert bench.main(["--sizes", "16", "--repeat", "1", "--presets", "robust", "--out", str(tmp_path)]) == 0
     second = _strict_json(tmp_path / "bench.json")
@@ -245,19 +246,19 @@ def test_speed_summary_judges_each_preset_on_both_sides():
 
     rows = [row("paper", 512, 0.9), row("paper", 1024, 1.9), row("robust", 512, 1.1),
             row("robust", 1024, 2.6, peak=1.6)]
-    s = bench._summary(rows)
+    s = speed.speed_summary(rows)
     assert s["paper: meets_time_target_512"] and s["paper: meets_time_target_1mp"]
     assert s["paper: meets_memory_target"]
     assert not s["robust: meets_time_target_512"] and not s["robust: meets_time_target_1mp"]
     assert not s["robust: meets_memory_target"]
     assert s["paper: growth_512_to_1024"] == pytest.approx(1.9 / 0.9)
     # robust's own 1-MP target (2.5 s) against paper's (2 s): 2.3 s passes robust's only
-    s = bench._summary([row("paper", 1024, 2.3), row("robust", 1024, 2.3)])
+    s = speed.speed_summary([row("paper", 1024, 2.3), row("robust", 1024, 2.3)])
     assert s["robust: meets_time_target_1mp"] and not s["paper: meets_time_target_1mp"]
 
 
 def test_accuracy_cli_rejects_an_unknown_preset(tmp_path, monkeypatch, capsys):
-    monkeypatch.setattr(bench, "ACCURACY_CONFIG", dict(TINY, presets=("nope",)))
+    monkeypatch.setattr(accuracy, "ACCURACY_CONFIG", dict(TINY, presets=("nope",)))
     from repro._cli import run_cli
 
     assert run_cli(bench.main, ["--accuracy", "--out", str(tmp_path)], prog=bench.PROG) == 2
@@ -268,21 +269,21 @@ def test_accuracy_cli_rejects_an_unknown_preset(tmp_path, monkeypatch, capsys):
 
 def test_rendered_verdict_per_scene_set_and_one_table_each(monkeypatch):
     """Each scene set is judged on its own cases and its own mean; one failing set fails the part."""
-    monkeypatch.setattr(bench, "TARGET_RENDER_DENSE_RATIO", 0.5)
+    monkeypatch.setattr(targets, "TARGET_RENDER_DENSE_RATIO", 0.5)
     cases = [_case("portrait", 8.0, 1.0, 0.4, 0.3, 0.5, 0.6),
              _case("portrait_garden", 8.0, 1.0, 0.45, 0.3, 0.5, 0.6, scene_set="paper_cameras")]
-    v = bench.judge_accuracy({"rendered": {"cases": cases}})
+    v = targets.judge_accuracy({"rendered": {"cases": cases}})
     assert set(v["rendered"]["sets"]) == {"tabletop_stress", "paper_cameras"}
     assert v["rendered"]["sets"]["paper_cameras"]["mean"]["ratio"] == pytest.approx(0.45)
     assert v["rendered"]["pass"] is True
     worse = copy.deepcopy(cases)
     worse[1]["presets"]["robust"]["dense_textured"]["mae"] = 0.6  # 0.6 > 0.5 x 1.0 on paper_cameras only
-    v = bench.judge_accuracy({"rendered": {"cases": worse}})
+    v = targets.judge_accuracy({"rendered": {"cases": worse}})
     assert v["rendered"]["sets"]["tabletop_stress"]["pass"] is True
     assert v["rendered"]["sets"]["paper_cameras"]["pass"] is False and v["rendered"]["pass"] is False
-    report = {"config": dict(bench.ACCURACY_CONFIG), "analytic": {"runs": [], "pooled": []},
+    report = {"config": dict(accuracy.ACCURACY_CONFIG), "analytic": {"runs": [], "pooled": []},
               "rendered": {"cases": worse}, "speed": {"rows": []}, "verdict": v, "notes": [],
               "date": "2026-12-01 00:00:00", "machine": {"cpus": 2}, "runtime_s": 60.0}
-    md = bench.accuracy_markdown(report)
+    md = markdown.accuracy_markdown(report)
     assert md.count("### Scene set `tabletop_stress`") == 1 and md.count("### Scene set `paper_cameras`") == 1
     assert "| portrait_garden | 8 |" in md

@@ -102,7 +102,7 @@ def test_help_texts_list_registry_names(capsys, monkeypatch):
 def test_unknown_or_missing_command_is_one_line_exit_2(capsys, monkeypatch):
     assert console_main(["nope"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "unknown command 'nope'" in err[0] and "figures" in err[0]
+    assert len(err) == 1 and "command='nope' is invalid (unknown command)" in err[0] and "'figures'" in err[0]
     assert console_main([]) == 2
     assert "commands:" in capsys.readouterr().err
     monkeypatch.setitem(COMMANDS, "nosuchtool", "a command whose module is not installed")

@@ -311,10 +311,10 @@ def test_ctrl_c_then_resume_reads_finished_cells_back(serial, env, tmp_path):
     (["--scenes", "planes", "--workers", "0"], "--workers"),
 ])
 def test_bad_grid_one_line_exit_2_before_anything_starts(args, needle, tmp_path, monkeypatch, capsys):
-    from repro import sweep as mod
+    from repro import _sweep_engine, sweep as mod
     from repro._cli import run_cli
 
-    monkeypatch.setattr(mod, "_start_client", lambda **k: pytest.fail("an engine was started for a bad grid"))
+    monkeypatch.setattr(_sweep_engine, "_start_client", lambda **k: pytest.fail("an engine was started for a bad grid"))
     out = tmp_path / "out"
     rc = run_cli(mod.main, [*args, "--out", str(out)], prog=mod.PROG)
     err = capsys.readouterr().err
@@ -378,7 +378,7 @@ def test_summary_and_plot_from_rows(tmp_path):
 
 
 def test_bench_sweep_flag_runs_the_sweep_benchmark(tmp_path, monkeypatch):
-    from repro import bench, sweep
+    from repro import _sweep_bench, bench
 
     calls = []
 
@@ -388,6 +388,6 @@ def test_bench_sweep_flag_runs_the_sweep_benchmark(tmp_path, monkeypatch):
         (out / "sweep.md").write_text("# Sweep engine benchmark\n")
         return {}
 
-    monkeypatch.setattr(sweep, "run_sweep_bench", fake)
+    monkeypatch.setattr(_sweep_bench, "run_sweep_bench", fake)
     assert bench.main(["--sweep", "--out", str(tmp_path)]) == 0
     assert calls == [tmp_path]

@@ -1,0 +1,310 @@
+"""Accuracy benchmark of the method: dense-map and sparse edge errors per σ bin, and relative speed.
+
+:func:`measure_accuracy` runs what :data:`ACCURACY_CONFIG` lists — analytic truth (texture and
+step-edge mosaics, 8 bits + noise, :mod:`experiments.bench.mosaics`), the rendered scenes (cached
+renders, σ_gt in the line-spread convention) and the presets' whole-pipeline speed — through
+:func:`experiments.stage_attribution.stage_errors`; :func:`accuracy_report` adds the verdicts
+(:func:`experiments.bench.targets.judge_accuracy`), the notes and the machine. ``python -m repro.bench
+--accuracy`` writes the report; measurements are in ``docs/performance.md``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import statistics
+import time
+import warnings
+
+from .mosaics import ANALYTIC_DATASETS, STEP_BASE_ANGLE, STEP_SEAM_BAND_PX, analytic_case, noise_label, sigma_bins
+from .speed import machine_info, bench_image
+from .targets import judge_accuracy, targets
+
+__all__ = ["ACCURACY_CONFIG", "accuracy_report", "json_safe", "measure_accuracy", "pool", "preset_seeds",
+           "seeds_text"]
+
+#: What ``--accuracy`` measures (see :func:`measure_accuracy`); tests pass a smaller dict.
+ACCURACY_CONFIG = {
+    "datasets": tuple(ANALYTIC_DATASETS),
+    "sigmas": (0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0),  # tile blur σ, px
+    "tile": 96,  # px
+    "mosaic_cols": 4,  # texture mosaics; the step-edge mosaic is 2 rows x len(sigmas)
+    "noise_stds": (1.0 / 255, 2.0 / 255),  # image units, then 8-bit quantisation
+    "seeds": (0, 1),
+    "presets": ("paper", "robust", "zhuo_sim"),
+    # preset -> seeds it runs on, if not all (zhuo_sim's matting-Laplacian propagation, run three times
+    # by stage_errors, costs ~15 s per mosaic: one seed keeps --accuracy under ~10 min; no target on it)
+    "preset_seeds": {"zhuo_sim": (0,)},
+    # scene set -> scenes (every scene of both sets of scenes.SCENE_SETS); one table and one verdict
+    # per set (the dense-map target is judged per case and on each set's mean)
+    "scene_sets": {"tabletop_stress": ("portrait", "planes", "tilted_plane", "clutter", "shadow_gloss"),
+                   "paper_cameras": ("portrait_garden", "street_figures", "patio_table", "heron_at_the_lake")},
+    "f_numbers": (8.0, 4.0),
+    "render_preset": "small",
+    "estimators": ("zero_crossing", "gradient_ratio"),  # run in the paper pipeline
+    "speed_presets": ("paper", "robust"),
+    "speed_sizes": (512, 1024),  # px (square astronaut, as the speed bench)
+    "speed_repeat": 3,  # median of this many runs
+    "speed_single": {"zhuo_sim": (512,)},  # preset -> sizes timed once
+}
+
+
+def preset_seeds(config: dict, preset: str) -> tuple:
+    """The seeds ``preset`` runs on: ``config["preset_seeds"][preset]`` if given, else every seed."""
+    return tuple(config.get("preset_seeds", {}).get(preset, config["seeds"]))
+
+
+def _slim(err, nominal=None, gt=None) -> dict | None:
+    """The parts of one :func:`experiments.stage_attribution.stage_errors` entry the report keeps."""
+    if not err:
+        return None
+    out = {k: err[k] for k in ("n", "mae", "bias", "coverage")}
+    if nominal is not None:
+        out["bins"] = [{"sigma": s, "sigma_gt": g, "lo": b["lo"], "hi": b["hi"], "n": b["n"], "mae": b["mae"],
+                        "bias": b["bias"]} for s, g, b in zip(nominal, gt, err["bins"])]
+    return out
+
+
+def pool(entries) -> dict:
+    """Pixel-weighted pooling of error dicts (``n``, ``mae``, ``bias``[, ``bins``]) over seeds."""
+    entries = [e for e in entries if e]
+
+    def pooled(items):
+        n = sum(i["n"] for i in items)
+        return {"n": n,
+                "mae": sum(i["n"] * i["mae"] for i in items if i["n"]) / n if n else None,
+                "bias": sum(i["n"] * i["bias"] for i in items if i["n"]) / n if n else None}
+
+    out = pooled(entries)
+    if entries and "bins" in entries[0]:
+        out["bins"] = [{**{k: same[0][k] for k in ("sigma", "sigma_gt", "lo", "hi")}, **pooled(same)}
+                       for same in map(list, zip(*(e["bins"] for e in entries)))]
+    return out
+
+
+def _analytic_run(dataset, noise, seed, preset, case, bins) -> dict:
+    """One preset on one analytic image: slimmed ``stage_errors`` entries and the time taken."""
+    from experiments.stage_attribution import stage_errors
+    from method import DefocusParams
+
+    t = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        err = stage_errors(case["image"], case["sigma_gt"], params=DefocusParams.preset(preset),
+                           valid=case["valid"], bins=bins)
+    est = err["estimated"]
+    return {"dataset": dataset, "noise_std": float(noise), "seed": int(seed), "preset": preset,
+            "shape": list(case["image"].shape[:2]), "intrinsic_sigma": case["intrinsic_sigma"],
+            "dense_textured": _slim(est["dense_textured"], case["nominal"], case["gt"]),
+            "sparse": _slim(est["sparse"], case["nominal"], case["gt"]),
+            "oracle_propagate_dense_textured": _slim(err["oracle_propagate"].get("dense_textured"),
+                                                      case["nominal"], case["gt"]),
+            "n_edges": err["n_edges"], "seconds": time.perf_counter() - t}
+
+
+def _measure_analytic(config: dict, bar) -> dict:
+    runs = []
+    for dataset in config["datasets"]:
+        for noise in config["noise_stds"]:
+            for seed in config["seeds"]:
+                presets = [p for p in config["presets"] if seed in preset_seeds(config, p)]
+                if not presets:
+                    continue
+                case = analytic_case(dataset, config, float(noise), int(seed))
+                bins = sigma_bins(case["gt"])
+                for preset in presets:
+                    bar.set_postfix_str(f"{dataset} {noise_label(noise)} seed {seed} {preset}")
+                    runs.append(_analytic_run(dataset, noise, seed, preset, case, bins))
+                    bar.update(1)
+    pooled = []
+    for dataset in config["datasets"]:
+        for noise in config["noise_stds"]:
+            for preset in config["presets"]:
+                key = (dataset, float(noise), preset)
+                sel = [r for r in runs if (r["dataset"], r["noise_std"], r["preset"]) == key]
+                if not sel:
+                    continue
+                pooled.append({"dataset": dataset, "noise_std": float(noise), "preset": preset,
+                               "seeds": [r["seed"] for r in sel], "intrinsic_sigma": sel[0]["intrinsic_sigma"],
+                               **{k: pool([r[k] for r in sel])
+                                  for k in ("dense_textured", "sparse", "oracle_propagate_dense_textured")}})
+    return {"runs": runs, "pooled": pooled}
+
+
+def _measure_rendered(config: dict, bar) -> dict:
+    from experiments.evaluation import ground_truth_sigma, input_image
+    from experiments.stage_attribution import stage_errors
+    from method import DefocusParams
+    from scenes import render_scene
+
+    cases = []
+    for scene_set, scene in ((k, v) for k, scenes in config["scene_sets"].items() for v in scenes):
+        for f_number in config["f_numbers"]:
+            render = render_scene(scene, preset=config["render_preset"], f_number=float(f_number), progress=False)
+            image, gt = input_image(render), ground_truth_sigma(render)
+            valid = ~render.occlusion_boundary
+            runs = [("presets", p, DefocusParams.preset(p)) for p in config["presets"]]
+            runs += [("estimators", e, DefocusParams().replace(estimator=e)) for e in config["estimators"]]
+            case = {"scene_set": scene_set, "scene": scene, "f_number": float(f_number),
+                    "shape": list(image.shape[:2]), "presets": {}, "estimators": {}}
+            for kind, name, params in runs:
+                bar.set_postfix_str(f"{scene} f/{f_number:g} {name}")
+                t = time.perf_counter()
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    est = stage_errors(image, gt, params=params, valid=valid)["estimated"]
+                case[kind][name] = {"dense_textured": _slim(est["dense_textured"]), "sparse": _slim(est["sparse"]),
+                                    "seconds": time.perf_counter() - t}
+                bar.update(1)
+            cases.append(case)
+    return {"cases": cases}
+
+
+def _measure_speed(config: dict, bar) -> dict:
+    from method import DefocusParams, estimate_defocus_map
+
+    plan = [(p, s, config["speed_repeat"]) for p in config["speed_presets"] for s in config["speed_sizes"]]
+    plan += [(p, s, 1) for p, sizes in config["speed_single"].items() for s in sizes]
+    images, rows = {}, []
+    for preset, size, repeat in plan:
+        if size not in images:
+            images[size] = bench_image(size)
+        params = DefocusParams.preset(preset)
+        load_before, runs, totals = os.getloadavg(), [], []
+        for _ in range(repeat):
+            bar.set_postfix_str(f"{preset} {size}²")
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                t = time.perf_counter()
+                result = estimate_defocus_map(images[size], params)
+                runs.append(time.perf_counter() - t)
+            totals.append(result.timings["total"])
+            bar.update(1)
+        rows.append({"preset": preset, "size": size, "runs_s": runs, "median_s": statistics.median(runs),
+                     "pipeline_total_s": totals, "load_before": list(load_before),
+                     "load_after": list(os.getloadavg())})
+    return {"rows": rows}
+
+
+def measure_accuracy(config: dict, *, progress: bool = True) -> dict:
+    """Run every measurement of ``config``; no verdicts, no files.
+
+    Parameters
+    ----------
+    config : dict
+        Keys as :data:`ACCURACY_CONFIG`; empty ``datasets`` / ``scene_sets`` / ``speed_presets`` and
+        ``speed_single`` skip that part.
+    progress : bool, keyword-only
+        tqdm progress bars.
+
+    Returns
+    -------
+    dict
+        ``analytic`` (``runs``: one per dataset x noise x seed x preset; ``pooled``: pixel-weighted over
+        seeds), ``rendered`` (``cases``: per scene set x scene x f-number, every preset and estimator),
+        ``speed`` (``rows``: per preset x size, wall times in s and load averages).
+
+    Notes
+    -----
+    1. Analytic truth, per dataset x noise x seed: the image (:func:`experiments.bench.mosaics.analytic_case`),
+       bins with one tile σ_gt each, then :func:`experiments.stage_attribution.stage_errors` for every preset.
+    2. Rendered scenes: cached renders, σ_gt in the line-spread convention, occlusion boundaries
+       excluded; every preset and every estimator (paper pipeline) through ``stage_errors``.
+    3. Speed: :func:`experiments.bench.speed.bench_image` at each size, median wall time, load averages around it.
+    """
+    from tqdm import tqdm
+
+    n_analytic = len(config["datasets"]) * len(config["noise_stds"]) * sum(
+        len(set(preset_seeds(config, p)) & set(config["seeds"])) for p in config["presets"])
+    n_render = sum(len(v) for v in config["scene_sets"].values()) * len(config["f_numbers"]) * (len(config["presets"]) + len(config["estimators"]))
+    n_speed = (len(config["speed_presets"]) * len(config["speed_sizes"]) * config["speed_repeat"]
+               + sum(len(s) for s in config["speed_single"].values()))
+    out = {}
+    with tqdm(total=n_analytic, desc="accuracy: analytic", unit="run", disable=not progress or not n_analytic) as bar:
+        out["analytic"] = _measure_analytic(config, bar) if n_analytic else {"runs": [], "pooled": []}
+    with tqdm(total=n_render, desc="accuracy: renders", unit="run", disable=not progress or not n_render) as bar:
+        out["rendered"] = _measure_rendered(config, bar) if n_render else {"cases": []}
+    with tqdm(total=n_speed, desc="accuracy: speed", unit="run", disable=not progress or not n_speed) as bar:
+        out["speed"] = _measure_speed(config, bar) if n_speed else {"rows": []}
+    return out
+
+
+def json_safe(obj):
+    """Non-finite floats → None, tuples → lists, NumPy scalars → Python (strict JSON)."""
+    if isinstance(obj, dict):
+        return {str(k): json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if hasattr(obj, "item") and not isinstance(obj, (str, bytes)):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+def seeds_text(cfg: dict) -> str:
+    """The seeds of ``cfg`` in words, naming the presets run on fewer."""
+    text = ", ".join(str(s) for s in cfg["seeds"])
+    cut = [f"{p}: {', '.join(str(s) for s in preset_seeds(cfg, p))} only" for p in cfg["presets"]
+           if set(preset_seeds(cfg, p)) != set(cfg["seeds"])]
+    return text + (f" ({'; '.join(cut)}, to bound the run time)" if cut else "")
+
+
+def _notes(cfg: dict, load0) -> list[str]:
+    """The notes of ``accuracy.md``: assumptions, masks, binning, noise and seeds, machine load."""
+    from scenes.analytic import SKIMAGE_INTRINSIC_SIGMA_PX
+
+    return [f"skimage mosaics: σ_gt = √(σ² + σ₀²) with σ₀ = {SKIMAGE_INTRINSIC_SIGMA_PX:.3f} px, "
+             "an *assumed* "
+             "intrinsic blur of the downsampled photographs (scenes.analytic.SKIMAGE_INTRINSIC_SIGMA_PX, an "
+             "estimate, not a measurement): their errors include any error of that assumption.",
+             f"Step-edge mosaic: 2 × {len(cfg['sigmas'])} tiles of {cfg['tile']}² px, one σ per column, normals at "
+             f"±{math.degrees(STEP_BASE_ANGLE):g}° and 180° ∓ {math.degrees(STEP_BASE_ANGLE):g}° "
+             "(mirror-image tiles, "
+             f"continuous across seams); a {STEP_SEAM_BAND_PX}-px band each side of every seam is masked. "
+             "Texture mosaics: the mosaic's own seam band (⌈3·max σ⌉ + 2 px) is masked.",
+             "Verdict bins are chosen by the tile σ (its σ_gt for the 10 % rule); the pooled numbers (pixel-"
+             "weighted over seeds) are judged; a targeted bin with no pixel fails.",
+             f"Noise: {', '.join(noise_label(n) for n in cfg['noise_stds'])} then 8-bit quantisation; seeds "
+             f"{seeds_text(cfg)}; the noise field of a seed is the same for both levels (scaled).",
+             f"Machine load (1/5/15 min) at start: {' / '.join(f'{x:.2f}' for x in load0)}; "
+             f"at end: {' / '.join(f'{x:.2f}' for x in os.getloadavg())}."]
+
+
+def accuracy_report(config: dict | None = None, *, progress: bool = True) -> dict:
+    """Measure and judge: the record written to ``accuracy.json`` (strict JSON: no inf/NaN, no tuples).
+
+    Parameters
+    ----------
+    config : dict, optional
+        Keys as :data:`ACCURACY_CONFIG` (the default).
+    progress : bool, keyword-only
+        tqdm progress bars.
+
+    Returns
+    -------
+    dict
+        ``config``, ``analytic``, ``rendered``, ``speed`` (:func:`measure_accuracy`), ``verdict``
+        (:func:`experiments.bench.targets.judge_accuracy`), ``targets``, ``notes``, ``machine``,
+        ``date``, ``runtime_s``.
+
+    Raises
+    ------
+    ValueError
+        A preset of ``config`` that :data:`method.PRESETS` does not have (before anything runs).
+    """
+    from method import PRESETS
+
+    cfg = dict(ACCURACY_CONFIG if config is None else config)
+    names = list(cfg["presets"]) + list(cfg["speed_presets"]) + list(cfg["speed_single"])
+    if names:
+        PRESETS.check_all(dict.fromkeys(names))
+    if cfg["datasets"]:
+        ANALYTIC_DATASETS.check_all(cfg["datasets"])
+    t0 = time.perf_counter()
+    load0 = os.getloadavg()
+    measured = measure_accuracy(cfg, progress=progress)
+    report = {"config": cfg, **measured, "verdict": judge_accuracy(measured), "targets": targets(),
+              "notes": _notes(cfg, load0), "machine": machine_info(),
+              "date": time.strftime("%Y-%m-%d %H:%M:%S"), "runtime_s": time.perf_counter() - t0}
+    return json_safe(report)

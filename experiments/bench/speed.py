@@ -1,0 +1,184 @@
+"""Speed benchmark of the method: per-stage and whole-pipeline wall time and peak memory.
+
+One run is :func:`time_pipeline` (the pipeline ``repeat`` times on :func:`bench_image`, the fastest
+counts); ``python -m repro.bench`` runs each (preset, size) in a fresh process, so its peak resident
+memory is its own, then :func:`speed_summary` judges the rows against the targets below (this 2-core
+machine kind) and :func:`speed_markdown` writes the table. Measurements: ``docs/performance.md``.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import resource
+import time
+import warnings
+
+__all__ = ["BENCH_PRESETS", "TARGET_GROWTH_512_TO_1024", "TARGET_PEAK_GIB_1MP", "TARGET_SECONDS_1MP",
+           "TARGET_SECONDS_1MP_BY_PRESET", "TARGET_SECONDS_512", "bench_image", "machine_info", "speed_markdown",
+           "speed_report", "speed_summary", "speed_table", "time_pipeline"]
+
+#: Whole pipeline at 1 MP (1024² px), s.
+TARGET_SECONDS_1MP = 2.0
+#: Per-preset 1-MP time targets, s, where they differ from TARGET_SECONDS_1MP: robust runs the
+#: region (spectral) estimator too (its target ≤ 2.5 s and ≤ 1.5 × paper, TARGET_SPEED_RATIO).
+TARGET_SECONDS_1MP_BY_PRESET = {"robust": 2.5}
+#: Whole pipeline at 512² px, s.
+TARGET_SECONDS_512 = 1.0
+#: Peak resident memory of the run at 1 MP, GiB.
+TARGET_PEAK_GIB_1MP = 1.5
+#: Presets timed by default (every one must meet the targets).
+BENCH_PRESETS = ("paper", "robust")
+#: Cost growth from 512² to 1024² px (4 × the pixels), ratio of totals.
+TARGET_GROWTH_512_TO_1024 = 4.5
+
+
+def bench_image(size: int):
+    """The benchmark image: ``skimage.data.astronaut`` resized to ``size``² px.
+
+    Parameters
+    ----------
+    size : int
+        Side, px.
+
+    Returns
+    -------
+    ndarray, (size, size, 3), float64 in [0, 1]
+    """
+    import numpy as np
+    from skimage import data, transform
+
+    img = data.astronaut().astype(np.float64) / 255.0
+    return np.clip(transform.resize(img, (size, size), order=1, anti_aliasing=True), 0.0, 1.0)
+
+
+def time_pipeline(size: int, repeat: int, preset: str = "paper") -> dict:
+    """Run the whole pipeline and a 2× magnification ``repeat`` times at ``size``² px.
+
+    Parameters
+    ----------
+    size : int
+        Image side, px.
+    repeat : int
+        Runs; the fastest (by ``total``) counts.
+    preset : str
+        Key of :data:`method.PRESETS`.
+
+    Returns
+    -------
+    dict
+        ``preset``, ``size``, ``pixels``, ``edge_pixels``, ``timings_s`` (stage → s of the fastest run,
+        plus ``magnification``), ``peak_rss_gib`` (this process's ``ru_maxrss``) and ``load1`` (1-min
+        load average before and after).
+    """
+    from method import DefocusParams, estimate_defocus_map, magnify_defocus
+
+    image = bench_image(size)
+    params = DefocusParams.preset(preset)
+    load_before = os.getloadavg()[0]
+    best = None
+    for _ in range(repeat):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = estimate_defocus_map(image, params)
+            t = time.perf_counter()
+            magnify_defocus(image, result.defocus_map, factor=2.0)
+            t_mag = time.perf_counter() - t
+        timings = dict(result.timings)
+        timings["magnification"] = t_mag
+        if best is None or timings["total"] < best["total"]:
+            best = timings
+    peak_kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return {
+        "preset": preset,
+        "load1": [load_before, os.getloadavg()[0]],
+        "size": size,
+        "pixels": size * size,
+        "edge_pixels": int(result.edges.sum()),
+        "timings_s": best,
+        "peak_rss_gib": peak_kib / 2**20,
+    }
+
+
+def speed_table(rows: list[dict]) -> str:
+    """Markdown table of :func:`time_pipeline` rows: one per (preset, size), one column per stage."""
+    stages = list(rows[0]["timings_s"].keys())
+    head = ("| preset | size | edge px | " + " | ".join(f"{s} (s)" for s in stages)
+            + " | peak RSS (GiB) | load 1-min (before → after) |")
+    sep = "|" + "---|" * (len(stages) + 5)
+    lines = [head, sep]
+    for r in rows:
+        cells = " | ".join(f"{r['timings_s'][s]:.3f}" if s in r["timings_s"] else "" for s in stages)
+        load = r.get("load1")
+        load = f"{load[0]:.1f} → {load[1]:.1f}" if load else "not recorded"
+        lines.append(f"| {r.get('preset', 'paper')} | {r['size']}² | {r['edge_pixels']} | {cells} | "
+                     f"{r['peak_rss_gib']:.2f} | {load} |")
+    return "\n".join(lines)
+
+
+def speed_summary(rows: list[dict]) -> dict:
+    """Per preset: 1 MP / 512² totals and peak memory against the targets, and the 512² → 1024² growth.
+
+    Parameters
+    ----------
+    rows : list of dict
+        :func:`time_pipeline` results.
+
+    Returns
+    -------
+    dict
+        ``"{preset}: total_1mp_s"``, ``"{preset}: meets_time_target_1mp"``, … (only for sizes run).
+    """
+    summary = {}
+    for preset in dict.fromkeys(r.get("preset", "paper") for r in rows):
+        by_size = {r["size"]: r for r in rows if r.get("preset", "paper") == preset}
+        if 1024 in by_size:
+            r = by_size[1024]
+            summary[f"{preset}: total_1mp_s"] = r["timings_s"]["total"]
+            summary[f"{preset}: peak_1mp_gib"] = r["peak_rss_gib"]
+            limit = TARGET_SECONDS_1MP_BY_PRESET.get(preset, TARGET_SECONDS_1MP)
+            summary[f"{preset}: meets_time_target_1mp"] = r["timings_s"]["total"] <= limit
+            summary[f"{preset}: meets_memory_target"] = r["peak_rss_gib"] <= TARGET_PEAK_GIB_1MP
+        if 512 in by_size:
+            summary[f"{preset}: total_512_s"] = by_size[512]["timings_s"]["total"]
+            summary[f"{preset}: meets_time_target_512"] = by_size[512]["timings_s"]["total"] <= TARGET_SECONDS_512
+        if 512 in by_size and 1024 in by_size:
+            g = by_size[1024]["timings_s"]["total"] / by_size[512]["timings_s"]["total"]
+            summary[f"{preset}: growth_512_to_1024"] = g
+            summary[f"{preset}: meets_growth_target"] = g <= TARGET_GROWTH_512_TO_1024
+    return summary
+
+
+def machine_info() -> dict:
+    """CPU count, Python version and platform of this machine."""
+    return {"cpus": os.cpu_count(), "python": platform.python_version(), "platform": platform.platform()}
+
+
+def speed_report(rows: list[dict], *, before: dict | None) -> dict:
+    """The ``bench.json`` record: rows, :func:`speed_summary`, the run it replaces, targets, machine, date."""
+    return {
+        "rows": rows,
+        "summary": speed_summary(rows),
+        "before": before,
+        "targets": {"total_1mp_s": TARGET_SECONDS_1MP, "total_512_s": TARGET_SECONDS_512,
+                    "peak_1mp_gib": TARGET_PEAK_GIB_1MP, "growth_512_to_1024": TARGET_GROWTH_512_TO_1024},
+        "machine": machine_info(),
+        "date": time.strftime("%Y-%m-%d %H:%M:%S"),
+    }
+
+
+def _summary_lines(summary: dict) -> str:
+    return "\n".join(f"- {k}: {v:.3f}" if isinstance(v, float) else f"- {k}: {v}" for k, v in summary.items())
+
+
+def speed_markdown(report: dict, *, repeat: int) -> str:
+    """``bench.md`` of a :func:`speed_report` (with the previous run as "Before" when it has one)."""
+    md = (f"# Benchmark ({report['date']}, {report['machine']['cpus']} CPUs)\n\n"
+          "Whole-pipeline `total` excludes magnification (timed separately); fastest of "
+          f"{repeat} runs; peak RSS of the whole worker process.\n\n{speed_table(report['rows'])}\n\n"
+          + _summary_lines(report["summary"]) + "\n")
+    before = report.get("before")
+    if before:
+        md += (f"\n## Before: the previous run ({before['date']})\n\n{speed_table(before['rows'])}\n\n"
+               + _summary_lines(before["summary"]) + "\n")
+    return md

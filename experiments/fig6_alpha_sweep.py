@@ -78,9 +78,7 @@ def method_presets(names) -> dict:
     allowed = f"unique names of method.PRESETS ({', '.join(PRESETS)}), the first 'paper'"
     if not names or names[0] != "paper" or len(set(names)) != len(names):
         raise ValueError(f"presets={names!r} is invalid; allowed: {allowed}")
-    unknown = [n for n in names if n not in PRESETS]
-    if unknown:
-        raise ValueError(f"presets={names!r} is invalid (unknown {', '.join(map(repr, unknown))}); allowed: {allowed}")
+    PRESETS.check_all(names, what="preset")
     return {n: DefocusParams.preset(n) for n in names}
 
 

@@ -442,10 +442,7 @@ def score_presets(names=None, presets=SCORE_PRESETS, *, photo_dir=None) -> dict:
     from method import PRESETS
 
     names = validate_photo_names(names, photo_dir)
-    presets = tuple(dict.fromkeys(presets))
-    bad = [p for p in presets if p not in PRESETS]
-    if bad:
-        raise ValueError(f"unknown preset(s) {', '.join(map(repr, bad))}; allowed: {sorted(PRESETS)}")
+    presets = tuple(dict.fromkeys(PRESETS.check_all(presets, what="preset")))
     out = {}
     for name in names:
         run = compute_photo_maps(name, presets, photo_dir=photo_dir)

@@ -61,7 +61,7 @@ def test_killed_render_is_rebuilt_and_out_never_half_written(tmp_path):
 
 def test_figures_ctrl_c_then_resume_from_cache(tmp_path):
     cache, out = tmp_path / "cache", tmp_path / "figures"
-    # fig4 renders its own scenes (fig2 reuses fig10's calibration renders and can finish before the
+    # fig4 renders its own scenes (fig2 reuses fig10's step-edge renders and can finish before the
     # interrupt lands), so it is still running when the interrupt arrives.
     cmd = [sys.executable, "-m", "repro.figures", "fig10", "fig4", "--quick", "--out", str(out)]
     # A shell starts the command with SIGINT at its default; in a full test session an earlier test's

@@ -37,10 +37,14 @@ their modules raised later (a code path the tables do not list).
 
 from __future__ import annotations
 
+import _thread
 import argparse
+import contextlib
 import os
+import signal
 import sys
 import tempfile
+import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -228,6 +232,45 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
     prog = prog or Path(sys.argv[0]).name or "repro"
     command = _command_of(main) or prog
     args = sys.argv[1:] if argv is None else list(argv)
+    with _ctrl_c_redelivered():
+        return _run_main(main, argv, args, prog=prog, command=command)
+
+
+#: s after a Ctrl-C swallowed by a callback until it is pressed again (the callback has returned by then).
+REDELIVER_CTRL_C_S = 0.05
+
+
+def _redeliver_ctrl_c(previous):
+    """An unraisable hook that sends a Ctrl-C swallowed by a callback to the main thread again."""
+    def hook(unraisable):
+        if (unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt)
+                and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+            # Later, from another thread: raised here it would land in this hook and be lost again.
+            threading.Timer(REDELIVER_CTRL_C_S, _thread.interrupt_main).start()
+            return
+        previous(unraisable)
+    return hook
+
+
+@contextlib.contextmanager
+def _ctrl_c_redelivered():
+    """While a tool runs, a Ctrl-C is never lost in a callback and never prints a traceback.
+
+    Python raises KeyboardInterrupt at whatever bytecode runs when SIGINT arrives; inside a weakref
+    or ``__del__`` callback (Dr.Jit and NumPy run many) the exception cannot propagate, so Python
+    prints "Exception ignored in ..." with a traceback and goes on as if no key had been pressed.
+    The hook presses Ctrl-C again a moment later instead, which Python answers outside the callback.
+    """
+    previous = sys.unraisablehook
+    sys.unraisablehook = _redeliver_ctrl_c(previous)
+    try:
+        yield
+    finally:
+        sys.unraisablehook = previous
+
+
+def _run_main(main, argv, args, *, prog, command) -> int:
+    """:func:`run_cli`'s body: ``main(argv)`` with every user error turned into one line."""
     try:
         if command in COMMAND_EXTRAS and not {"-h", "--help", "--version"} & set(args):
             require_extras(*COMMAND_EXTRAS[command], command=command)

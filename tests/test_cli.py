@@ -1,5 +1,11 @@
 """repro._cli.run_cli: user and machine errors become one stderr line; bugs propagate."""
 
+import gc
+import signal
+import sys
+import time
+import weakref
+
 import pytest
 
 from repro._cli import run_cli
@@ -26,6 +32,45 @@ def test_user_and_machine_errors_are_one_line_exit_2(exc, needle, capsys):
 def test_ctrl_c_is_exit_130(capsys):
     assert run_cli(_raiser(KeyboardInterrupt()), [], prog="prog") == 130
     assert "interrupted" in capsys.readouterr().err
+
+
+class _Thing:
+    pass
+
+
+def _ctrl_c_inside_a_callback(argv=None):
+    """A Ctrl-C that lands in a weakref callback (where Python cannot raise it), then more work."""
+    thing = _Thing()
+    ref = weakref.ref(thing, lambda r: (_ for _ in ()).throw(KeyboardInterrupt))
+    del thing
+    gc.collect()
+    deadline = time.monotonic() + 2
+    while time.monotonic() < deadline:  # a tool going on with its work: the Ctrl-C must still stop it
+        time.sleep(0.01)
+    return 0 if ref is not None else 1
+
+
+def _with_default_sigint(fn):
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        return fn()
+    finally:
+        signal.signal(signal.SIGINT, before)
+
+
+def test_ctrl_c_swallowed_by_a_callback_still_stops_the_tool_without_a_traceback(capsys, monkeypatch):
+    monkeypatch.setattr("sys.unraisablehook", sys.__unraisablehook__)  # Python's own, not pytest's
+    status = _with_default_sigint(lambda: run_cli(_ctrl_c_inside_a_callback, [], prog="prog"))
+    err = capsys.readouterr().err
+    assert status == 130 and "prog: interrupted" in err
+    assert "Traceback" not in err and "Exception ignored" not in err, err
+
+
+def test_without_the_hook_python_swallows_the_ctrl_c(capsys, monkeypatch):
+    """The failure the hook exists for: outside run_cli the same Ctrl-C is lost and prints a traceback."""
+    monkeypatch.setattr("sys.unraisablehook", sys.__unraisablehook__)
+    assert _with_default_sigint(_ctrl_c_inside_a_callback) == 0
+    assert "Exception ignored" in capsys.readouterr().err
 
 
 def test_bugs_propagate():

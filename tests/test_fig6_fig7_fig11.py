@@ -107,7 +107,7 @@ def test_method_presets_validates_names():
     got = method_presets(("paper", "robust"))
     assert list(got) == ["paper", "robust"] and got["paper"] == DefocusParams()
     for bad in ((), ("robust",), ("robust", "paper"), ("paper", "paper"), ("paper", "nope")):
-        with pytest.raises(ValueError, match="presets"):
+        with pytest.raises(ValueError, match="preset"):
             method_presets(bad)
 
 

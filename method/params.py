@@ -261,8 +261,7 @@ class DefocusParams:
     # 1 = exact full-resolution solve; 2, 4, … = that coarsening factor.
     propagation_refinement: str = "galerkin"
     # refinement of the upsampled coarse solution (key of method.propagation.defocus.PROPAGATION_REFINEMENTS):
-    # "galerkin" (default, above), "two_level" (the same CG with the re-discretised coarse system, the
-    # default before: 20·s iterations) or "jacobi" (Jacobi-preconditioned CG, ~0.15 px RMS at 1 MP).
+    # "galerkin" (the one, above; the earlier refinements and their distances: docs/performance.md).
 
     # --- beyond the paper: edge isolation and cue fusion in Eq. (4) -------------------------------
     edge_isolation: str | None = None

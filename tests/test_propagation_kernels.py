@@ -42,19 +42,6 @@ def test_matrix_free_operator_matches_assembled(neighborhood, shape):
     np.testing.assert_allclose(diag[r:r + h, r:r + w].ravel(), A.diagonal(), rtol=1e-12)
 
 
-def test_matrix_free_cg_solves_the_system():
-    rng = np.random.default_rng(5)
-    h, w = 40, 45
-    ref, bm = _case(rng, h, w)
-    A, rhs = E.normal_equations(bm, ref)
-    a, _, lam, _ = E.data_term(bm, 0.5, 1e-6)
-    weights, offs = E.padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
-    x, res = MF.jacobi_pcg(weights, offs, (a + lam).reshape(h, w), rhs.reshape(h, w),
-                                       np.zeros((h, w)), maxiter=5000, tol=1e-9)
-    assert res <= 1e-9
-    assert np.linalg.norm(A @ x.ravel() - rhs) <= 2e-9 * np.linalg.norm(rhs)
-
-
 def test_float32_weights_close_to_float64():
     """The refinement stores the affinities in float32 (half the memory traffic); they round to 6e-8."""
     rng = np.random.default_rng(2)
@@ -105,8 +92,7 @@ def test_fused_direction_and_apply_bit_identical(neighborhood, shape):
     beta = 0.37
     p_new, q, rowdot = np.zeros_like(z), np.zeros_like(z), np.zeros(h)
     NO.direction_and_apply(z, p_old, beta, weights, offs, a_diag, p_new, q, rowdot)
-    p_ref, q_ref, rowdot_ref = p_old.copy(), np.zeros_like(z), np.zeros(h)
-    NO.new_direction(z, p_ref, beta, r)
+    p_ref, q_ref, rowdot_ref = z + beta * p_old, np.zeros_like(z), np.zeros(h)  # padding stays 0
     NO.apply_normal(p_ref, weights, offs, a_diag, q_ref, rowdot_ref)
     np.testing.assert_array_equal(p_new, p_ref)
     np.testing.assert_array_equal(q, q_ref)

@@ -2,16 +2,14 @@
 
 The refinement of :func:`method.propagation.defocus.propagate_defocus`'s coarse mode: CG on the exact
 full-resolution normal equations ``(LᵀL + diag a) x = rhs`` without assembling them (the operator is
-applied from the affinities, :func:`method.propagation.system.padded_weights`), preconditioned by
-
-* :func:`two_level_pcg` (default): Jacobi + a coarse-grid correction (bilinear P, Pᵀ and one V-cycle
-  / LU solve of the coarse level of :mod:`method.propagation.solvers`: the Galerkin operator of
-  :mod:`method.propagation.galerkin` by default, or the re-discretised coarse system);
-* :func:`jacobi_pcg`: Jacobi alone (the earlier refinement, kept as the comparison).
+applied from the affinities, :func:`method.propagation.system.padded_weights`), preconditioned by Jacobi + a coarse-grid correction (:func:`two_level_pcg`: bilinear P, Pᵀ and one
+V-cycle / LU solve of the coarse level of :mod:`method.propagation.solvers`, the Galerkin operator of
+:mod:`method.propagation.galerkin`).
 
 The operator's kernels are in :mod:`method.propagation.normal_operator`. Vectors live on a grid
-zero-padded by the neighbourhood radius r so the stencils need no bounds checks; every kernel is row-parallel without shared writes and adds per-row partial sums in row
-order, so the iterates are bit-identical for any number of threads.
+zero-padded by the neighbourhood radius r so the stencils need no bounds checks; every kernel is
+row-parallel without shared writes and adds per-row partial sums in row order, so the iterates are
+bit-identical for any number of threads.
 """
 
 from __future__ import annotations
@@ -20,83 +18,15 @@ import numba
 import numpy as np
 import scipy.sparse as sp
 
-from .normal_operator import (apply_normal, cg_update, new_direction, normal_diagonal,
-                              operator_kernels)
+from .normal_operator import normal_diagonal, operator_kernels
 
 # OpenMP wait policy: numba's "omp" worker threads busy-wait after every parallel region by default,
 # and the refinement runs ~3 regions per CG iteration with the serial coarse V-cycle in between. The
 # entry points (``repro``, see repro/__init__.py) set OMP_WAIT_POLICY=PASSIVE; this pure-numerics
 # package leaves the process environment alone (a library user can set it before the first call).
 
-__all__ = ["bilinear_1d", "jacobi_pcg", "two_level_pcg"]
+__all__ = ["bilinear_1d", "two_level_pcg"]
 
-
-def jacobi_pcg(weights, offs, a_diag, rhs, x0, *, maxiter, tol):
-    """CG on (LᵀL + diag a) x = rhs with the Jacobi preconditioner; returns (x, relative residual).
-
-    Parameters
-    ----------
-    weights : ndarray, (K, H+2r, W+2r), float32 or float64
-        Affinities from :func:`method.propagation.system.padded_weights` (zero padding).
-    offs : ndarray, (K, 2), int64
-    a_diag : ndarray, (H, W), float64
-        Diagonal data term α_p + λ.
-    rhs, x0 : ndarray, (H, W), float64
-    maxiter : int
-    tol : float
-        Stop when ‖res‖ ≤ tol·‖rhs‖.
-
-    Notes
-    -----
-    Vectors live on a zero-padded grid (border r = neighbourhood radius) so the numba stencils need no
-    bounds checks. Three row-parallel numba kernels per iteration (:func:`new_direction`;
-    :func:`apply_normal`: operator product with p·q per row; :func:`cg_update`: x, residual, preconditioned
-    residual and r·z, r·r per row). The per-row partial sums are added in row order, so the iterates
-    are bit-identical for any number of threads.
-    """
-    h, w = x0.shape
-    r = int(np.max(np.abs(offs)))
-    inner = (slice(r, r + h), slice(r, r + w))
-    shape = (h + 2 * r, w + 2 * r)
-
-    def padded(a):
-        out = np.zeros(shape)
-        out[inner] = a
-        return out
-
-    apply_normal, direction_and_apply = operator_kernels(offs)
-    diag = np.zeros(shape)
-    normal_diagonal(weights, offs, a_diag, r, diag)
-    dinv = np.zeros(shape)
-    dinv[inner] = 1.0 / diag[inner]
-    x = padded(x0)
-    p = np.zeros(shape)
-    q = np.zeros(shape)
-    rowdot = np.zeros(h)
-    rowsums = np.zeros((h, 2))
-    apply_normal(x, weights, offs, a_diag, q, rowdot)  # residual of the initial guess
-    res = padded(rhs)
-    res[inner] -= q[inner]
-    z = dinv * res
-    rz = float(np.sum(res[inner] * z[inner], axis=1).sum())
-    rnorm = float(np.sqrt(np.sum(res[inner] ** 2, axis=1).sum()))
-    bnorm = float(np.sqrt(np.sum(rhs * rhs, axis=1).sum())) or 1.0  # no BLAS: thread-count independent
-    beta = 0.0
-    for _ in range(maxiter):
-        if rnorm <= tol * bnorm:
-            break
-        new_direction(z, p, beta, r)
-        apply_normal(p, weights, offs, a_diag, q, rowdot)
-        pq = float(rowdot.sum())
-        if not pq > 0:
-            break
-        step = rz / pq
-        cg_update(x, res, z, p, q, dinv, step, r, rowsums)
-        rz_new = float(rowsums[:, 0].sum())
-        rnorm = float(np.sqrt(rowsums[:, 1].sum()))
-        beta = rz_new / rz
-        rz = rz_new
-    return x[inner].copy(), rnorm / bnorm
 
 # --------------------------------------------------------------------------------------------
 # two-level preconditioner: coarse-grid correction (bilinear P, Pᵀ) + Jacobi, matrix-free fine level

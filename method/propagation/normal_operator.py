@@ -4,8 +4,7 @@ The normal-equations operator of :mod:`method.propagation.system` applied from t
 (:func:`method.propagation.system.padded_weights`) without assembling it, for the CG refinements of
 :mod:`method.propagation.matrix_free`: :func:`apply_normal` (q = A p), :func:`direction_and_apply`
 (p ← z + β·p fused with q = A p), unrolled 3×3-neighbourhood variants chosen by
-:func:`operator_kernels`, the diagonal :func:`normal_diagonal` (Jacobi), and the CG vector updates
-:func:`new_direction` and :func:`cg_update`.
+:func:`operator_kernels`, and the diagonal :func:`normal_diagonal` (Jacobi).
 
 Vectors live on a grid zero-padded by the neighbourhood radius r so the stencils need no bounds
 checks; every kernel is row-parallel without shared writes and adds per-row partial sums in row
@@ -17,24 +16,11 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["apply_normal", "cg_update", "direction_and_apply", "new_direction", "normal_diagonal",
-           "operator_kernels"]
+__all__ = ["apply_normal", "direction_and_apply", "normal_diagonal", "operator_kernels"]
 
 
 #: Rows per block of the fused matrix-free operator (each block recomputes a halo of r rows of L·p).
 _ROW_BLOCK = 32
-
-
-@numba.njit(cache=True, parallel=True)
-def new_direction(z, p, beta, r):
-    """p = z + β·p in place on the image rows of the padded grid (rows in parallel)."""
-    hp, wp = p.shape
-    w = wp - 2 * r
-    for py in numba.prange(r, hp - r):
-        prow = p[py, r:r + w]
-        zrow = z[py, r:r + w]
-        for i in range(w):
-            prow[i] = zrow[i] + beta * prow[i]
 
 
 @numba.njit(cache=True, parallel=True)
@@ -97,34 +83,6 @@ def apply_normal(p, weights, offs, a_diag, q, rowdot):
 
 
 @numba.njit(cache=True, parallel=True)
-def cg_update(x, res, z, p, q, dinv, step, r, rowsums):
-    """x += step·p, res −= step·q, z = dinv ∘ res; rowsums[y] = (Σ res·z, Σ res²) per image row."""
-    hp, wp = x.shape
-    h = hp - 2 * r
-    w = wp - 2 * r
-    for y in numba.prange(h):
-        py = y + r
-        xr = x[py, r:r + w]
-        rr_ = res[py, r:r + w]
-        zr = z[py, r:r + w]
-        pr = p[py, r:r + w]
-        qr = q[py, r:r + w]
-        dr = dinv[py, r:r + w]
-        rz = 0.0
-        rr = 0.0
-        for i in range(w):
-            xr[i] += step * pr[i]
-            rv = rr_[i] - step * qr[i]
-            rr_[i] = rv
-            zv = dr[i] * rv
-            zr[i] = zv
-            rz += rv * zv
-            rr += rv * rv
-        rowsums[y, 0] = rz
-        rowsums[y, 1] = rr
-
-
-@numba.njit(cache=True, parallel=True)
 def normal_diagonal(weights, offs, a_diag, r, out):
     """diag(LᵀL + diag a)[p] = 1 + a_p + Σ_j w[j, p − o_j]² (gather), padded like the vectors."""
     k = offs.shape[0]
@@ -149,7 +107,7 @@ def direction_and_apply(z, p_old, beta, weights, offs, a_diag, p_new, q, rowdot)
     The same row blocks as :func:`apply_normal`; each block forms z + β·p_old for its rows plus a
     2r-row halo in a private buffer (so it never reads another block's output), computes L·p over its
     rows ± r, then q by the gather form of Lᵀ, and writes its own rows of ``p_new``. The values are
-    bit-identical to :func:`new_direction` followed by :func:`apply_normal`. Padded grids (border r).
+    bit-identical to p_new = z + β·p_old followed by :func:`apply_normal`. Padded grids (border r).
     """
     k = offs.shape[0]
     hp, wp = z.shape

@@ -17,6 +17,7 @@ import numba
 import numpy as np
 
 from .disk_edge_response import DISK_RHO_MAX, rho_row
+from ..edges.gaussian_derivatives import second_steering_weights
 
 __all__ = [
     "COARSE_STRIDE",
@@ -269,7 +270,7 @@ def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
                 di, dj, proj = 0, (1 if c >= 0 else -1), abs(c)
             else:
                 di, dj, proj = (1 if s >= 0 else -1), 0, abs(s)
-            cc, cs2, ss = c * c, 2.0 * c * s, s * s
+            cc, cs2, ss = second_steering_weights(c, s)
             # 1. sample r(k) along the dominant axis (exact pixel values, steered with θ of the edge)
             kmin, kmax = 0, 0
             for k in range(1, w_max + 1):

@@ -16,7 +16,7 @@ import dataclasses
 import numba
 import numpy as np
 
-from .gaussian_derivatives import GaussianDerivativeBank, check_gray_image
+from .gaussian_derivatives import GaussianDerivativeBank, check_gray_image, second_steering_weights
 from .noise_thresholds import (
     first_derivative_threshold,
     per_pixel_false_positive_rate,
@@ -129,7 +129,7 @@ def _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, c2, scale, level, sigma1, s
             if im < 0 or im >= h or jm < 0 or jm >= w or ip < 0 or ip >= h or jp < 0 or jp >= w:
                 left += 1
                 continue
-            cc, cs2, ss = c * c, 2.0 * c * s, s * s
+            cc, cs2, ss = second_steering_weights(c, s)
             vm = cc * ixx[im, jm] + cs2 * ixy[im, jm] + ss * iyy[im, jm]
             vp = cc * ixx[ip, jp] + cs2 * ixy[ip, jp] + ss * iyy[ip, jp]
             if abs(vm) <= c2 or abs(vp) <= c2:

@@ -17,7 +17,7 @@ import numba
 import numpy as np
 
 from .disk_edge_response import DISK_RHO_MAX, rho_row
-from ..edges.gaussian_derivatives import second_steering_weights
+from ..edges.gaussian_derivatives import nearest_axis_step, second_steering_weights
 
 __all__ = [
     "COARSE_STRIDE",
@@ -266,10 +266,7 @@ def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
             out_energy[n] = np.nan
             i0, j0 = rows[n], cols[n]
             c, s = cos_t[n], sin_t[n]
-            if abs(c) >= abs(s):
-                di, dj, proj = 0, (1 if c >= 0 else -1), abs(c)
-            else:
-                di, dj, proj = (1 if s >= 0 else -1), 0, abs(s)
+            di, dj, proj = nearest_axis_step(c, s)
             cc, cs2, ss = second_steering_weights(c, s)
             # 1. sample r(k) along the dominant axis (exact pixel values, steered with θ of the edge)
             kmin, kmax = 0, 0

@@ -46,6 +46,7 @@ __all__ = [
     "GaussianDerivativeBank",
     "gaussian_derivative",
     "sampled_kernel",
+    "nearest_axis_step",
     "second_steering_weights",
     "steer_first",
     "steer_second",
@@ -264,6 +265,22 @@ def gaussian_derivative(image, sigma, *, order_x, order_y):
 def steer_first(ix, iy, theta):
     """Steered 1st derivative along θ: cos θ·I_x + sin θ·I_y (Eq. 7, x right, y down)."""
     return np.cos(theta) * ix + np.sin(theta) * iy
+
+
+@numba.njit(cache=True, inline="always")
+def nearest_axis_step(c, s):
+    """The one-pixel step along the image axis closest to the direction (cos θ, sin θ) = (c, s).
+
+    Returns
+    -------
+    di, dj : int
+        Row and column step (one of them 0, the other ±1; x right, y down).
+    proj : float
+        max(|c|, |s|): a straight edge normal to θ is crossed every 1/proj steps.
+    """
+    if abs(c) >= abs(s):
+        return 0, (1 if c >= 0 else -1), abs(c)
+    return (1 if s >= 0 else -1), 0, abs(s)
 
 
 @numba.njit(cache=True, inline="always")

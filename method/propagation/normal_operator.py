@@ -23,6 +23,50 @@ __all__ = ["apply_normal", "direction_and_apply", "normal_diagonal", "operator_k
 _ROW_BLOCK = 32
 
 
+@numba.njit(cache=True, inline="always")
+def _blocks(offs, hp, wp):
+    """(r, H, W, number of row blocks) of padded (hp, wp) grids for the offsets ``offs`` (r: their radius)."""
+    r = 0
+    for j in range(offs.shape[0]):
+        r = max(r, abs(offs[j, 0]), abs(offs[j, 1]))
+    h = hp - 2 * r
+    return r, h, wp - 2 * r, (h + _ROW_BLOCK - 1) // _ROW_BLOCK
+
+
+@numba.njit(cache=True, inline="always")
+def _l_row(weights, offs, src, sy, py, r, w, trow):
+    """trow = (L p) on padded row py, p's rows read from ``src`` at row sy (the generic kernels)."""
+    prow = src[sy, r:r + w]
+    for i in range(w):
+        trow[i] = prow[i]
+    for j in range(offs.shape[0]):
+        dy = offs[j, 0]
+        dx = offs[j, 1]
+        wrow = weights[j, py, r:r + w]
+        nrow = src[sy + dy, r + dx:r + dx + w]
+        for i in range(w):
+            trow[i] -= wrow[i] * nrow[i]
+
+
+@numba.njit(cache=True, inline="always")
+def _lt_row(weights, offs, t, ty, py, r, w, prow, arow, qrow):
+    """qrow = (Lᵀ t + a·p) on padded row py (gather form, t's row ty); returns Σ p·q (the generic kernels)."""
+    trow = t[ty, r:r + w]
+    for i in range(w):
+        qrow[i] = trow[i] + arow[i] * prow[i]
+    for j in range(offs.shape[0]):
+        dy = offs[j, 0]
+        dx = offs[j, 1]
+        wrow = weights[j, py - dy, r - dx:r - dx + w]
+        srow = t[ty - dy, r - dx:r - dx + w]
+        for i in range(w):
+            qrow[i] -= wrow[i] * srow[i]
+    acc = 0.0
+    for i in range(w):
+        acc += prow[i] * qrow[i]
+    return acc
+
+
 @numba.njit(cache=True, parallel=True)
 def apply_normal(p, weights, offs, a_diag, q, rowdot):
     """Matrix-free q = (LᵀL + diag a) p and the per-row dot products rowdot[y] = Σ_x p·q.
@@ -34,52 +78,20 @@ def apply_normal(p, weights, offs, a_diag, q, rowdot):
     loops run along a row with one offset at a time (SIMD-friendly). No write is shared between
     threads and every value has a fixed operation order, so q is independent of the thread count.
     """
-    k = offs.shape[0]
     hp, wp = p.shape
-    r = 0
-    for j in range(k):
-        r = max(r, abs(offs[j, 0]), abs(offs[j, 1]))
-    h = hp - 2 * r
-    w = wp - 2 * r
-    nblk = (h + _ROW_BLOCK - 1) // _ROW_BLOCK
+    r, h, w, nblk = _blocks(offs, hp, wp)
     for b in numba.prange(nblk):
         y0 = b * _ROW_BLOCK
         y1 = min(h, y0 + _ROW_BLOCK)
         t = np.zeros((y1 - y0 + 2 * r, wp))  # image rows y0 − r … y1 + r − 1; 0 outside the image
         # (loops index 1-D row views from 0 so numba emits no negative-index checks and LLVM vectorises)
         for yy in range(max(0, y0 - r), min(h, y1 + r)):
-            py = yy + r
-            trow = t[yy - y0 + r, r:r + w]
-            prow = p[py, r:r + w]
-            for i in range(w):
-                trow[i] = prow[i]
-            for j in range(k):
-                dy = offs[j, 0]
-                dx = offs[j, 1]
-                wrow = weights[j, py, r:r + w]
-                nrow = p[py + dy, r + dx:r + dx + w]
-                for i in range(w):
-                    trow[i] -= wrow[i] * nrow[i]
+            _l_row(weights, offs, p, yy + r, yy + r, r, w, t[yy - y0 + r, r:r + w])
         for y in range(y0, y1):
             py = y + r
             ty = y - y0 + r
-            qrow = q[py, r:r + w]
             prow = p[py, r:r + w]
-            arow = a_diag[y]
-            trow = t[ty, r:r + w]
-            for i in range(w):
-                qrow[i] = trow[i] + arow[i] * prow[i]
-            for j in range(k):
-                dy = offs[j, 0]
-                dx = offs[j, 1]
-                wrow = weights[j, py - dy, r - dx:r - dx + w]
-                srow = t[ty - dy, r - dx:r - dx + w]
-                for i in range(w):
-                    qrow[i] -= wrow[i] * srow[i]
-            acc = 0.0
-            for i in range(w):
-                acc += prow[i] * qrow[i]
-            rowdot[y] = acc
+            rowdot[y] = _lt_row(weights, offs, t, ty, py, r, w, prow, a_diag[y], q[py, r:r + w])
 
 
 @numba.njit(cache=True, parallel=True)
@@ -109,14 +121,8 @@ def direction_and_apply(z, p_old, beta, weights, offs, a_diag, p_new, q, rowdot)
     rows ± r, then q by the gather form of Lᵀ, and writes its own rows of ``p_new``. The values are
     bit-identical to p_new = z + β·p_old followed by :func:`apply_normal`. Padded grids (border r).
     """
-    k = offs.shape[0]
     hp, wp = z.shape
-    r = 0
-    for j in range(k):
-        r = max(r, abs(offs[j, 0]), abs(offs[j, 1]))
-    h = hp - 2 * r
-    w = wp - 2 * r
-    nblk = (h + _ROW_BLOCK - 1) // _ROW_BLOCK
+    r, h, w, nblk = _blocks(offs, hp, wp)
     for b in numba.prange(nblk):
         y0 = b * _ROW_BLOCK
         y1 = min(h, y0 + _ROW_BLOCK)
@@ -130,19 +136,7 @@ def direction_and_apply(z, p_old, beta, weights, offs, a_diag, p_new, q, rowdot)
                 brow[i] = zrow[i] + beta * orow[i]
         t = np.zeros((nb + 2 * r, wp))  # L·p for rows y0 − r … y1 + r − 1; 0 outside the image
         for yy in range(max(0, y0 - r), min(h, y1 + r)):
-            py = yy + r
-            by = yy - y0 + 2 * r
-            trow = t[yy - y0 + r, r:r + w]
-            prow = pb[by, r:r + w]
-            for i in range(w):
-                trow[i] = prow[i]
-            for j in range(k):
-                dy = offs[j, 0]
-                dx = offs[j, 1]
-                wrow = weights[j, py, r:r + w]
-                nrow = pb[by + dy, r + dx:r + dx + w]
-                for i in range(w):
-                    trow[i] -= wrow[i] * nrow[i]
+            _l_row(weights, offs, pb, yy - y0 + 2 * r, yy + r, r, w, t[yy - y0 + r, r:r + w])
         for y in range(y0, y1):
             py = y + r
             ty = y - y0 + r
@@ -150,22 +144,7 @@ def direction_and_apply(z, p_old, beta, weights, offs, a_diag, p_new, q, rowdot)
             outp = p_new[py, r:r + w]
             for i in range(w):
                 outp[i] = prow[i]
-            qrow = q[py, r:r + w]
-            arow = a_diag[y]
-            trow = t[ty, r:r + w]
-            for i in range(w):
-                qrow[i] = trow[i] + arow[i] * prow[i]
-            for j in range(k):
-                dy = offs[j, 0]
-                dx = offs[j, 1]
-                wrow = weights[j, py - dy, r - dx:r - dx + w]
-                srow = t[ty - dy, r - dx:r - dx + w]
-                for i in range(w):
-                    qrow[i] -= wrow[i] * srow[i]
-            acc = 0.0
-            for i in range(w):
-                acc += prow[i] * qrow[i]
-            rowdot[y] = acc
+            rowdot[y] = _lt_row(weights, offs, t, ty, py, r, w, prow, a_diag[y], q[py, r:r + w])
 
 
 #: The 3×3 neighbourhood's offsets in the raster order of :func:`method.propagation.system._offsets`:

@@ -169,33 +169,39 @@ def _weights_kernel(ref, inv2var, offs, out):
     h, w, c = ref.shape
     k = offs.shape[0]
     for y in numba.prange(h):
-        e = np.empty((k, c))
-        raw = np.empty(k)
-        for x in range(w):
-            m = -np.inf
-            for j in range(k):
-                qy = y + offs[j, 0]
-                qx = x + offs[j, 1]
-                if qy < 0 or qy >= h or qx < 0 or qx >= w:
-                    for i in range(c):
-                        e[j, i] = -np.inf
-                    continue
+        _weights_row(ref, inv2var, offs, out, y, h, w, k, c)
+
+
+@numba.njit(cache=True, inline="always")
+def _weights_row(ref, inv2var, offs, out, y, h, w, k, c):
+    """Row y of :func:`_weights_kernel` (k neighbours, c channels); shared by both kernels."""
+    e = np.empty((k, c))
+    raw = np.empty(k)
+    for x in range(w):
+        m = -np.inf
+        for j in range(k):
+            qy = y + offs[j, 0]
+            qx = x + offs[j, 1]
+            if qy < 0 or qy >= h or qx < 0 or qx >= w:
                 for i in range(c):
-                    d = ref[y, x, i] - ref[qy, qx, i]
-                    v = -d * d * inv2var[y, x, i]
-                    e[j, i] = v
-                    if v > m:
-                        m = v
-            total = 0.0
-            for j in range(k):
-                acc = 0.0
-                if e[j, 0] > -np.inf:
-                    for i in range(c):
-                        acc += np.exp(e[j, i] - m)
-                raw[j] = acc
-                total += acc
-            for j in range(k):
-                out[j, y, x] = raw[j] / total
+                    e[j, i] = -np.inf
+                continue
+            for i in range(c):
+                d = ref[y, x, i] - ref[qy, qx, i]
+                v = -d * d * inv2var[y, x, i]
+                e[j, i] = v
+                if v > m:
+                    m = v
+        total = 0.0
+        for j in range(k):
+            acc = 0.0
+            if e[j, 0] > -np.inf:
+                for i in range(c):
+                    acc += np.exp(e[j, i] - m)
+            raw[j] = acc
+            total += acc
+        for j in range(k):
+            out[j, y, x] = raw[j] / total
 
 
 #: Sizes of :func:`_weights_kernel_3x3_rgb` (module constants: numba unrolls its loops).
@@ -214,33 +220,7 @@ def _weights_kernel_3x3_rgb(ref, inv2var, offs, out):
     k = _K8
     c = _C3
     for y in numba.prange(h):
-        e = np.empty((k, c))
-        raw = np.empty(k)
-        for x in range(w):
-            m = -np.inf
-            for j in range(k):
-                qy = y + offs[j, 0]
-                qx = x + offs[j, 1]
-                if qy < 0 or qy >= h or qx < 0 or qx >= w:
-                    for i in range(c):
-                        e[j, i] = -np.inf
-                    continue
-                for i in range(c):
-                    d = ref[y, x, i] - ref[qy, qx, i]
-                    v = -d * d * inv2var[y, x, i]
-                    e[j, i] = v
-                    if v > m:
-                        m = v
-            total = 0.0
-            for j in range(k):
-                acc = 0.0
-                if e[j, 0] > -np.inf:
-                    for i in range(c):
-                        acc += np.exp(e[j, i] - m)
-                raw[j] = acc
-                total += acc
-            for j in range(k):
-                out[j, y, x] = raw[j] / total
+        _weights_row(ref, inv2var, offs, out, y, h, w, k, c)
 
 
 def _csr_from_weights(weights, offs, shape) -> sp.csr_matrix:

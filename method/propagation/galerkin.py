@@ -1,15 +1,13 @@
 """Galerkin coarse operator Pᵀ A P of the full-resolution Eq. (4) system (a preconditioner's coarse level).
 
 The two-level refinement of :func:`method.propagation.defocus.propagate_defocus` corrects the smooth part of
-the CG residual on an s-times coarser grid. Its first form used the *re-discretised* coarse problem
-(Eq. 4 rebuilt from the block-averaged guide, :func:`method.propagation.system.coarse_problem`):
-cheap, but across colour edges it is a different operator from the fine one, so the coarse
-correction is wrong exactly where the map has to change, and CG needed 20·s iterations. The
-*Galerkin* operator ``A_c = Pᵀ A P`` with the same bilinear interpolation P (separable,
-:func:`method.propagation.matrix_free.bilinear_1d`) is the projection of the fine operator itself:
-the two-grid theory (e.g. Trottenberg, Oosterlee & Schüller, *Multigrid*, 2001, Sec. 3.2) makes the
-coarse correction A-orthogonal to the coarse space, and the convergence then no longer depends on how
-well a coarse guide describes the fine edges. Measured on the astronaut photo at 1024², paper
+the CG residual on an s-times coarser grid with the *Galerkin* operator ``A_c = Pᵀ A P`` of the bilinear
+interpolation P (separable, :func:`method.propagation.matrix_free.bilinear_1d`): the projection of the
+fine operator itself. The two-grid theory (e.g. Trottenberg, Oosterlee & Schüller, *Multigrid*, 2001,
+Sec. 3.2) makes the coarse correction A-orthogonal to the coarse space, so the convergence does not
+depend on how well a coarse guide describes the fine edges; a *re-discretised* coarse problem (Eq. 4
+rebuilt from the block-averaged guide) is cheap, but across colour edges a different operator from the
+fine one, so its correction is wrong exactly where the map has to change. Measured on the astronaut photo at 1024², paper
 preset's measures, from the same start map (RMS px from the exact solve): re-discretised coarse at
 s = 4: 0.047 after 20 iterations, 0.014 after 30; Galerkin at s = 8: 0.021 after 20, 0.008 after 30.
 

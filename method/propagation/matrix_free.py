@@ -157,7 +157,7 @@ def _precondition(res, dinv, e_x, r, py_ptr, py_idx, py_val, z, rowdot):
         rowdot[y] = acc
 
 
-def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, maxiter, tol, coarse_scale=None,
+def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, maxiter, tol, coarse_scale=1.0,
                   vector_dtype=np.float64):
     """CG on the full-resolution Eq. (4) system, preconditioned by Jacobi + a coarse-grid correction.
 
@@ -171,7 +171,7 @@ def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, ma
     rhs, x0 : ndarray, (H, W), float64
         Right-hand side α·BM + λ·mean(BM) and starting map (σ, px).
     coarse : method.propagation.solvers.CoarseLevel
-        Coarse system A_c (the re-discretised Eq. 4 on the s-times coarser grid) with its
+        Coarse system A_c on the s-times coarser grid (the Galerkin operator) with its
         approximate inverse (one AMG V-cycle, or the LU solve).
     s : int
         Coarsening factor.
@@ -184,10 +184,10 @@ def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, ma
         Storage of the CG vectors (x, residuals, directions, D⁻¹, a); CG scalars and per-row sums are
         float64 whatever it is. float64 (default) or float32 (the driver's choice: half the memory
         traffic of the memory-bound iterations).
-    coarse_scale : float or None, keyword-only
-        Factor c of the coarse correction c·P Ã_c⁻¹ Pᵀ: None = s², for the re-discretised coarse
-        system (A_c ≈ s²·PᵀAP); 1 for the Galerkin operator A_c = PᵀAP
-        (:func:`method.propagation.galerkin.galerkin_coarse_operator`).
+    coarse_scale : float, keyword-only
+        Factor c of the coarse correction c·P Ã_c⁻¹ Pᵀ: 1 (default) for the Galerkin operator
+        A_c = PᵀAP (:func:`method.propagation.galerkin.galerkin_coarse_operator`); γ for a coarse
+        operator A_c ≈ γ·PᵀAP (then γ·P A_c⁻¹ Pᵀ ≈ P (PᵀAP)⁻¹ Pᵀ).
 
     Returns
     -------
@@ -196,15 +196,12 @@ def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, ma
 
     Notes
     -----
-    Preconditioner M⁻¹ r = D⁻¹ r + c·P Ã_c⁻¹ Pᵀ r (additive two-level; c = s² or 1, see
-    ``coarse_scale``):
+    Preconditioner M⁻¹ r = D⁻¹ r + c·P Ã_c⁻¹ Pᵀ r (additive two-level; c = ``coarse_scale``):
 
     1. D = diag(LᵀL + diag a) (Jacobi), damping the oscillatory error the coarse grid cannot see;
     2. Pᵀ r: restriction by the transpose of the bilinear interpolation P used for the start map
        (:func:`bilinear_1d`, separable);
-    3. Ã_c⁻¹: the coarse approximate inverse. Either the Galerkin operator A_c = PᵀAP (c = 1), or the
-       re-discretised coarse system built with α_c = s²·Σ_block α, so A_c ≈ s²·PᵀAP (see
-       :func:`method.propagation.defocus.propagate_defocus`, Notes) and s²·P A_c⁻¹ Pᵀ ≈ P (PᵀAP)⁻¹ Pᵀ;
+    3. Ã_c⁻¹: the coarse approximate inverse of the Galerkin operator A_c = PᵀAP;
     4. prolongation P and the sum with step 1.
 
     M is symmetric positive definite and the same linear map at every iteration, so plain
@@ -231,7 +228,7 @@ def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, ma
     shape = (h + 2 * r, w + 2 * r)
     (py_ptr, py_idx, py_val), (ty_ptr, ty_idx, ty_val) = bilinear_1d(h, hc, s)
     (px_ptr, px_idx, px_val), (tx_ptr, tx_idx, tx_val) = bilinear_1d(w, wc, s)
-    scale = float(s * s) if coarse_scale is None else float(coarse_scale)
+    scale = float(coarse_scale)
 
     vdt = np.dtype(vector_dtype)
 

@@ -69,6 +69,21 @@ def _flush(gram, stencil, y0, x0, m, big):
             gram[a, b] = 0.0
 
 
+@numba.njit(cache=True, inline="always")
+def _add_outer(gram, v, u, d, mm):
+    """gram[i, j] += v_i v_j + d·u_i u_j for i ≤ j (upper triangle): one fine pixel's Gram terms.
+
+    Rows with v_i = d·u_i = 0 are skipped: they would add exact zeros.
+    """
+    for i in range(mm):
+        vi = v[i]
+        ui = d * u[i]
+        if vi == 0.0 and ui == 0.0:
+            continue
+        for j in range(i, mm):
+            gram[i, j] += vi * v[j] + ui * u[j]
+
+
 @numba.njit(cache=True, parallel=True)
 def _galerkin_stencil(weights, offs, a_diag, r, py_ptr, py_idx, py_val, px_ptr, px_idx, px_val,
                       ylo, xlo, m, block_rows, stride, stencil):
@@ -124,14 +139,7 @@ def _galerkin_stencil(weights, offs, a_diag, r, py_ptr, py_idx, py_val, px_ptr, 
                         for a in range(py_ptr[qy], py_ptr[qy + 1]):
                             for b in range(px_ptr[qx], px_ptr[qx + 1]):
                                 v[(py_idx[a] - y0) * m + px_idx[b] - x0] -= wt * py_val[a] * px_val[b]
-                    d = a_diag[y, x]
-                    for i in range(mm):
-                        vi = v[i]
-                        ui = d * u[i]
-                        if vi == 0.0 and ui == 0.0:
-                            continue
-                        for j in range(i, mm):
-                            gram[i, j] += vi * v[j] + ui * u[j]
+                    _add_outer(gram, v, u, a_diag[y, x], mm)
                 _flush(gram, stencil, y0, cur, m, big)
 
 
@@ -192,11 +200,7 @@ def _galerkin_stencil_3x3(weights, offs, a_diag, ytab, xtab, ylo, xlo, block_row
                     for i in range(m):
                         for j in range(m):
                             u[i * m + j] = ytab[y, 1, i] * xtab[x, 1, j]
-                    for i in range(mm):
-                        vi = v[i]
-                        ui = d * u[i]
-                        for j in range(i, mm):
-                            gram[i, j] += vi * v[j] + ui * u[j]
+                    _add_outer(gram, v, u, d, mm)
                 _flush(gram, stencil, y0, cur, m, big)
 
 

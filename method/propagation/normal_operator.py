@@ -208,9 +208,7 @@ def _apply_normal_3x3(p, weights, offs, a_diag, q, rowdot):
     (≈ 8× faster than the generic loops, whose runtime-offset slices LLVM does not vectorise).
     """
     hp, wp = p.shape
-    h = hp - 2
-    w = wp - 2
-    nblk = (h + _ROW_BLOCK - 1) // _ROW_BLOCK
+    _, h, w, nblk = _blocks(offs, hp, wp)  # r = 1
     for b in numba.prange(nblk):
         y0 = b * _ROW_BLOCK
         y1 = min(h, y0 + _ROW_BLOCK)
@@ -228,9 +226,7 @@ def _apply_normal_3x3(p, weights, offs, a_diag, q, rowdot):
 def _direction_and_apply_3x3(z, p_old, beta, weights, offs, a_diag, p_new, q, rowdot):
     """:func:`direction_and_apply` for the 3×3 neighbourhood, bit-identical (see :func:`_apply_normal_3x3`)."""
     hp, wp = z.shape
-    h = hp - 2
-    w = wp - 2
-    nblk = (h + _ROW_BLOCK - 1) // _ROW_BLOCK
+    _, h, w, nblk = _blocks(offs, hp, wp)  # r = 1
     for b in numba.prange(nblk):
         y0 = b * _ROW_BLOCK
         y1 = min(h, y0 + _ROW_BLOCK)

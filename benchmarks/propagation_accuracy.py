@@ -30,10 +30,6 @@ VARIANTS = {
     "galerkin (default: max(⌈2.5·s⌉, 20) its)": dict(),
     "galerkin, 24 its (the earlier default)": dict(refine_iterations=24),
     "galerkin, 48 its": dict(refine_iterations=48),
-    "two_level re-discretised, 4x, 80 its (previous default)": dict(refinement="two_level", downsample=4,
-                                                                     refine_iterations=80),
-    "two_level re-discretised, auto factor, 20·s its": dict(refinement="two_level"),
-    "jacobi, 60 its": dict(refinement="jacobi", refine_iterations=60),
 }
 
 

@@ -261,8 +261,7 @@ class DefocusParams:
     # 1 = exact full-resolution solve; 2, 4, … = that coarsening factor.
     propagation_refinement: str = "galerkin"
     # refinement of the upsampled coarse solution (key of method.propagation.defocus.PROPAGATION_REFINEMENTS):
-    # "galerkin" (default, above), "two_level" (the same CG with the re-discretised coarse system, the
-    # default before: 20·s iterations) or "jacobi" (Jacobi-preconditioned CG, ~0.15 px RMS at 1 MP).
+    # "galerkin" (the one, above; the earlier refinements and their distances: docs/performance.md).
 
     # --- beyond the paper: edge isolation and cue fusion in Eq. (4) -------------------------------
     edge_isolation: str | None = None
@@ -372,6 +371,12 @@ def _bad(p, name, allowed):
     raise ValueError(f"DefocusParams.{name}={getattr(p, name)!r} is invalid; allowed: {allowed}")
 
 
+def _need(p, name, ok, allowed):
+    """Raise :func:`_bad` for field ``name`` unless ``ok``."""
+    if not ok:
+        _bad(p, name, allowed)
+
+
 def _choice(p, name, registry, *, optional=False):
     registry.check(getattr(p, name), what=f"DefocusParams.{name}", optional=optional)
 
@@ -382,20 +387,15 @@ def _is_int(v, minimum):
 
 def _check_edges(p):
     """Sec. 3.1 (and the Canny and isolation options beyond the paper)."""
-    if not p.noise_std > 0:
-        _bad(p, "noise_std", "> 0")
-    if not 0 < p.false_positive_rate < 1:
-        _bad(p, "false_positive_rate", "0 < α_I < 1")
+    _need(p, "noise_std", p.noise_std > 0, "> 0")
+    _need(p, "false_positive_rate", 0 < p.false_positive_rate < 1, "0 < α_I < 1")
     _choice(p, "edge_detector", EDGE_DETECTORS)
-    if not (0 < p.canny_sigma < _INF):
-        _bad(p, "canny_sigma", "finite and > 0 (px)")
+    _need(p, "canny_sigma", 0 < p.canny_sigma < _INF, "finite and > 0 (px)")
     if not (0 <= p.canny_low_threshold <= p.canny_high_threshold < _INF):
         _bad(p, "canny_low_threshold", "finite 0 <= canny_low_threshold <= canny_high_threshold")
     _choice(p, "edge_isolation", EDGE_ISOLATION_METHODS, optional=True)
-    if not (0 < p.isolation_radius < _INF):
-        _bad(p, "isolation_radius", "finite and > 0 (units of σ̂)")
-    if not (0 < p.isolation_floor <= 1):
-        _bad(p, "isolation_floor", "0 < weight <= 1")
+    _need(p, "isolation_radius", 0 < p.isolation_radius < _INF, "finite and > 0 (units of σ̂)")
+    _need(p, "isolation_floor", 0 < p.isolation_floor <= 1, "0 < weight <= 1")
 
 
 def _check_edge_blur(p):
@@ -404,35 +404,25 @@ def _check_edge_blur(p):
     if p.edge_detector == "canny" and p.estimator != "gradient_ratio":
         _bad(p, "edge_detector", "'canny' only with estimator='gradient_ratio' (the other estimators read the "
                                  "Elder–Zucker σ2 scales); else 'elder_zucker'")
-    if not _is_int(p.fit_window_min, 3):
-        _bad(p, "fit_window_min", "integer >= 3")
+    _need(p, "fit_window_min", _is_int(p.fit_window_min, 3), "integer >= 3")
     if not (_is_int(p.fit_window_max, 3) and p.fit_window_max >= p.fit_window_min):
         _bad(p, "fit_window_max", "integer >= fit_window_min")
-    if not p.max_sigma > 0:
-        _bad(p, "max_sigma", "> 0")
-    if not 0 <= p.fit_max_residual <= 1:
-        _bad(p, "fit_max_residual", "0 <= ρ_max <= 1 (dimensionless normalised residual)")
-    if not (0 <= p.fit_residual_noise < _INF):
-        _bad(p, "fit_residual_noise", "finite and >= 0 (dimensionless)")
-    if not (0 < p.relaxed_fit_weight <= 1):
-        _bad(p, "relaxed_fit_weight", "0 < c <= 1 (dimensionless confidence)")
-    if not 0 < p.fit_scale_ratio <= 1:
-        _bad(p, "fit_scale_ratio", "0 < ratio <= 1 (dimensionless)")
+    _need(p, "max_sigma", p.max_sigma > 0, "> 0")
+    _need(p, "fit_max_residual", 0 <= p.fit_max_residual <= 1, "0 <= ρ_max <= 1 (dimensionless normalised residual)")
+    _need(p, "fit_residual_noise", 0 <= p.fit_residual_noise < _INF, "finite and >= 0 (dimensionless)")
+    _need(p, "relaxed_fit_weight", 0 < p.relaxed_fit_weight <= 1, "0 < c <= 1 (dimensionless confidence)")
+    _need(p, "fit_scale_ratio", 0 < p.fit_scale_ratio <= 1, "0 < ratio <= 1 (dimensionless)")
     if p.fit_max_scale is not None and not p.fit_max_scale > 0:
         _bad(p, "fit_max_scale", "None or > 0 (px)")
-    if not _is_int(p.fit_min_samples, 3):
-        _bad(p, "fit_min_samples", "integer >= 3")
-    if not p.fit_max_width_ratio > 0:
-        _bad(p, "fit_max_width_ratio", "> 0 (inf: no limit)")
+    _need(p, "fit_min_samples", _is_int(p.fit_min_samples, 3), "integer >= 3")
+    _need(p, "fit_max_width_ratio", p.fit_max_width_ratio > 0, "> 0 (inf: no limit)")
     _choice(p, "fit_below_scale", BELOW_SCALE_RULES)
     _choice(p, "fit_psf", FIT_PSF_MODELS)
     for name in ("ratio_gradient_sigma", "ratio_reblur_sigma"):
-        if not (0 < getattr(p, name) < _INF):
-            _bad(p, name, "finite and > 0 (px)")
+        _need(p, name, 0 < getattr(p, name) < _INF, "finite and > 0 (px)")
     if p.ratio_max_sigma is not None and not (0 < p.ratio_max_sigma < _INF):
         _bad(p, "ratio_max_sigma", "None or finite and > 0 (px)")
-    if not isinstance(p.ratio_zero_is_measure, bool):
-        _bad(p, "ratio_zero_is_measure", "True or False")
+    _need(p, "ratio_zero_is_measure", isinstance(p.ratio_zero_is_measure, bool), "True or False")
 
 
 def _check_region(p):
@@ -441,14 +431,11 @@ def _check_region(p):
     _choice(p, "region_psf", REGION_PSFS)
     _choice(p, "region_noise_model", REGION_NOISE_MODELS)
     for name in ("region_window_min", "region_window_max"):
-        if not _is_int(getattr(p, name), 16):
-            _bad(p, name, "integer >= 16 (px)")
-    if not _is_int(p.region_stride, 1):
-        _bad(p, "region_stride", "integer >= 1 (px)")
+        _need(p, name, _is_int(getattr(p, name), 16), "integer >= 16 (px)")
+    _need(p, "region_stride", _is_int(p.region_stride, 1), "integer >= 1 (px)")
     if p.region_window_max < p.region_window_min:
         _bad(p, "region_window_max", "integer >= region_window_min (px)")
-    if not (0 < p.region_window_scale < _INF):
-        _bad(p, "region_window_scale", "finite and > 0 (dimensionless)")
+    _need(p, "region_window_scale", 0 < p.region_window_scale < _INF, "finite and > 0 (dimensionless)")
     if not (0 <= p.region_sigma_min < p.region_sigma_max < _INF):
         _bad(p, "region_sigma_max" if p.region_sigma_min >= 0 else "region_sigma_min",
              "0 <= region_sigma_min < region_sigma_max < inf (px)")
@@ -456,35 +443,28 @@ def _check_region(p):
 
 def _check_refine(p):
     """Eq. (3): the biased cross-bilateral filter."""
-    if not isinstance(p.refine, bool):
-        _bad(p, "refine", "True or False")
+    _need(p, "refine", isinstance(p.refine, bool), "True or False")
     for name in ("bilateral_sigma_spatial", "bilateral_sigma_range", "bias_scale"):
-        if not getattr(p, name) > 0:
-            _bad(p, name, "> 0")
+        _need(p, name, getattr(p, name) > 0, "> 0")
     _choice(p, "bilateral_method", BILATERAL_METHODS)
     _choice(p, "bilateral_range_kernel", RANGE_KERNELS)
     _choice(p, "bias_reference", BIAS_REFERENCES)
-    if not _is_int(p.refinement_robust_iterations, 0):
-        _bad(p, "refinement_robust_iterations", "integer >= 0")
-    if not (0 < p.refinement_robust_scale < _INF):
-        _bad(p, "refinement_robust_scale", "finite and > 0")
+    _need(p, "refinement_robust_iterations", _is_int(p.refinement_robust_iterations, 0), "integer >= 0")
+    _need(p, "refinement_robust_scale", 0 < p.refinement_robust_scale < _INF, "finite and > 0")
 
 
 def _check_propagation(p):
     """Eq. (4): the propagation, its solver and the matting-Laplacian alternative."""
     _choice(p, "alpha_confidence", ALPHA_CONFIDENCES)
     for name in ("matting_lambda", "matting_epsilon", "alpha"):
-        if not getattr(p, name) > 0:
-            _bad(p, name, "> 0")
+        _need(p, name, getattr(p, name) > 0, "> 0")
     _choice(p, "matting_data_weight", MATTING_DATA_WEIGHTS)
     _choice(p, "propagation", PROPAGATION_METHODS)
     if p.propagation == "matting_laplacian" and p.alpha_confidence != "none":
         _bad(p, "alpha_confidence", "'none' with propagation='matting_laplacian' (its data term has no per-edge weight)")
     for name in ("propagation_window", "propagation_neighborhood"):
-        if not (_is_int(getattr(p, name), 3) and getattr(p, name) % 2 == 1):
-            _bad(p, name, "odd integer >= 3")
-    if not 0 < p.propagation_tol < 1:
-        _bad(p, "propagation_tol", "0 < tol < 1")
+        _need(p, name, _is_int(getattr(p, name), 3) and getattr(p, name) % 2 == 1, "odd integer >= 3")
+    _need(p, "propagation_tol", 0 < p.propagation_tol < 1, "0 < tol < 1")
     ds = p.propagation_downsample
     if not (ds == "auto" or (_is_int(ds, 1) and (ds & (ds - 1)) == 0)):
         _bad(p, "propagation_downsample", "'auto' or a power of two >= 1")
@@ -495,17 +475,13 @@ def _check_propagation(p):
 def _check_fusion(p):
     """The inverse-variance fusion of edge and region measures in Eq. (4) (beyond the paper)."""
     for name in ("fusion_edge_error_rel", "fusion_region_error_rel"):
-        if not (0 <= getattr(p, name) < _INF):
-            _bad(p, name, "finite and >= 0 (dimensionless relative error)")
-    if not (0 < p.fusion_region_weight < _INF):
-        _bad(p, "fusion_region_weight", "finite and > 0 (dimensionless)")
+        _need(p, name, 0 <= getattr(p, name) < _INF, "finite and >= 0 (dimensionless relative error)")
+    _need(p, "fusion_region_weight", 0 < p.fusion_region_weight < _INF, "finite and > 0 (dimensionless)")
     _choice(p, "fusion_region_placement", REGION_PLACEMENTS)
     if not (0 <= p.fusion_island_weight <= 1):
         _bad(p, "fusion_island_weight", "0 <= factor <= 1 (1: off; 0: island measures dropped)")
-    if not (0 <= p.fusion_straddle_weight <= 1):
-        _bad(p, "fusion_straddle_weight", "0 <= factor <= 1 (1: off)")
-    if not (0 < p.fusion_island_radius < _INF):
-        _bad(p, "fusion_island_radius", "finite and > 0 (px)")
+    _need(p, "fusion_straddle_weight", 0 <= p.fusion_straddle_weight <= 1, "0 <= factor <= 1 (1: off)")
+    _need(p, "fusion_island_radius", 0 < p.fusion_island_radius < _INF, "finite and > 0 (px)")
     if p.region_estimator is not None and p.propagation != "colorization":
         _bad(p, "propagation", "'colorization' when region_estimator is set (the fusion needs per-pixel "
              "data weights in Eq. 4)")
@@ -513,10 +489,8 @@ def _check_fusion(p):
 
 def _check_magnify(p):
     """Sec. 5: the map's preprocessing before magnification."""
-    if not 0 <= p.map_clip_percent < 50:
-        _bad(p, "map_clip_percent", "0 <= p < 50")
-    if not p.map_smoothing >= 0:
-        _bad(p, "map_smoothing", ">= 0")
+    _need(p, "map_clip_percent", 0 <= p.map_clip_percent < 50, "0 <= p < 50")
+    _need(p, "map_smoothing", p.map_smoothing >= 0, ">= 0")
     _choice(p, "map_floor", MAP_FLOOR_MODES)
 
 

@@ -28,6 +28,7 @@ from .blur.estimators import BLUR_ESTIMATORS, estimate_blur_measures
 from .edges.canny import detect_edges_canny
 from .refine.cross_bilateral import biased_cross_bilateral
 from .propagation.cue_fusion import fuse_cues
+from .propagation.data_weights import edge_confidence, propagation_confidence
 from .edges.isolation import isolation_weights
 from .edges.elder_zucker import EdgeMap, detect_edges
 from .luma import LUMA_WEIGHTS, luminance  # noqa: F401 (LUMA_WEIGHTS re-exported)
@@ -365,24 +366,6 @@ def refine_stage(sparse_sigma, rgb, *, params, confidence=None) -> np.ndarray:
     )
 
 
-def edge_confidence(sparse_sigma, refined_sigma) -> np.ndarray:
-    """Per-edge confidence of ``alpha_confidence="agreement"``: agreement of BM with bCBF (beyond the paper).
-
-    Parameters
-    ----------
-    sparse_sigma, refined_sigma : ndarray, HxW, float
-        Raw and refined blur σ, px (NaN off edges).
-
-    Returns
-    -------
-    ndarray, HxW, float64 in [0, 1]
-        c_p = exp(−(BM_p − bCBF_p)² / (2 τ_p²)), τ_p = 0.25·bCBF_p + 0.5 px; NaN off edges.
-    """
-    tau = 0.25 * np.maximum(refined_sigma, 0.0) + 0.5
-    with np.errstate(invalid="ignore"):
-        return np.exp(-0.5 * ((sparse_sigma - refined_sigma) / tau) ** 2)
-
-
 def edge_psf_family(sparse_sigma, psf_disk) -> str | None:
     """The PSF family most edge fits chose ("disk" or "gaussian"), for ``region_psf="edges"``.
 
@@ -479,33 +462,3 @@ def propagate_stage(refined_sigma, rgb, *, params, sparse_sigma=None, confidence
         return np.clip(dense, 0.0, params.max_sigma)
     dense = propagate_blur_measures(refined_sigma, rgb, params=params, confidence=confidence)
     return np.clip(dense, 0.0, params.max_sigma)
-
-
-def propagation_confidence(refined_sigma, *, params, sparse_sigma=None, confidence=None):
-    """The per-edge weight c_p of Eq. (4)'s data term (α_p = α·c_p), or None for the paper's constant α.
-
-    Parameters
-    ----------
-    refined_sigma : ndarray, HxW, float
-        Blur σ, px, at edge pixels (after Eq. 3); NaN elsewhere.
-    params : DefocusParams, keyword-only
-        Reads ``alpha_confidence``.
-    sparse_sigma : ndarray, HxW, float, or None, keyword-only
-        The raw measures (``alpha_confidence="agreement"``; None: refined used as raw).
-    confidence : ndarray, HxW, float in (0, 1], or None, keyword-only
-        The estimator's per-measure confidence (``DefocusResult.measure_confidence``).
-
-    Returns
-    -------
-    ndarray, HxW, float64 in [0, 1] (NaN off the refined measures), or None
-        The measure confidence times the agreement factor (:func:`edge_confidence`) when
-        ``alpha_confidence="agreement"``, else the measure confidence; None when neither applies.
-    """
-    measure = None if confidence is None else np.asarray(confidence, dtype=np.float64)
-    if params.alpha_confidence == "agreement":
-        raw = refined_sigma if sparse_sigma is None else sparse_sigma
-        agreement = np.where(np.isfinite(refined_sigma), edge_confidence(raw, refined_sigma), np.nan)
-        return agreement if measure is None else agreement * measure
-    if measure is not None:
-        return np.where(np.isfinite(refined_sigma), measure, np.nan)
-    return None

@@ -167,3 +167,58 @@ def test_the_registry_check_catches_plain_tables():
     probe.LIMITS = (1.0, 2.0)
     probe.GOOD = Registry("good", {"a": len})
     assert sorted(_name_tables(probe)) == ["CHOICES", "PAIRS", "SOLVERS"]
+
+
+#: Size limits of method/ (README.md "Developers' guide"): lines per module (all lines) and lines of code
+#: per function (docstring, blank and comment lines not counted).
+MAX_MODULE_LINES = 500
+MAX_FUNCTION_CODE_LINES = 100
+
+
+def _function_code_lines(source: str) -> dict[str, int]:
+    """Lines of code of every function in ``source``, {"name:lineno": count}; a nested function's
+    lines count for it and for the function around it."""
+    lines = source.splitlines()
+    out = {}
+    for node in ast.walk(ast.parse(source)):
+        if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        first = node.body[0]
+        doc = (range(first.lineno, first.end_lineno + 1) if isinstance(first, ast.Expr)
+               and isinstance(first.value, ast.Constant) and isinstance(first.value.value, str) else range(0))
+        out[f"{node.name}:{node.lineno}"] = sum(
+            1 for ln in range(node.lineno, node.end_lineno + 1)
+            if ln not in doc and lines[ln - 1].strip() and not lines[ln - 1].strip().startswith("#"))
+    return out
+
+
+def _too_long_functions(source: str) -> dict[str, int]:
+    """The functions of ``source`` over :data:`MAX_FUNCTION_CODE_LINES` lines of code."""
+    return {k: n for k, n in _function_code_lines(source).items() if n > MAX_FUNCTION_CODE_LINES}
+
+
+def test_method_modules_are_at_most_500_lines():
+    long = {str(p.relative_to(ROOT)): n for p in sorted((ROOT / "method").rglob("*.py"))
+            if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES}
+    assert not long, f"modules over {MAX_MODULE_LINES} lines: {long}"
+
+
+def test_method_functions_are_at_most_100_lines_of_code():
+    long = {f"{p.relative_to(ROOT)}:{name}": n for p in sorted((ROOT / "method").rglob("*.py"))
+            for name, n in _too_long_functions(p.read_text(encoding="utf-8")).items()}
+    assert not long, f"functions over {MAX_FUNCTION_CODE_LINES} lines of code: {long}"
+
+
+def test_function_length_checker_counts_code_only():
+    def function(n_code, *, padding):
+        body = "".join(f"    x{i} = {i}\n" for i in range(n_code - 2))  # def line and return count too
+        return ('def f():\n    """Doc\n\n    lines.\n    """\n' + ("\n    # comment\n\n" * padding) + body
+                + "    return 0\n")
+
+    at_limit = function(MAX_FUNCTION_CODE_LINES, padding=50)
+    assert _function_code_lines(at_limit) == {"f:1": MAX_FUNCTION_CODE_LINES}
+    assert _too_long_functions(at_limit) == {}  # docstring, blank and comment lines do not count
+    over = function(MAX_FUNCTION_CODE_LINES + 1, padding=0)
+    assert _too_long_functions(over) == {"f:1": MAX_FUNCTION_CODE_LINES + 1}
+    nested = "def outer():\n    def inner():\n        return 1\n    return inner\n"
+    assert _function_code_lines(nested) == {"outer:1": 4, "inner:2": 2}

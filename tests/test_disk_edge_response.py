@@ -181,9 +181,9 @@ def test_gaussian_model_is_the_paper_fit_bit_for_bit():
 
 @pytest.mark.parametrize("s_prime, sig_p, t0", [(1.5, 1.0, 0.0), (4.0, 0.6, 0.3), (9.0, 2.0, -0.45), (2.05, 2.0, 0.1)])
 def test_fit_kernel_disk_score_matches_the_public_response(s_prime, sig_p, t0):
-    """The fit's fast template scoring (blur_model_fit._score_disk) against templates from
+    """The fit's fast template scoring (method.blur.fit_templates._score_disk) against templates from
     disk_step_response: (r·m)²/(m·m) over the window, m(k) = r_disk(k − t0; R', σ')."""
-    from method.blur.model_fit import _score_disk
+    from method.blur.fit_templates import _score_disk
     from method.blur.disk_edge_response import response_table
 
     K = 20

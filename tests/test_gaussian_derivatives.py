@@ -234,3 +234,28 @@ def test_threshold_inputs_validated():
         second_derivative_threshold(1.0, noise_std=-1.0, alpha_p=1e-6)
     with pytest.raises(ValueError, match="alpha_p"):
         second_derivative_threshold(1.0, noise_std=0.01, alpha_p=0.0)
+
+
+def test_steering_weights_written_once():
+    """The steering arithmetic (cos/sin products of the 2nd and 3rd derivative) lives in
+    method.edges.gaussian_derivatives only; the kernels call its helpers."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1] / "method"
+    pattern = re.compile(r"2\.0 \* c \* s|3\.0 \* c \* c \* s|abs\(c\) >= abs\(s\)")
+    where = sorted(p.relative_to(root).as_posix() for p in root.rglob("*.py") if pattern.search(p.read_text()))
+    assert where == ["edges/gaussian_derivatives.py"]
+
+
+def test_steering_weights_match_the_closed_form_bit_for_bit():
+    from method.edges.gaussian_derivatives import nearest_axis_step, second_steering_weights, third_steering_weights
+
+    th = np.linspace(-np.pi, np.pi, 37)
+    c, s = np.cos(th), np.sin(th)
+    for got, want in zip(second_steering_weights(c, s), (c * c, 2.0 * c * s, s * s)):
+        np.testing.assert_array_equal(got, want)
+    for got, want in zip(third_steering_weights(c, s), (c * c * c, 3.0 * c * c * s, 3.0 * c * s * s, s * s * s)):
+        np.testing.assert_array_equal(got, want)
+    assert nearest_axis_step(0.9, -0.3) == (0, 1, 0.9)
+    assert nearest_axis_step(-0.2, -0.8) == (-1, 0, 0.8)

@@ -5,6 +5,7 @@ import pytest
 import scipy.sparse as sp
 
 import method.propagation.matrix_free as MF
+import method.propagation.normal_operator as NO
 import method.propagation.solvers as S
 import method.propagation.system as E
 
@@ -30,28 +31,15 @@ def test_matrix_free_operator_matches_assembled(neighborhood, shape):
     xp[r:r + h, r:r + w] = x
     q = np.zeros_like(xp)
     rowdot = np.zeros(h)
-    MF._apply_normal(xp, weights, offs, (a + lam).reshape(h, w), q, rowdot)
+    NO.apply_normal(xp, weights, offs, (a + lam).reshape(h, w), q, rowdot)
     expected = (A @ x.ravel()).reshape(h, w)
     np.testing.assert_allclose(q[r:r + h, r:r + w], expected, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(rowdot, np.sum(x * expected, axis=1), rtol=1e-10, atol=1e-12)
     # the padding stays zero
     assert not q[:r].any() and not q[-r:].any() and not q[:, :r].any() and not q[:, -r:].any()
     diag = np.zeros_like(xp)
-    MF._normal_diagonal(weights, offs, (a + lam).reshape(h, w), r, diag)
+    NO.normal_diagonal(weights, offs, (a + lam).reshape(h, w), r, diag)
     np.testing.assert_allclose(diag[r:r + h, r:r + w].ravel(), A.diagonal(), rtol=1e-12)
-
-
-def test_matrix_free_cg_solves_the_system():
-    rng = np.random.default_rng(5)
-    h, w = 40, 45
-    ref, bm = _case(rng, h, w)
-    A, rhs = E.normal_equations(bm, ref)
-    a, _, lam, _ = E.data_term(bm, 0.5, 1e-6)
-    weights, offs = E.padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
-    x, res = MF.jacobi_pcg(weights, offs, (a + lam).reshape(h, w), rhs.reshape(h, w),
-                                       np.zeros((h, w)), maxiter=5000, tol=1e-9)
-    assert res <= 1e-9
-    assert np.linalg.norm(A @ x.ravel() - rhs) <= 2e-9 * np.linalg.norm(rhs)
 
 
 def test_float32_weights_close_to_float64():
@@ -103,10 +91,9 @@ def test_fused_direction_and_apply_bit_identical(neighborhood, shape):
     z, p_old = pad(rng.standard_normal((h, w))), pad(rng.standard_normal((h, w)))
     beta = 0.37
     p_new, q, rowdot = np.zeros_like(z), np.zeros_like(z), np.zeros(h)
-    MF._direction_and_apply(z, p_old, beta, weights, offs, a_diag, p_new, q, rowdot)
-    p_ref, q_ref, rowdot_ref = p_old.copy(), np.zeros_like(z), np.zeros(h)
-    MF._new_direction(z, p_ref, beta, r)
-    MF._apply_normal(p_ref, weights, offs, a_diag, q_ref, rowdot_ref)
+    NO.direction_and_apply(z, p_old, beta, weights, offs, a_diag, p_new, q, rowdot)
+    p_ref, q_ref, rowdot_ref = z + beta * p_old, np.zeros_like(z), np.zeros(h)  # padding stays 0
+    NO.apply_normal(p_ref, weights, offs, a_diag, q_ref, rowdot_ref)
     np.testing.assert_array_equal(p_new, p_ref)
     np.testing.assert_array_equal(q, q_ref)
     np.testing.assert_array_equal(rowdot, rowdot_ref)
@@ -121,12 +108,12 @@ def test_unrolled_3x3_kernels_bit_identical_to_generic(shape):
     a, _, lam, _ = E.data_term(bm, 0.5, 1e-6)
     a_diag = (a + lam).reshape(h, w)
     weights, offs = E.padded_weights(ref, 7, 3, 1e-6)
-    assert MF._operator_kernels(offs) == (MF._apply_normal_3x3, MF._direction_and_apply_3x3)
-    assert MF._operator_kernels(E._offsets(5)) == (MF._apply_normal, MF._direction_and_apply)
+    assert NO.operator_kernels(offs) == (NO._apply_normal_3x3, NO._direction_and_apply_3x3)
+    assert NO.operator_kernels(E._offsets(5)) == (NO.apply_normal, NO.direction_and_apply)
     z, p_old = np.pad(rng.standard_normal((h, w)), 1), np.pad(rng.standard_normal((h, w)), 1)
     outs = []
-    for apply_normal, direction_and_apply in [(MF._apply_normal, MF._direction_and_apply),
-                                              (MF._apply_normal_3x3, MF._direction_and_apply_3x3)]:
+    for apply_normal, direction_and_apply in [(NO.apply_normal, NO.direction_and_apply),
+                                              (NO._apply_normal_3x3, NO._direction_and_apply_3x3)]:
         q1, rd1 = np.zeros_like(z), np.zeros(h)
         apply_normal(z, weights, offs, a_diag, q1, rd1)
         p_new, q2, rd2 = np.zeros_like(z), np.zeros_like(z), np.zeros(h)
@@ -186,12 +173,14 @@ def test_two_level_cg_solves_the_system(setup):
     A, rhs = E.normal_equations(bm, ref)
     a, _, lam, _ = E.data_term(bm, 0.5, 1e-6)
     weights, offs = E.padded_weights(ref, 7, 3, 1e-6, dtype=np.float64)
-    ref_c, bm_c, a_c = E.coarse_problem(bm, ref, s, 0.5)
-    A_c = E.assemble_system(E.colorization_matrix(ref_c), a_c.ravel(), 1e-6 * 0.5 * s * s)
+    from method.propagation.galerkin import galerkin_coarse_operator
+
+    coarse_shape = (-(-h // s), -(-w // s))
+    A_c = galerkin_coarse_operator(weights, offs, (a + lam).reshape(h, w), s=s, coarse_shape=coarse_shape)
     coarse = S.COARSE_SETUPS[setup](A_c)
     x, res = MF.two_level_pcg(weights, offs, (a + lam).reshape(h, w), rhs.reshape(h, w),
-                                          np.zeros((h, w)), coarse=coarse, s=s,
-                                          coarse_shape=bm_c.shape, maxiter=2000, tol=1e-10)
+                              np.zeros((h, w)), coarse=coarse, s=s, coarse_shape=coarse_shape,
+                              maxiter=2000, tol=1e-10)
     assert res <= 1e-10
     assert np.linalg.norm(A @ x.ravel() - rhs) <= 2e-10 * np.linalg.norm(rhs)
 

@@ -12,6 +12,7 @@ import pytest
 from scipy.ndimage import convolve
 
 import method.blur.local_spectrum as bls
+import method.blur.spectrum_model as bsm
 from method import PRESETS, DefocusParams
 from method.blur.region_estimators import REGION_ESTIMATORS, estimate_region_blur
 from scenes.analytic import dead_leaves, degrade
@@ -145,7 +146,7 @@ def test_ring_powers_match_a_per_window_loop():
     n = 16
     ys, xs = np.array([0, 10, 79]), np.array([5, 40, 79])
     fast = bls._ring_powers(z, ys, xs, n)
-    w = bls._hann(n)
+    w = bsm.hann_window(n)
     k = np.fft.fftfreq(n) * n
     for i, (y, x) in enumerate(zip(ys, xs)):
         px = np.abs(np.fft.fft2(w * gx[y:y + n, x:x + n])) ** 2 + np.abs(np.fft.fft2(w * gy[y:y + n, x:x + n])) ** 2
@@ -162,9 +163,9 @@ def test_windowed_expectation_matches_direct_double_sum():
     n, L = 6, 32
     wv = 2 * np.pi * np.fft.fftfreq(L)
     spec = np.exp(-(1.3 ** 2) * (wv[None] ** 2 + wv[:, None] ** 2)) + 0.1
-    fast = bls._windowed_expectation(spec, n)
+    fast = bsm._windowed_expectation(spec, n)
     acf = np.real(np.fft.ifft2(spec))  # R at integer lags (mod L)
-    w = bls._hann(n)
+    w = bsm.hann_window(n)
     slow = np.zeros((n, n))
     pos = [(a, b) for a in range(n) for b in range(n)]
     for ka in range(n):
@@ -185,7 +186,7 @@ def test_fit_matches_a_per_window_brute_force_likelihood():
     z = bls._gradient_field(img)
     n = 24
     grid = tuple(float(x) for x in bls.sigma_grid(0.0, 12.0, "gaussian"))
-    A, dA, Nu, kappa = bls._model_tables(n, "gaussian", grid)
+    A, dA, Nu, kappa = bsm.model_tables(n, "gaussian", grid)
     ys = xs = np.array([0, 30, 60])
     P = bls._ring_powers(z, ys, xs, n).astype(np.float64)
     v = bls.estimate_noise_variance(img)

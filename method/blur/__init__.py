@@ -1,10 +1,12 @@
 """Blur estimation (Sec. 3.2): σ at edge pixels (the paper's model fit of Eq. 2c and baselines) and σ
 over textured regions from the local spectrum (the second cue), each family in one registry.
 
-Edge estimators (:data:`BLUR_ESTIMATORS`, :mod:`.estimators`): :mod:`.model_fit` (Eq. 2c),
+Edge estimators (:data:`BLUR_ESTIMATORS`, :mod:`.estimators`): :mod:`.model_fit` (Eq. 2c; its template
+search in :mod:`.fit_templates`, the PSF-model choice in :mod:`.psf_selection`),
 :mod:`.model_fit_checked`, :mod:`.zero_crossing` (Elder & Zucker), :mod:`.gradient_ratio` (Zhuo & Sim);
 :mod:`.disk_edge_response` (the disk PSF's step response). Region estimators
-(:data:`REGION_ESTIMATORS`, :mod:`.region_estimators`): :mod:`.local_spectrum`, :mod:`.gsm`.
+(:data:`REGION_ESTIMATORS`, :mod:`.region_estimators`): :mod:`.local_spectrum` (its model spectra in
+:mod:`.spectrum_model`, the noise estimate in :mod:`.image_noise`), :mod:`.gsm`.
 """
 
 from .estimators import BLUR_ESTIMATORS, estimate_blur, estimate_blur_measures, estimate_blur_with_confidence

@@ -20,14 +20,12 @@ convolved with the 1-px box of the pixel (the harness's renders) and the reporte
 
 from __future__ import annotations
 
-import functools
-import math
-
 import numpy as np
 import scipy.fft
 from numpy.lib.stride_tricks import sliding_window_view
-from scipy.special import j1
 
+from .image_noise import estimate_noise_variance
+from .spectrum_model import hann_window, model_tables, ring_matrix, sigma_grid
 from ..registry import Registry
 
 __all__ = [
@@ -57,185 +55,6 @@ MIN_LOG_LR = 25.0
 _BATCH = 512
 
 
-def sigma_grid(sigma_min, sigma_max, psf):
-    """The candidate σ of the grid search, px (reported convention).
-
-    Parameters
-    ----------
-    sigma_min, sigma_max : float
-        Range of reported σ, px (0 <= sigma_min < sigma_max). For ``psf="disk"`` values below
-        1/√12 px (no disk, only the pixel's box) are raised to it.
-    psf : {"gaussian", "disk"}
-
-    Returns
-    -------
-    ndarray, (G,), float64
-        Steps of 0.125 px up to 2 px, then a geometric ratio of 1.05.
-    """
-    lo = float(sigma_min)
-    if psf == "disk":
-        lo = max(lo, 1.0 / math.sqrt(12.0))
-    fine = np.arange(lo, min(2.0, sigma_max), 0.125)
-    start = max(2.0, lo)
-    n_geo = max(2, int(math.ceil(math.log(sigma_max / start) / math.log(1.05))) + 1) if sigma_max > start else 0
-    geo = np.geomspace(start, sigma_max, n_geo) if n_geo else np.array([float(sigma_max)])
-    return np.unique(np.concatenate([fine, geo]))
-
-
-def _hann(n):
-    w = 0.5 - 0.5 * np.cos(2 * np.pi * (np.arange(n) + 0.5) / n)
-    return np.outer(w, w)
-
-
-#: Rings above this index are merged in pairs, above twice it in fours (bounds the bands per window).
-RING_MERGE = 16
-
-
-def _rings(n):
-    """Band index of each DFT bin of an n×n window, 0 at DC, and the band count.
-
-    Band = ring round(|k|) (k in DFT index units) up to RING_MERGE; beyond it rings are merged in
-    pairs, beyond 2·RING_MERGE in fours (their expected powers vary slowly there).
-    """
-    k = np.fft.fftfreq(n) * n
-    r = np.rint(np.hypot(k[:, None], k[None, :])).astype(np.int64).ravel()
-    m = RING_MERGE
-    band = np.where(r <= m, r, np.where(r <= 2 * m, m + (r - m + 1) // 2, m + m // 2 + (r - 2 * m + 3) // 4))
-    return band, int(band.max()) + 1
-
-
-def _transfer_sq(psf, sig, wx, wy):
-    """|H|² of the blur on the frequency grid (wx, wy, rad/px) for reported σ ``sig``."""
-    w2 = wx ** 2 + wy ** 2
-    if psf == "gaussian":
-        return np.exp(-(sig ** 2) * w2)
-    radius = 2.0 * math.sqrt(max(sig ** 2 - 1.0 / 12.0, 0.0))
-    box = np.sinc(wx / (2 * np.pi)) * np.sinc(wy / (2 * np.pi))  # np.sinc(x) = sin(πx)/(πx)
-    if radius <= 0:
-        return box ** 2
-    u = radius * np.sqrt(w2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        disk = np.where(u > 1e-8, 2.0 * j1(u) / u, 1.0)
-    return (disk * box) ** 2
-
-
-def _windowed_expectation(spectra, n):
-    """Exact expected periodograms of n×n Hann-windowed stationary fields of DTFT powers ``spectra``.
-
-    ``spectra`` (..., L, L) real and even, sampled on an L×L DFT grid (L ≥ 2n); their inverse FFT
-    gives the autocorrelations R at integer lags (:func:`_windowed_expectation_acf`). Returns (..., n, n).
-    """
-    L = spectra.shape[-1]
-    return _windowed_expectation_acf(scipy.fft.irfft2(spectra[..., : L // 2 + 1], s=(L, L)), n)
-
-
-def _windowed_expectation_acf(acf, n):
-    """Expected periodograms of n×n Hann windows from autocorrelations ``acf`` (..., L, L) at lags mod L.
-
-    R is multiplied by the window's autocorrelation r_w (|τ| < n, exact) and folded modulo n:
-    E|Σ_x w(x) f(x) e^{-iω_k·x}|² = Σ_τ r_w(τ) R(τ) e^{-iω_k·τ} at ω_k = 2πk/n.
-    """
-    L = acf.shape[-1]
-    pad = np.zeros((2 * n, 2 * n))
-    pad[:n, :n] = _hann(n)
-    rw = np.real(scipy.fft.ifft2(np.abs(scipy.fft.fft2(pad)) ** 2))  # r_w at lags mod 2n; 0 at |τ| = n
-    lag = np.concatenate([np.arange(0, n + 1), np.arange(-n + 1, 0)])  # circular order mod 2n
-    c = rw * acf[..., (lag % L)[:, None], (lag % L)[None, :]]
-    folded = c[..., :n, :] + c[..., n:, :]
-    folded = folded[..., :, :n] + folded[..., :, n:]
-    return np.real(scipy.fft.fft2(folded))
-
-
-@functools.lru_cache(maxsize=8)
-def _acf_tables(psf, grid, L):
-    """Autocorrelations at integer lags (mod L) of the model's gradient fields: signal (G, L, L) per σ, noise (L, L).
-
-    Signal: DTFT |H_σ|²·Q (Q = (|Dx|² + |Dy|²)/|ω|², the forward-difference gradient of a 1/|ω|²
-    texture); noise: |Dx|² + |Dy|² (the gradient of unit white noise). Shared by every window size.
-    """
-    w = 2 * np.pi * np.fft.fftfreq(L)
-    wx, wy = w[None, : L // 2 + 1], w[:, None]  # the half plane of a real inverse FFT
-    d2 = 4 * np.sin(wx / 2) ** 2 + 4 * np.sin(wy / 2) ** 2  # |Dx|² + |Dy|² of forward differences
-    w2 = wx ** 2 + wy ** 2
-    q = np.where(w2 > 0, d2 / np.where(w2 > 0, w2, 1.0), 1.0)
-    spectra = np.stack([q * _transfer_sq(psf, s, wx, wy) for s in grid])
-    return scipy.fft.irfft2(spectra, s=(L, L)), scipy.fft.irfft2(d2, s=(L, L))
-
-
-@functools.lru_cache(maxsize=64)
-def _model_tables(n, psf, grid):
-    """Ring-summed expected periodograms of an n×n window: signal (G, B) per unit s, noise (B,) per unit v.
-
-    Returns (A, dA, N, kappa): A[g, b] the expected ring-b power of the gradient of a blurred
-    1/|ω|² texture (s = 1) for σ = grid[g]; dA its σ-derivative (central differences); N[b] that of
-    unit white noise; kappa[b] the effective Gamma shape of the ring sum (bins / window variance
-    inflation).
-    """
-    grid_arr = np.asarray(grid)
-    L = 128 if 2 * n <= 128 else 256 * (-(-2 * n // 256))  # ≥ 2n; R(τ ≥ 64) < 1e-3 R(0) at σ ≤ 12
-    acf, acf_noise = _acf_tables(psf, grid, L)
-    onehot = _ring_matrix(n).astype(np.float64)
-    A = _windowed_expectation_acf(acf, n).reshape(len(grid), -1) @ onehot
-    dA = np.gradient(A, grid_arr, axis=0)
-    N = _windowed_expectation_acf(acf_noise, n).ravel() @ onehot
-    win = _hann(n)
-    inflation = n * n * np.sum(win ** 4) / np.sum(win ** 2) ** 2
-    kappa = onehot.sum(0) / inflation
-    return A, dA, N, kappa
-
-
-#: 3×3 high-pass of the noise estimate (second differences in x and y): its response to white
-#: noise of variance v has variance 36·v, and it is 0 on any linear ramp.
-_NOISE_MASK = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
-#: Block side (px) and quantile of the block energies of the noise estimate.
-_NOISE_BLOCK = 8
-_NOISE_QUANTILE = 0.1
-
-
-def _block_energy_quantile(g):
-    h = (g[:-2, :-2] - 2 * g[:-2, 1:-1] + g[:-2, 2:] - 2 * g[1:-1, :-2] + 4 * g[1:-1, 1:-1]
-         - 2 * g[1:-1, 2:] + g[2:, :-2] - 2 * g[2:, 1:-1] + g[2:, 2:])
-    b = _NOISE_BLOCK
-    hh, ww = (h.shape[0] // b) * b, (h.shape[1] // b) * b
-    if hh == 0 or ww == 0:
-        return float(np.mean(h ** 2)) if h.size else 0.0
-    e = (h[:hh, :ww] ** 2).reshape(hh // b, b, ww // b, b).mean(axis=(1, 3))
-    return float(np.quantile(e, _NOISE_QUANTILE))
-
-
-@functools.lru_cache(maxsize=1)
-def _noise_quantile_bias():
-    """Block-energy quantile of unit white noise / 36 (a seeded 256² noise image; measured once)."""
-    z = np.random.default_rng(12345).standard_normal((258, 258))
-    return _block_energy_quantile(z) / 36.0
-
-
-def estimate_noise_variance(gray, *, bits=8):
-    """White-noise variance of an image from its quietest blocks of second differences, image units².
-
-    Parameters
-    ----------
-    gray : ndarray, HxW, float
-        Image in [0, 1].
-    bits : int or None, keyword-only
-        Bit depth of the data: the variance is at least LSB²/12 of that quantisation (None: no floor).
-
-    Returns
-    -------
-    float
-        max(q₁₀ / (36·b), LSB²/12): q₁₀ the 10 % quantile of the mean squared 3×3 second-difference
-        response over 8×8 blocks, b the same quantile's value for unit white noise (so pure white
-        noise gives its variance); texture raises few of the quietest blocks.
-    """
-    g = np.asarray(gray, dtype=np.float64)
-    if min(g.shape) < 3:
-        v = 0.0
-    else:
-        v = _block_energy_quantile(g) / (36.0 * _noise_quantile_bias())
-    floor = (1.0 / (2 ** bits - 1)) ** 2 / 12.0 if bits else 0.0
-    return float(max(v, floor))
-
-
 def _gradient_field(gray):
     g = np.asarray(gray, dtype=np.float32)
     gx = g[:-1, 1:] - g[:-1, :-1]
@@ -247,19 +66,10 @@ def _window_starts(centres, n, size):
     return np.clip(centres - n // 2, 0, size - n)
 
 
-@functools.lru_cache(maxsize=16)
-def _ring_matrix(n):
-    ring, n_rings = _rings(n)
-    keep = ring > 0
-    onehot = np.zeros((n * n, n_rings - 1), dtype=np.float32)
-    onehot[np.flatnonzero(keep), ring[keep] - 1] = 1.0
-    return onehot
-
-
 def _ring_powers(z, ys, xs, n):
     """Ring-summed periodograms (len(ys), B) of the n×n Hann windows of z starting at (ys, xs)."""
-    win = _hann(n).astype(np.float32)
-    onehot = _ring_matrix(n)
+    win = hann_window(n).astype(np.float32)
+    onehot = ring_matrix(n)
     view = sliding_window_view(z, (n, n))
     out = np.empty((len(ys), onehot.shape[1]), dtype=np.float32)
     batch = max(1, (_BATCH * 64 * 64) // (n * n))
@@ -452,7 +262,7 @@ def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=
     yy, xx = yy.ravel(), xx.ravel()
 
     def run(n, idx, prior=None):
-        A, dA, Nu, kappa = _model_tables(n, psf, grid)
+        A, dA, Nu, kappa = model_tables(n, psf, grid)
         P = _ring_powers(z, _window_starts(yy[idx], n, hz), _window_starts(xx[idx], n, wz), n)
         N = _noise_rings(P, v, Nu, noise_model)
         allowed = None

@@ -13,7 +13,7 @@ import numpy as np
 
 from .model_fit import blur_from_extrema_distance
 from ..edges.elder_zucker import check_edge_inputs, edge_pixels_by_scale
-from ..edges.gaussian_derivatives import GaussianDerivativeBank
+from ..edges.gaussian_derivatives import GaussianDerivativeBank, nearest_axis_step, third_steering_weights
 
 __all__ = ["estimate_blur_zero_crossing"]
 
@@ -25,11 +25,8 @@ def _zc_kernel(ixxx, ixxy, ixyy, iyyy, rows, cols, cos_t, sin_t, max_steps, out_
         out_d[n] = np.nan
         i0, j0 = rows[n], cols[n]
         c, s = cos_t[n], sin_t[n]
-        if abs(c) >= abs(s):
-            di, dj, proj = 0, (1 if c >= 0 else -1), abs(c)
-        else:
-            di, dj, proj = (1 if s >= 0 else -1), 0, abs(s)
-        c3, c2s, cs2, s3 = c * c * c, 3.0 * c * c * s, 3.0 * c * s * s, s * s * s
+        di, dj, proj = nearest_axis_step(c, s)
+        c3, c2s, cs2, s3 = third_steering_weights(c, s)
         # dark side: first k <= 0 (walking outward) with r3(k) <= 0 < r3(k − 1)
         z_dark = np.nan
         prev = c3 * ixxx[i0, j0] + c2s * ixxy[i0, j0] + cs2 * ixyy[i0, j0] + s3 * iyyy[i0, j0]

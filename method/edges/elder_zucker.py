@@ -16,7 +16,7 @@ import dataclasses
 import numba
 import numpy as np
 
-from .gaussian_derivatives import GaussianDerivativeBank, check_gray_image
+from .gaussian_derivatives import GaussianDerivativeBank, check_gray_image, nearest_axis_step, second_steering_weights
 from .noise_thresholds import (
     first_derivative_threshold,
     per_pixel_false_positive_rate,
@@ -119,17 +119,12 @@ def _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, c2, scale, level, sigma1, s
                 continue
             c = cos_t[i, j]
             s = sin_t[i, j]
-            if abs(c) >= abs(s):
-                di = 0
-                dj = 1 if c >= 0 else -1
-            else:
-                di = 1 if s >= 0 else -1
-                dj = 0
+            di, dj, _ = nearest_axis_step(c, s)
             im, jm, ip, jp = i - di, j - dj, i + di, j + dj
             if im < 0 or im >= h or jm < 0 or jm >= w or ip < 0 or ip >= h or jp < 0 or jp >= w:
                 left += 1
                 continue
-            cc, cs2, ss = c * c, 2.0 * c * s, s * s
+            cc, cs2, ss = second_steering_weights(c, s)
             vm = cc * ixx[im, jm] + cs2 * ixy[im, jm] + ss * iyy[im, jm]
             vp = cc * ixx[ip, jp] + cs2 * ixy[ip, jp] + ss * iyy[ip, jp]
             if abs(vm) <= c2 or abs(vp) <= c2:

@@ -46,9 +46,12 @@ __all__ = [
     "GaussianDerivativeBank",
     "gaussian_derivative",
     "sampled_kernel",
+    "nearest_axis_step",
+    "second_steering_weights",
     "steer_first",
     "steer_second",
     "steer_third",
+    "third_steering_weights",
 ]
 
 #: Reflect padding added on every side, in multiples of the largest σ requested (px).
@@ -264,6 +267,50 @@ def steer_first(ix, iy, theta):
     return np.cos(theta) * ix + np.sin(theta) * iy
 
 
+@numba.njit(cache=True, inline="always")
+def nearest_axis_step(c, s):
+    """The one-pixel step along the image axis closest to the direction (cos θ, sin θ) = (c, s).
+
+    Returns
+    -------
+    di, dj : int
+        Row and column step (one of them 0, the other ±1; x right, y down).
+    proj : float
+        max(|c|, |s|): a straight edge normal to θ is crossed every 1/proj steps.
+    """
+    if abs(c) >= abs(s):
+        return 0, (1 if c >= 0 else -1), abs(c)
+    return (1 if s >= 0 else -1), 0, abs(s)
+
+
+@numba.njit(cache=True, inline="always")
+def second_steering_weights(c, s):
+    """Weights (cos²θ, 2 cos θ sin θ, sin²θ) of I_xx, I_xy, I_yy in the steered 2nd derivative.
+
+    The one definition of the steering arithmetic: :func:`steer_second` and the numba kernels that
+    steer per pixel (edge detection, model fit) use it, so all give bit-identical values.
+
+    Parameters
+    ----------
+    c, s : float or ndarray
+        cos θ and sin θ (θ in radians).
+
+    Returns
+    -------
+    tuple of float or ndarray
+        (c·c, 2·c·s, s·s), dimensionless.
+    """
+    return c * c, 2.0 * c * s, s * s
+
+
+@numba.njit(cache=True, inline="always")
+def third_steering_weights(c, s):
+    """(c·c·c, 3·c·c·s, 3·c·s·s, s·s·s): the weights of I_xxx, I_xxy, I_xyy, I_yyy in the steered 3rd
+    derivative, c = cos θ and s = sin θ as in :func:`second_steering_weights` (used by
+    :func:`steer_third` and the zero-crossing kernel)."""
+    return c * c * c, 3.0 * c * c * s, 3.0 * c * s * s, s * s * s
+
+
 def steer_second(ixx, ixy, iyy, theta):
     """Steered 2nd derivative along θ, Eq. (8d/e) with y down.
 
@@ -280,8 +327,8 @@ def steer_second(ixx, ixy, iyy, theta):
     -------
     ndarray
     """
-    c, s = np.cos(theta), np.sin(theta)
-    return c * c * ixx + 2.0 * c * s * ixy + s * s * iyy
+    cc, cs2, ss = second_steering_weights(np.cos(theta), np.sin(theta))
+    return cc * ixx + cs2 * ixy + ss * iyy
 
 
 def steer_third(ixxx, ixxy, ixyy, iyyy, theta):
@@ -290,8 +337,8 @@ def steer_third(ixxx, ixxy, ixyy, iyyy, theta):
     cos³θ·I_xxx + 3cos²θ sin θ·I_xxy + 3cos θ sin²θ·I_xyy + sin³θ·I_yyy; used by the
     zero-crossing blur estimator (the 3rd derivative is separable-steerable with 4 basis filters).
     """
-    c, s = np.cos(theta), np.sin(theta)
-    return c ** 3 * ixxx + 3.0 * c * c * s * ixxy + 3.0 * c * s * s * ixyy + s ** 3 * iyyy
+    c3, c2s, cs2, s3 = third_steering_weights(np.cos(theta), np.sin(theta))
+    return c3 * ixxx + c2s * ixxy + cs2 * ixyy + s3 * iyyy
 
 
 def sampled_kernel(sigma, *, order_x, order_y, radius=None):

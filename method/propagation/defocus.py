@@ -28,11 +28,11 @@ Where each part lives (as pymatting splits laplacian / solver / preconditioner)
 * :mod:`method.propagation.system` — the equation: affinities of Eq. (4c)
   (:func:`~method.propagation.system.colorization_weights`), L = I − W
   (:func:`~method.propagation.system.colorization_matrix`), the normal equations
-  (:func:`~method.propagation.system.normal_equations`) and the coarse re-discretisation;
+  (:func:`~method.propagation.system.normal_equations`);
 * :mod:`method.propagation.solvers` — solvers of the assembled system (:data:`PROPAGATION_SOLVERS`:
   AMG-PCG, direct) and the coarse level of the coarse mode (AMG hierarchy + V-cycle, or LU);
 * :mod:`method.propagation.matrix_free` — the matrix-free preconditioned CGs at full resolution and
-  their numba kernels (two-level: Jacobi + coarse-grid correction; Jacobi alone);
+  their numba kernels (two-level: Jacobi + coarse-grid correction);
 * this module — the driver :func:`propagate_defocus` (validation, exact or coarse mode, refinement).
 
 Solving (see :func:`propagate_defocus`, Notes)
@@ -56,11 +56,10 @@ import math
 import numpy as np
 
 from .galerkin import galerkin_coarse_operator, prolong, restrict
-from .matrix_free import jacobi_pcg, two_level_pcg
+from .matrix_free import two_level_pcg
 from .solvers import COARSE_SETUPS, PROPAGATION_SOLVERS
 from .system import (
     assemble_system,
-    coarse_problem,
     data_term,
     padded_weights,
     validate_options,
@@ -118,9 +117,9 @@ DEFAULT_COARSE_TOL = 1e-3
 #: covers small s. Galerkin: max(⌈2.5·s⌉, 20) — 20 at 4× and 8× (256² to 1.5 MP), 40 at 16×. On the
 #: astronaut photo (``benchmarks/propagation_accuracy.py``; RMS / p99 px from the exact solve) at 512²
 #: (8×) paper 0.016 / 0.069, robust 0.032 / 0.15; at 1024² (8×) paper 0.019 / 0.082, robust 0.026 /
-#: 0.092 (the targets: ≤ 0.03 px RMS, ≤ 0.15 px p99). Re-discretised two-level: 20·s; Jacobi: 60.
-#: Earlier defaults and their distances: docs/performance.md.
-DEFAULT_REFINE_ITERATIONS = {"galerkin": (2.5, 20), "two_level": (20, 0), "jacobi": (0, 60)}
+#: 0.092 (the targets: ≤ 0.03 px RMS, ≤ 0.15 px p99). Earlier refinements and their distances:
+#: docs/performance.md.
+DEFAULT_REFINE_ITERATIONS = {"galerkin": (2.5, 20)}
 
 
 def _default_refine_iterations(refinement: str, s: int) -> int:
@@ -141,22 +140,6 @@ class _FineSystem:
     fill: float                # mean of the measures (start value)
 
 
-def _rediscretised_start(fine, s, *, alpha, regularization, confidence, window, neighborhood, eps,
-                         solver, coarse_tol):
-    """Coarse Eq. (4) rebuilt from the block-averaged guide (α_c = s²·Σ α); its solve, interpolated."""
-    h, w = fine.sparse_sigma.shape
-    ref_c, bm_c, a_c = coarse_problem(fine.sparse_sigma, fine.ref, s, alpha, confidence)
-    hc, wc = bm_c.shape
-    L_c = colorization_matrix(ref_c, window=window, neighborhood=neighborhood, eps=eps)
-    lam_c = regularization * alpha * s * s
-    target = float(np.sum(a_c * bm_c) / np.sum(a_c))
-    level = COARSE_SETUPS[solver](assemble_system(L_c, a_c.ravel(), lam_c))
-    del L_c
-    rhs_c = (a_c * bm_c).ravel() + lam_c * target
-    coarse = level.solve(rhs_c, np.full(hc * wc, target), coarse_tol).reshape(hc, wc)
-    return prolong(coarse, s=s, shape=(h, w)), level, float(s * s)
-
-
 def _galerkin_start(fine, s, *, solver, coarse_tol, **_):
     """Galerkin coarse operator PᵀAP of the fine system; x0 = P (PᵀAP)⁻¹ Pᵀ rhs (to ``coarse_tol``)."""
     h, w = fine.a_diag.shape
@@ -170,23 +153,14 @@ def _galerkin_start(fine, s, *, solver, coarse_tol, **_):
 
 #: Storage of the Galerkin refinement's CG vectors (scalars and per-row sums stay float64). float32
 #: halves their memory traffic (the fine iterations are memory-bound) and moves the default map by
-#: ≤ 1.2e-5 px against float64 vectors. Round-off sets a floor near 5e-4 px RMS, so the
-#: re-discretised comparison, which runs 80 iterations, keeps float64 (docs/performance.md).
+#: ≤ 1.2e-5 px against float64 vectors; round-off sets a floor near 5e-4 px RMS (docs/performance.md).
 REFINE_VECTOR_DTYPE = np.float32
 
 
-def _refine_two_level(fine, x0, *, coarse, scale, s, coarse_shape, maxiter, tol, vector_dtype=np.float64):
+def _refine_galerkin(fine, x0, *, coarse, scale, s, coarse_shape, maxiter, tol):
     return two_level_pcg(fine.weights, fine.offs, fine.a_diag, fine.rhs, x0, coarse=coarse, s=s,
                          coarse_shape=coarse_shape, maxiter=maxiter, tol=tol, coarse_scale=scale,
-                         vector_dtype=vector_dtype)
-
-
-def _refine_galerkin(fine, x0, **kw):
-    return _refine_two_level(fine, x0, vector_dtype=REFINE_VECTOR_DTYPE, **kw)
-
-
-def _refine_jacobi(fine, x0, *, coarse, scale, s, coarse_shape, maxiter, tol):
-    return jacobi_pcg(fine.weights, fine.offs, fine.a_diag, fine.rhs, x0, maxiter=maxiter, tol=tol)
+                         vector_dtype=REFINE_VECTOR_DTYPE)
 
 
 #: Coarse mode of :func:`propagate_defocus` (``downsample`` > 1), chosen with ``refinement="..."``:
@@ -195,18 +169,11 @@ def _refine_jacobi(fine, x0, *, coarse, scale, s, coarse_shape, maxiter, tol):
 #: * ``"galerkin"`` (default): the coarse level is the Galerkin operator PᵀAP of the exact fine
 #:   system (:func:`method.propagation.galerkin.galerkin_coarse_operator`), its solution
 #:   interpolated starts a CG preconditioned by Jacobi + that coarse-grid correction
-#:   (:func:`method.propagation.matrix_free.two_level_pcg`, c = 1);
-#: * ``"two_level"`` (a comparison): the same CG with the coarse level re-discretised from
-#:   the block-averaged guide (c = s²), whose correction is wrong across colour edges;
-#: * ``"jacobi"``: the re-discretised start and a Jacobi-only CG, which leaves the coarse grid's
-#:   smooth error almost intact.
+#:   (:func:`method.propagation.matrix_free.two_level_pcg`, c = 1).
 #: Each entry's value refines the fine solution; its ``"start"`` hook builds the coarse start.
 PROPAGATION_REFINEMENTS = Registry("propagation refinement", {
     "galerkin": Entry(_refine_galerkin, "Galerkin coarse operator, two-level PCG (default)",
                       hooks={"start": _galerkin_start}),
-    "two_level": Entry(_refine_two_level, "re-discretised coarse level, two-level PCG (a comparison)",
-                       hooks={"start": _rediscretised_start}),
-    "jacobi": Entry(_refine_jacobi, "re-discretised start, Jacobi-only PCG", hooks={"start": _rediscretised_start}),
 })
 
 
@@ -276,12 +243,11 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
         1024² and the photo tools' 1.5 MP, 16× at 2048²).
     refinement : str, keyword-only
         Key of :data:`PROPAGATION_REFINEMENTS` (used when s > 1): ``"galerkin"`` (default; CG
-        preconditioned by Jacobi + the Galerkin coarse-grid correction), ``"two_level"`` (the same
-        with the re-discretised coarse system, kept as a comparison) or ``"jacobi"`` (Jacobi-only CG).
+        preconditioned by Jacobi + the Galerkin coarse-grid correction).
     refine_iterations : int or None, keyword-only
         Full-resolution CG iterations after a coarse solve (≥ 0; they stop earlier once the relative
         residual reaches ``tol``). None: :data:`DEFAULT_REFINE_ITERATIONS` of ``refinement``
-        (max(⌈2.5·s⌉, 20) for ``"galerkin"``, 20·s for ``"two_level"``, 60 for ``"jacobi"``).
+        (max(⌈2.5·s⌉, 20) for ``"galerkin"``).
     max_coarse_pixels : int, keyword-only
         Pixel budget of the ``"auto"`` coarse grid (default :data:`AUTO_MAX_COARSE_PIXELS`, 2¹⁵).
     coarse_tol : float or None, keyword-only
@@ -318,18 +284,14 @@ def propagate_defocus(sparse_sigma, reference, *, alpha=0.5, window=7, neighborh
        (:func:`method.propagation.galerkin.galerkin_coarse_operator`, formed matrix-free from the
        affinities, ~0.1 s at 1 MP). Build its solver once (AMG hierarchy or LU), solve
        A_c B_c = Pᵀ rhs to ``coarse_tol`` (1e-3 by default) and interpolate (P B_c) to get the
-       start map. With ``"two_level"`` / ``"jacobi"`` the coarse problem is instead re-discretised:
-       guide block-averaged over s×s blocks, BM_c = mean of the block's edge values,
-       α_c = s²·Σ_block α_p (for a smooth map (L_c B)² is s⁴ times (L B)² on s⁻² as many pixels, so
-       the smoothness energy grows by s² and α is scaled alike); cheap, but across colour edges a
-       different operator from the fine one.
+       start map.
     5. Refinement: ``refine_iterations`` iterations of CG on the exact full-resolution system
-       (matrix-free, numba; affinities stored in float32, and with ``"galerkin"`` the vectors too —
+       (matrix-free, numba; affinities and vectors stored in float32 —
        scalars and sums in float64; the map moves by ≤ 1.2e-5 px against float64 vectors,
        :data:`REFINE_VECTOR_DTYPE`), preconditioned by M⁻¹ = D⁻¹ + c·P Ã_c⁻¹ Pᵀ — Jacobi for the
        oscillatory error plus a coarse-grid correction (restriction Pᵀ, one V-cycle of the coarse
-       hierarchy, prolongation P) for the smooth error (c = 1 for the Galerkin operator, s² for
-       the re-discretised one; :func:`method.propagation.matrix_free.two_level_pcg`). Cost O(H·W) per
+       hierarchy, prolongation P) for the smooth error (c = 1 for the Galerkin operator;
+       :func:`method.propagation.matrix_free.two_level_pcg`). Cost O(H·W) per
        iteration plus one V-cycle on the coarse grid; max(⌈2.5·s⌉, 20) iterations by default. The 3×3
        neighbourhood has unrolled kernels (bit-identical to the generic ones, ~5–8× faster).
        Error of the default against the exact solve on the astronaut photo

@@ -11,8 +11,7 @@ symmetric positive (semi-)definite system ``(LᵀL + diag α + λI) B = diag(α)
 
 This module builds the equation only: the affinities (:func:`colorization_weights`, numba kernels),
 L (:func:`colorization_matrix`), the assembled system (:func:`normal_equations`), the affinities on
-the zero-padded grid of the matrix-free solver and the re-discretised coarse problem of the coarse
-mode. The solvers are in :mod:`method.propagation.solvers` (assembled systems, coarse level) and
+the zero-padded grid of the matrix-free solver. The solvers are in :mod:`method.propagation.solvers` (assembled systems, coarse level) and
 :mod:`method.propagation.matrix_free` (matrix-free PCG at full resolution); the driver is
 :func:`method.propagation.defocus.propagate_defocus` (its module docstring explains the reading of the
 paper's "window size 7×7").
@@ -169,33 +168,39 @@ def _weights_kernel(ref, inv2var, offs, out):
     h, w, c = ref.shape
     k = offs.shape[0]
     for y in numba.prange(h):
-        e = np.empty((k, c))
-        raw = np.empty(k)
-        for x in range(w):
-            m = -np.inf
-            for j in range(k):
-                qy = y + offs[j, 0]
-                qx = x + offs[j, 1]
-                if qy < 0 or qy >= h or qx < 0 or qx >= w:
-                    for i in range(c):
-                        e[j, i] = -np.inf
-                    continue
+        _weights_row(ref, inv2var, offs, out, y, h, w, k, c)
+
+
+@numba.njit(cache=True, inline="always")
+def _weights_row(ref, inv2var, offs, out, y, h, w, k, c):
+    """Row y of :func:`_weights_kernel` (k neighbours, c channels); shared by both kernels."""
+    e = np.empty((k, c))
+    raw = np.empty(k)
+    for x in range(w):
+        m = -np.inf
+        for j in range(k):
+            qy = y + offs[j, 0]
+            qx = x + offs[j, 1]
+            if qy < 0 or qy >= h or qx < 0 or qx >= w:
                 for i in range(c):
-                    d = ref[y, x, i] - ref[qy, qx, i]
-                    v = -d * d * inv2var[y, x, i]
-                    e[j, i] = v
-                    if v > m:
-                        m = v
-            total = 0.0
-            for j in range(k):
-                acc = 0.0
-                if e[j, 0] > -np.inf:
-                    for i in range(c):
-                        acc += np.exp(e[j, i] - m)
-                raw[j] = acc
-                total += acc
-            for j in range(k):
-                out[j, y, x] = raw[j] / total
+                    e[j, i] = -np.inf
+                continue
+            for i in range(c):
+                d = ref[y, x, i] - ref[qy, qx, i]
+                v = -d * d * inv2var[y, x, i]
+                e[j, i] = v
+                if v > m:
+                    m = v
+        total = 0.0
+        for j in range(k):
+            acc = 0.0
+            if e[j, 0] > -np.inf:
+                for i in range(c):
+                    acc += np.exp(e[j, i] - m)
+            raw[j] = acc
+            total += acc
+        for j in range(k):
+            out[j, y, x] = raw[j] / total
 
 
 #: Sizes of :func:`_weights_kernel_3x3_rgb` (module constants: numba unrolls its loops).
@@ -214,33 +219,7 @@ def _weights_kernel_3x3_rgb(ref, inv2var, offs, out):
     k = _K8
     c = _C3
     for y in numba.prange(h):
-        e = np.empty((k, c))
-        raw = np.empty(k)
-        for x in range(w):
-            m = -np.inf
-            for j in range(k):
-                qy = y + offs[j, 0]
-                qx = x + offs[j, 1]
-                if qy < 0 or qy >= h or qx < 0 or qx >= w:
-                    for i in range(c):
-                        e[j, i] = -np.inf
-                    continue
-                for i in range(c):
-                    d = ref[y, x, i] - ref[qy, qx, i]
-                    v = -d * d * inv2var[y, x, i]
-                    e[j, i] = v
-                    if v > m:
-                        m = v
-            total = 0.0
-            for j in range(k):
-                acc = 0.0
-                if e[j, 0] > -np.inf:
-                    for i in range(c):
-                        acc += np.exp(e[j, i] - m)
-                raw[j] = acc
-                total += acc
-            for j in range(k):
-                out[j, y, x] = raw[j] / total
+        _weights_row(ref, inv2var, offs, out, y, h, w, k, c)
 
 
 def _csr_from_weights(weights, offs, shape) -> sp.csr_matrix:
@@ -358,25 +337,4 @@ def padded_weights(ref, window, neighborhood, eps, dtype=np.float32):
     _, offs = _weights(ref, window, neighborhood, eps, out=out[:, r:r + h, r:r + w])
     return out, offs
 
-
-
-def coarse_problem(sparse_sigma, ref, s, alpha, confidence=None):
-    """Block-average the guide, α-weighted block mean of BM, α_c = s²·Σ_block α (see Notes)."""
-    h, w = sparse_sigma.shape
-    hc, wc = -(-h // s), -(-w // s)
-    ph, pw = hc * s - h, wc * s - w
-    refp = np.pad(ref, ((0, ph), (0, pw), (0, 0)), mode="edge")
-    sig = np.pad(sparse_sigma, ((0, ph), (0, pw)), constant_values=np.nan)
-    edge = np.isfinite(sig)
-    ref_c = refp.reshape(hc, s, wc, s, -1).mean(axis=(1, 3))
-    if confidence is not None:  # α_p = α·c_p: c-weighted block mean, α_c = s²·α·Σ_block c
-        conf = np.pad(np.where(np.isfinite(sparse_sigma), confidence, 0.0), ((0, ph), (0, pw)))
-        cw = conf.reshape(hc, s, wc, s).sum(axis=(1, 3))
-        tw = np.where(edge, sig * conf, 0.0).reshape(hc, s, wc, s).sum(axis=(1, 3))
-        return ref_c, np.where(cw > 0, tw / np.where(cw > 0, cw, 1.0), 0.0), (s * s) * alpha * cw
-    count = edge.reshape(hc, s, wc, s).sum(axis=(1, 3))
-    total = np.where(edge, sig, 0.0).reshape(hc, s, wc, s).sum(axis=(1, 3))
-    bm_c = np.where(count > 0, total / np.maximum(count, 1), 0.0)
-    a_c = (s * s) * alpha * count.astype(np.float64)
-    return ref_c, bm_c, a_c
 

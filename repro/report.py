@@ -205,10 +205,7 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
     leaderboard : dict, optional, keyword-only
         :func:`experiments.leaderboard.build_leaderboard`'s result, shown as one table per protocol.
     """
-    from experiments.claims import mismatch_findings
-
     matrix = _as_matrix(verdicts)
-    columns = list(matrix)
     lines = [
         "# Defocus Magnification (Bae & Durand 2007): reproduction report",
         "",
@@ -221,24 +218,54 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
         "preset and scene set; the evidence and the rule of every cell follow.",
         "",
     ]
-    if columns:
-        lines += ["| claim | where | " + " | ".join(column_label(*c) for c in columns) + " |",
-                  "|---|---|" + "---|" * len(columns)]
-        texts = cell_texts(matrix)
-        first = matrix[columns[0]]
-        for claim, _ in first:
-            cells = [_md_verdict_cell(texts[(c, claim.id)]) for c in columns]
-            lines.append(f"| {_md_cell(claim.text)} | {claim.section} ({claim.figure}) | " + " | ".join(cells) + " |")
-        lines += ["", "Every cell is its own evaluation (its figure computed with that preset's parameters on that "
-                  "scene set). A claim that does not depend on the preset or the scene set is computed once per value "
-                  "it does depend on, and its further cells say `=` (the same evaluation): Eq. (5) and Eq. (6) are "
-                  "optics (once in all); Fig. 4's analytic edges have no scene set (once per preset); Fig. 5 tests "
-                  "the paper's Eq. (3) filter with and without its bias (once per scene set). The evaluation of "
-                  "every cell is named in `claims.json`.", ""]
+    lines += _md_claims_table(matrix)
     lines += _md_scene_sets()
+    lines += _md_evidence(matrix)
+    lines += _md_mismatch(metrics)
+    tables = preset_tables(metrics)
+    if tables:
+        lines += _md_tables("Presets side by side", PRESET_TABLES_INTRO, tables)
+    if leaderboard:
+        lines += _md_tables("Leaderboard", _md_cell(leaderboard_intro(leaderboard)), leaderboard_tables(leaderboard),
+                            escape_titles=True)
+    lines += _md_figures(metrics, figures_rel=figures_rel, figures_dir=figures_dir)
+    if bench:
+        lines += ["## Speed", "", bench.replace("# Benchmark", "Benchmark", 1), ""]
+    return "\n".join(lines) + "\n"
+
+
+#: The paragraph under "Presets side by side" (Markdown and HTML).
+PRESET_TABLES_INTRO = (
+    "`paper` is the reproduction (`DefocusParams()`), `robust` goes beyond the paper ("
+    "`docs/presets.md`), `zhuo_sim` is the Zhuo & Sim 2011 baseline. Errors against σ_gt in px: sparse blur "
+    "at the edge pixels, dense map over textured pixels (mean signed error in brackets); occlusion "
+    "boundaries and tile seams excluded. From the `stages` figure.")
+
+
+def _md_claims_table(matrix: dict) -> list[str]:
+    """The claims × (preset, scene set) verdict table and the note on shared evaluations."""
+    columns = list(matrix)
+    if not columns:
+        return []
+    lines = ["| claim | where | " + " | ".join(column_label(*c) for c in columns) + " |",
+             "|---|---|" + "---|" * len(columns)]
+    texts = cell_texts(matrix)
+    for claim, _ in matrix[columns[0]]:
+        cells = [_md_verdict_cell(texts[(c, claim.id)]) for c in columns]
+        lines.append(f"| {_md_cell(claim.text)} | {claim.section} ({claim.figure}) | " + " | ".join(cells) + " |")
+    return lines + ["", "Every cell is its own evaluation (its figure computed with that preset's parameters on that "
+                    "scene set). A claim that does not depend on the preset or the scene set is computed once per value "
+                    "it does depend on, and its further cells say `=` (the same evaluation): Eq. (5) and Eq. (6) are "
+                    "optics (once in all); Fig. 4's analytic edges have no scene set (once per preset); Fig. 5 tests "
+                    "the paper's Eq. (3) filter with and without its bias (once per scene set). The evaluation of "
+                    "every cell is named in `claims.json`.", ""]
+
+
+def _md_evidence(matrix: dict) -> list[str]:
+    """One evidence table per (preset, scene set) column: verdict, evidence and rule of each claim."""
+    lines = []
     sources = cell_sources_of(matrix)
-    for col in columns:
-        rows = matrix[col]
+    for col, rows in matrix.items():
         lines += [f"### Evidence: {column_label(*col)}", "",
                   "| | claim | verdict | evidence |", "|---|---|---|---|"]
         for claim, v in rows:
@@ -252,34 +279,38 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
                          f"{ev}<br>*Rule: {_md_cell(claim.rule)}.* |")
         counts = {k: sum(1 for _, v in rows if v.verdict == k) for k in MARKS}
         lines += ["", "Totals: " + ", ".join(f"{k}: {n}" for k, n in counts.items() if n), ""]
+    return lines
+
+
+def _md_mismatch(metrics: dict) -> list[str]:
+    """The model-mismatch section (bias shifts of the Gaussian-step model), if any were measured."""
+    from experiments.claims import mismatch_findings
+
     findings = mismatch_findings(metrics)
-    if findings:
-        lines += ["## Beyond the paper: model mismatch", "",
-                  "The method assumes a Gaussian-blurred step in the pixel values; a thin lens blurs with a "
-                  "disk in linear light and a camera stores sRGB. Bias shifts below are measured, in px.", "",
-                  "| effect | estimator | pixels | value (px) |", "|---|---|---|---|"]
-        lines += [f"| {r['effect']} | {r['estimator']} | {r['edges']} | {r['bias_shift_px']:+.3f} |" for r in findings]
+    if not findings:
+        return []
+    lines = ["## Beyond the paper: model mismatch", "",
+             "The method assumes a Gaussian-blurred step in the pixel values; a thin lens blurs with a "
+             "disk in linear light and a camera stores sRGB. Bias shifts below are measured, in px.", "",
+             "| effect | estimator | pixels | value (px) |", "|---|---|---|---|"]
+    lines += [f"| {r['effect']} | {r['estimator']} | {r['edges']} | {r['bias_shift_px']:+.3f} |" for r in findings]
+    return lines + [""]
+
+
+def _md_tables(heading: str, intro: str, tables: list[dict], *, escape_titles: bool = False) -> list[str]:
+    """A section of titled tables (``{"title", "header", "rows"}`` each) under ``heading``."""
+    lines = [f"## {heading}", "", intro, ""]
+    for t in tables:
+        title = _md_cell(t["title"]) if escape_titles else t["title"]
+        lines += [f"**{title}**", "", "| " + " | ".join(t["header"]) + " |", "|" + "---|" * len(t["header"])]
+        lines += ["| " + " | ".join(_md_cell(c) for c in r) + " |" for r in t["rows"]]
         lines.append("")
-    tables = preset_tables(metrics)
-    if tables:
-        lines += ["## Presets side by side", "",
-                  "`paper` is the reproduction (`DefocusParams()`), `robust` goes beyond the paper ("
-                  "`docs/presets.md`), `zhuo_sim` is the Zhuo & Sim 2011 baseline. Errors against σ_gt in px: sparse blur "
-                  "at the edge pixels, dense map over textured pixels (mean signed error in brackets); occlusion "
-                  "boundaries and tile seams excluded. From the `stages` figure.", ""]
-        for t in tables:
-            lines += [f"**{t['title']}**", "", "| " + " | ".join(t["header"]) + " |",
-                      "|" + "---|" * len(t["header"])]
-            lines += ["| " + " | ".join(_md_cell(c) for c in r) + " |" for r in t["rows"]]
-            lines.append("")
-    if leaderboard:
-        lines += ["## Leaderboard", "", _md_cell(leaderboard_intro(leaderboard)), ""]
-        for t in leaderboard_tables(leaderboard):
-            lines += [f"**{_md_cell(t['title'])}**", "", "| " + " | ".join(t["header"]) + " |",
-                      "|" + "---|" * len(t["header"])]
-            lines += ["| " + " | ".join(_md_cell(c) for c in r) + " |" for r in t["rows"]]
-            lines.append("")
-    lines += ["## Figures", ""]
+    return lines
+
+
+def _md_figures(metrics: dict, *, figures_rel: str, figures_dir: Path | None) -> list[str]:
+    """The figures, key figures first, each with its captions and links to its metrics and PDF."""
+    lines = ["## Figures", ""]
     for name in [n for n in KEY_FIGURES if n in metrics] + [n for n in _fig_order(metrics) if n not in KEY_FIGURES]:
         m = metrics[name]
         lines += [f"### {name}: {m.get('title', '')}", ""]
@@ -290,9 +321,7 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
         lines += [f"σ convention: {m.get('sigma_convention', 'n/a')}. "
                   f"Metrics: [`{name}.metrics.json`]({figures_rel}/{name}.metrics.json), "
                   f"vector: [`{name}.pdf`]({figures_rel}/{name}.pdf).", ""]
-    if bench:
-        lines += ["## Speed", "", bench.replace("# Benchmark", "Benchmark", 1), ""]
-    return "\n".join(lines) + "\n"
+    return lines
 
 
 def cell_sources_of(matrix: dict) -> dict:
@@ -336,86 +365,27 @@ def figure_files(name: str, metrics_file: dict, figures_dir: Path | None) -> lis
 def build_html(metrics: dict, verdicts, *, figures_rel: str, bench: str | None,
                figures_dir: Path | None = None, leaderboard: dict | None = None) -> str:
     """A self-contained HTML page (images by relative path); ``leaderboard`` as in :func:`build_markdown`."""
-    from experiments.claims import mismatch_findings
-
     e = html.escape
     matrix = _as_matrix(verdicts)
-    columns = list(matrix)
-    rows = ""
-    sources = cell_sources_of(matrix)
-    if columns:
-        head = "".join(f"<th>{e(column_label(*c))}</th>" for c in columns)
-        texts = cell_texts(matrix)
-        body = []
-
-        def td(c, claim):
-            verdict, note = texts[(c, claim.id)]
-            if verdict is None:
-                return f"<td class='same'>{e(note)}</td>"
-            return (f"<td class='{e(verdict.replace(' ', '-'))}'>{mark_svg(verdict)} {e(verdict)}"
-                    + (f" <small>({e(note)})</small>" if note else "") + "</td>")
-
-        for claim, _ in matrix[columns[0]]:
-            cells = "".join(td(c, claim) for c in columns)
-            body.append(f"<tr><td>{e(claim.text)}</td><td>{e(claim.section)} ({e(claim.figure)})</td>{cells}</tr>")
-        rows = (f"<table id='claims' class='claims'><tr><th>claim</th><th>where</th>{head}</tr>\n"
-                + "\n".join(body) + "\n</table><p>Every cell is its own evaluation; a claim that does not depend "
-                "on the preset or the scene set is computed once and its further cells say “=” (the same "
-                "evaluation; <code>claims.json</code> names each cell's).</p>")
-
-    def evidence_row(col, c, v):
-        src = sources.get((col, c.id))
-        if src is not None:
-            return (f"<tr class='same'><td>{mark_svg(v.verdict)}</td><td>{e(c.text)}</td><td>=</td>"
-                    f"<td>same evaluation as <i>{e(column_label(*src))}</i> (<code>{e(v.evaluation)}</code>)</td></tr>")
-        ev = f"<br>Evaluation: <code>{e(v.evaluation)}</code>." if v.evaluation else ""
-        return (f"<tr class='{e(v.verdict.replace(' ', '-'))}'><td>{mark_svg(v.verdict)}</td><td>{e(c.text)}</td>"
-                f"<td><b>{e(v.verdict)}</b></td><td>{e(v.evidence)}{ev}<br><i>Rule: {e(c.rule)}.</i></td></tr>")
-
-    details = []
-    for j, col in enumerate(columns):
-        trs = "\n".join(evidence_row(col, c, v) for c, v in matrix[col])
-        details.append(f"<details{' open' if j == 0 else ''}><summary>Evidence: {e(column_label(*col))}</summary>"
-                       f"<table class='evidence'><tr><th></th><th>claim</th><th>verdict</th><th>evidence</th></tr>"
-                       f"{trs}</table></details>")
-    details_html = "\n".join(details)
+    rows = _html_claims_table(matrix)
+    details_html = _html_evidence(matrix)
     legend = " ".join(f"{mark_svg(v)} {e(v)}" for v in MARKS)
     sets_html = "<h2>Scene sets</h2><p>Figures 4, 5, 6, 7, 8 and 11 are computed on two sets of rendered scenes; " \
                 "the first image of each is the figure's default set, the second the other set.</p><ul>" + "".join(
                     f"<li><b>{e(n)}</b> ({e(w)})<ul>" + "".join(f"<li>{e(x)}</li>" for x in sc) + "</ul></li>"
                     for n, w, sc in scene_set_lines()) + "</ul>"
-    figs = "\n".join(
-        f"<section id='{e(n)}'><h3>{e(n)}: {e(metrics[n].get('title', ''))}</h3>"
-        + "".join(f"<figure><a href='{figures_rel}/{e(stem)}.pdf'><img src='{figures_rel}/{e(stem)}.png' "
-                  f"alt='{e(stem)}'></a>" + (f"<figcaption>{e(cap)}</figcaption>" if cap else "") + "</figure>"
-                  for stem, cap in figure_files(n, metrics[n], figures_dir))
-        + f"<p>σ convention: {e(str(metrics[n].get('sigma_convention', 'n/a')))}. "
-        f"<a href='{figures_rel}/{e(n)}.metrics.json'>metrics</a></p></section>"
-        for n in _fig_order(metrics))
+    figs = _html_figures(metrics, figures_rel=figures_rel, figures_dir=figures_dir)
     bench_html = f"<h2>Speed</h2><pre>{e(bench)}</pre>" if bench else ""
-    preset_html = "".join(
-        f"<h3>{e(t['title'])}</h3><table class='presets'><tr>" + "".join(f"<th>{e(h)}</th>" for h in t["header"])
-        + "</tr>" + "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>" for r in t["rows"]) + "</table>"
-        for t in preset_tables(metrics))
+    preset_html = _html_tables(preset_tables(metrics), "presets")
     if preset_html:
         preset_html = ("<h2>Presets side by side</h2><p><code>paper</code> is the reproduction, <code>robust</code> "
                        "goes beyond the paper, <code>zhuo_sim</code> is the Zhuo &amp; Sim 2011 baseline. Errors "
                        "against σ_gt in px (edge MAE; dense MAE over textured pixels, bias in brackets).</p>" + preset_html)
     board_html = ""
     if leaderboard:
-        board_html = f"<h2>Leaderboard</h2><p>{e(leaderboard_intro(leaderboard))}</p>" + "".join(
-            f"<h3>{e(t['title'])}</h3><table class='leaderboard'><tr>" + "".join(f"<th>{e(h)}</th>" for h in t["header"])
-            + "</tr>" + "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>" for r in t["rows"])
-            + "</table>" for t in leaderboard_tables(leaderboard))
-    findings = mismatch_findings(metrics)
-    mismatch_html = ""
-    if findings:
-        mismatch_html = ("<h2>Beyond the paper: model mismatch</h2><p>The method assumes a Gaussian-blurred step in "
-                         "the pixel values; a thin lens blurs with a disk in linear light and a camera stores sRGB. "
-                         "Measured bias shifts (px):</p><table><tr><th>effect</th><th>estimator</th><th>pixels</th>"
-                         "<th>value (px)</th></tr>" + "".join(
-                             f"<tr><td>{e(r['effect'])}</td><td>{e(r['estimator'])}</td><td>{e(r['edges'])}</td>"
-                             f"<td>{r['bias_shift_px']:+.3f}</td></tr>" for r in findings) + "</table>")
+        board_html = (f"<h2>Leaderboard</h2><p>{e(leaderboard_intro(leaderboard))}</p>"
+                      + _html_tables(leaderboard_tables(leaderboard), "leaderboard"))
+    mismatch_html = _html_mismatch(metrics)
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8">
 <title>Defocus Magnification — reproduction report</title>
@@ -445,6 +415,93 @@ img {{ max-width: 100%; border: 1px solid #eee; }}
 {bench_html}
 </body></html>
 """
+
+
+def _html_claims_table(matrix: dict) -> str:
+    """The claims × (preset, scene set) verdict table of the HTML page ('' without columns)."""
+    e = html.escape
+    columns = list(matrix)
+    if not columns:
+        return ""
+    head = "".join(f"<th>{e(column_label(*c))}</th>" for c in columns)
+    texts = cell_texts(matrix)
+
+    def td(c, claim):
+        verdict, note = texts[(c, claim.id)]
+        if verdict is None:
+            return f"<td class='same'>{e(note)}</td>"
+        return (f"<td class='{e(verdict.replace(' ', '-'))}'>{mark_svg(verdict)} {e(verdict)}"
+                + (f" <small>({e(note)})</small>" if note else "") + "</td>")
+
+    body = []
+    for claim, _ in matrix[columns[0]]:
+        cells = "".join(td(c, claim) for c in columns)
+        body.append(f"<tr><td>{e(claim.text)}</td><td>{e(claim.section)} ({e(claim.figure)})</td>{cells}</tr>")
+    return (f"<table id='claims' class='claims'><tr><th>claim</th><th>where</th>{head}</tr>\n"
+            + "\n".join(body) + "\n</table><p>Every cell is its own evaluation; a claim that does not depend "
+            "on the preset or the scene set is computed once and its further cells say “=” (the same "
+            "evaluation; <code>claims.json</code> names each cell's).</p>")
+
+
+def _html_evidence(matrix: dict) -> str:
+    """One collapsible evidence table per column (the first open)."""
+    e = html.escape
+    sources = cell_sources_of(matrix)
+
+    def evidence_row(col, c, v):
+        src = sources.get((col, c.id))
+        if src is not None:
+            return (f"<tr class='same'><td>{mark_svg(v.verdict)}</td><td>{e(c.text)}</td><td>=</td>"
+                    f"<td>same evaluation as <i>{e(column_label(*src))}</i> (<code>{e(v.evaluation)}</code>)</td></tr>")
+        ev = f"<br>Evaluation: <code>{e(v.evaluation)}</code>." if v.evaluation else ""
+        return (f"<tr class='{e(v.verdict.replace(' ', '-'))}'><td>{mark_svg(v.verdict)}</td><td>{e(c.text)}</td>"
+                f"<td><b>{e(v.verdict)}</b></td><td>{e(v.evidence)}{ev}<br><i>Rule: {e(c.rule)}.</i></td></tr>")
+
+    details = []
+    for j, col in enumerate(matrix):
+        trs = "\n".join(evidence_row(col, c, v) for c, v in matrix[col])
+        details.append(f"<details{' open' if j == 0 else ''}><summary>Evidence: {e(column_label(*col))}</summary>"
+                       f"<table class='evidence'><tr><th></th><th>claim</th><th>verdict</th><th>evidence</th></tr>"
+                       f"{trs}</table></details>")
+    return "\n".join(details)
+
+
+def _html_figures(metrics: dict, *, figures_rel: str, figures_dir: Path | None) -> str:
+    """One section per figure: its images (linked to the PDF), captions, σ convention and metrics link."""
+    e = html.escape
+    return "\n".join(
+        f"<section id='{e(n)}'><h3>{e(n)}: {e(metrics[n].get('title', ''))}</h3>"
+        + "".join(f"<figure><a href='{figures_rel}/{e(stem)}.pdf'><img src='{figures_rel}/{e(stem)}.png' "
+                  f"alt='{e(stem)}'></a>" + (f"<figcaption>{e(cap)}</figcaption>" if cap else "") + "</figure>"
+                  for stem, cap in figure_files(n, metrics[n], figures_dir))
+        + f"<p>σ convention: {e(str(metrics[n].get('sigma_convention', 'n/a')))}. "
+        f"<a href='{figures_rel}/{e(n)}.metrics.json'>metrics</a></p></section>"
+        for n in _fig_order(metrics))
+
+
+def _html_tables(tables: list[dict], css_class: str) -> str:
+    """Titled HTML tables (``{"title", "header", "rows"}`` each) of class ``css_class``."""
+    e = html.escape
+    return "".join(
+        f"<h3>{e(t['title'])}</h3><table class='{css_class}'><tr>" + "".join(f"<th>{e(h)}</th>" for h in t["header"])
+        + "</tr>" + "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>" for r in t["rows"]) + "</table>"
+        for t in tables)
+
+
+def _html_mismatch(metrics: dict) -> str:
+    """The model-mismatch section of the HTML page ('' when nothing was measured)."""
+    from experiments.claims import mismatch_findings
+
+    e = html.escape
+    findings = mismatch_findings(metrics)
+    if not findings:
+        return ""
+    return ("<h2>Beyond the paper: model mismatch</h2><p>The method assumes a Gaussian-blurred step in "
+            "the pixel values; a thin lens blurs with a disk in linear light and a camera stores sRGB. "
+            "Measured bias shifts (px):</p><table><tr><th>effect</th><th>estimator</th><th>pixels</th>"
+            "<th>value (px)</th></tr>" + "".join(
+                f"<tr><td>{e(r['effect'])}</td><td>{e(r['estimator'])}</td><td>{e(r['edges'])}</td>"
+                f"<td>{r['bias_shift_px']:+.3f}</td></tr>" for r in findings) + "</table>")
 
 
 #: Markers of the block in the project README that ``repro.report`` keeps current.

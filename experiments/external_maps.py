@@ -41,7 +41,8 @@ from .dataset import ground_truth_arrays, image_name, load_ground_truth, load_im
 from .metrics import RTF_SIGMA_CLIP_PX, rtf_normalized_errors, sparse_metrics
 
 __all__ = ["DETECTION_THRESHOLD_PX", "HEADLINE", "MAP_SUFFIXES", "PNG_SCALE", "PROTOCOLS", "SIGMA_BINS_PX",
-           "DatasetTruth", "MapScores", "RenderTruth", "detection_scores", "find_map", "flatten", "load_map",
+           "DatasetTruth", "MapScores", "RenderTruth", "detection_scores", "find_map", "flatten", "folder_maps",
+           "load_map",
            "read_map", "score_folder", "score_map", "score_maps", "summarize", "syndof_sigma"]
 
 #: Map file suffixes, in lookup order (the first present is read).
@@ -409,6 +410,17 @@ def score_maps(get_map: Callable[[str], tuple[np.ndarray, str]], truth, *, proto
     return MapScores(rows=rows, problems=sorted(problems), scored=scored)
 
 
+def folder_maps(mapdir, *, png_scale: float = PNG_SCALE) -> Callable[[str], tuple[np.ndarray, str]]:
+    """``name -> (the map MAPDIR/NAME.<suffix> as HxW σ px, its path)``, the ``get_map`` of :func:`score_maps`."""
+    mapdir = Path(mapdir)
+
+    def get(name):
+        path = find_map(mapdir, name)
+        return read_map(path, png_scale=png_scale), str(path)
+
+    return get
+
+
 def score_folder(mapdir, truth, *, protocols=("harness",), threshold_px: float = DETECTION_THRESHOLD_PX,
                  png_scale: float = PNG_SCALE) -> MapScores:
     """:func:`score_maps` of the files ``MAPDIR/NAME.<suffix>``, plus one problem per file of MAPDIR
@@ -423,11 +435,8 @@ def score_folder(mapdir, truth, *, protocols=("harness",), threshold_px: float =
     if not mapdir.is_dir():
         raise ValueError(f"--maps {str(mapdir)!r} is not a folder; allowed: a folder of NAME.npy|npz|exr|png maps")
 
-    def get(name):
-        path = find_map(mapdir, name)
-        return read_map(path, png_scale=png_scale), str(path)
-
-    result = score_maps(get, truth, protocols=protocols, threshold_px=threshold_px)
+    result = score_maps(folder_maps(mapdir, png_scale=png_scale), truth, protocols=protocols,
+                        threshold_px=threshold_px)
     known = set(truth.names)
     extra = []
     for path in sorted(p for p in mapdir.iterdir() if p.is_file() and not p.name.startswith(".")):

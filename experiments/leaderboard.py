@@ -14,8 +14,8 @@ import warnings
 from collections.abc import Mapping
 from pathlib import Path
 
-from .external_maps import (DETECTION_THRESHOLD_PX, HEADLINE, PNG_SCALE, PROTOCOLS, find_map, read_map,
-                            score_maps, summarize)
+from .external_maps import (DETECTION_THRESHOLD_PX, HEADLINE, PNG_SCALE, PROTOCOLS, score_folder, score_maps,
+                            summarize)
 
 __all__ = ["ALL_SCENES", "build_leaderboard", "leaderboard_tables", "preset_maps", "scene_set_of"]
 
@@ -40,14 +40,6 @@ def preset_maps(truth, preset: str):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", NoEdgesWarning)
             return estimate_defocus_map(truth.image(name), params).defocus_map, f"preset {preset}: {name}"
-
-    return get
-
-
-def _folder_maps(mapdir: Path, png_scale: float):
-    def get(name):
-        path = find_map(mapdir, name)
-        return read_map(path, png_scale=png_scale), str(path)
 
     return get
 
@@ -94,14 +86,16 @@ def build_leaderboard(truth, *, presets=None, external: Mapping[str, Path] | Non
         sets.setdefault(scene_set_of(truth.scene(image)), []).append(image)
     if len(sets) > 1:
         sets[ALL_SCENES] = list(truth.names)
-    entries = [(p, "preset", preset_maps(truth, p)) for p in presets]
-    entries += [(n, "external", _folder_maps(Path(f), png_scale)) for n, f in external.items()]
+    scored = [(p, "preset", score_maps(preset_maps(truth, p), truth, protocols=protocols, threshold_px=threshold_px))
+              for p in presets]
+    scored += [(n, "external", score_folder(f, truth, protocols=protocols, threshold_px=threshold_px,
+                                            png_scale=png_scale)) for n, f in external.items()]
     rows, problems = [], []
-    for entry, kind, get in entries:
-        result = score_maps(get, truth, protocols=protocols, threshold_px=threshold_px)
+    for entry, kind, result in scored:
         problems += [f"{entry}: {p}" for p in result.problems]
         for scene_set, images in sets.items():
-            chosen = [r for r in result.rows if r["image"] in set(images)]
+            members = set(images)
+            chosen = [r for r in result.rows if r["image"] in members]
             for mean in summarize(chosen):
                 keep = {k: mean[k] for k, _ in HEADLINE[mean["protocol"]]}
                 rows.append({"entry": entry, "kind": kind, "scene_set": scene_set, "protocol": mean["protocol"],

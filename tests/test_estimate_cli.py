@@ -129,6 +129,10 @@ def test_working_resolution_is_announced_and_map_is_full_size(tmp_path, photo, c
     assert "estimating at" in line and "guided filter" in line
     m = np.load(tmp_path / "m.npy")
     assert m.shape == (96, 128) and np.all(np.isfinite(m)) and m.min() >= 0
+    # a cached working-resolution map is upsampled as a fresh one is: the same bytes
+    status, _, err = run([photo, "-o", tmp_path / "again.npy", "--max-working-pixels", "3000"], capsys)
+    assert status == 0 and any("reused from the cache" in line for line in err)
+    np.testing.assert_array_equal(np.load(tmp_path / "again.npy"), m)
 
 
 def test_estimator_and_alpha_change_the_map(tmp_path, photo, cache_dir, capsys):

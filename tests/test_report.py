@@ -186,6 +186,7 @@ def test_leaderboard_one_row_per_entry_scene_set_and_protocol(tmp_path):
     from repro.report import build_html, build_markdown
 
     data, exact, const, sigma, names = _leaderboard_case(tmp_path)
+    np.save(Path(exact) / "teapot_f8_small.npy", np.zeros((2, 2)))  # misnamed: named, the rest scored
     board = build_leaderboard(DatasetTruth(data), external={"exact": exact, "const": const})
     assert set(board["scene_sets"]) == {"tabletop_stress", "paper_cameras", "all"}
     rows = {(r["entry"], r["scene_set"], r["protocol"]): r for r in board["rows"]}
@@ -201,8 +202,9 @@ def test_leaderboard_one_row_per_entry_scene_set_and_protocol(tmp_path):
     assert rows[("const", "all", "harness")]["all_mae"] == pytest.approx(np.mean(np.abs(1.0 - sigma)))
     assert rows[("exact", "all", "detection")]["accuracy"] == 1.0
     assert {r["kind"] for r in board["rows"] if r["entry"] in PRESETS} == {"preset"}
-    (problem,) = board["problems"]
-    assert problem.startswith("const: ") and names[0] in problem
+    missing, misnamed = sorted(board["problems"])
+    assert missing.startswith("const: ") and names[0] in missing
+    assert misnamed.startswith("exact: ") and "teapot_f8_small.npy: unknown name" in misnamed
     md = build_markdown({}, [], figures_rel="f", bench=None, leaderboard=board)
     assert "## Leaderboard" in md and "| all | exact | external | 2 | 0.000 |" in md
     assert md.count("**rtf: ") == 1 and "threshold 1 px" in md

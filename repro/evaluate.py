@@ -270,21 +270,27 @@ def format_table(rows) -> str:
     return "\n".join(lines)
 
 
-def write_outputs(rows, out_dir: Path, info: dict) -> list[Path]:
-    """Write ``evaluate.csv`` and ``evaluate.json`` atomically; returns the paths."""
+def write_csv_json(out_dir: Path, stem: str, rows, fields, doc: dict) -> list[Path]:
+    """Write ``<stem>.csv`` (``fields`` of every row; None as empty) and ``<stem>.json`` (``doc``)
+    atomically into ``out_dir``; returns the two paths."""
     from experiments.registry import to_jsonable
     from defocus_cache import atomic_write_text
 
     out_dir.mkdir(parents=True, exist_ok=True)
     buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=[*ID_COLUMNS, *METRIC_COLUMNS], lineterminator="\n")
+    w = csv.DictWriter(buf, fieldnames=list(fields), lineterminator="\n")
     w.writeheader()
     for r in rows:
-        w.writerow({k: ("" if v is None else v) for k, v in r.items()})
-    csv_path, json_path = out_dir / "evaluate.csv", out_dir / "evaluate.json"
+        w.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in fields})
+    csv_path, json_path = out_dir / f"{stem}.csv", out_dir / f"{stem}.json"
     atomic_write_text(csv_path, buf.getvalue())
-    atomic_write_text(json_path, json.dumps(to_jsonable({**info, "rows": rows}), indent=1, sort_keys=True) + "\n")
+    atomic_write_text(json_path, json.dumps(to_jsonable(doc), indent=1, sort_keys=True) + "\n")
     return [csv_path, json_path]
+
+
+def write_outputs(rows, out_dir: Path, info: dict) -> list[Path]:
+    """Write ``evaluate.csv`` and ``evaluate.json`` atomically; returns the paths."""
+    return write_csv_json(out_dir, "evaluate", rows, [*ID_COLUMNS, *METRIC_COLUMNS], {**info, "rows": rows})
 
 
 STAGE_ID_COLUMNS = ("method_preset", "estimator", "scene", "f_number", "scene_preset", "encoding")
@@ -324,21 +330,9 @@ def format_stage_table(rows) -> str:
 
 def write_stage_outputs(rows, out_dir: Path, info: dict) -> list[Path]:
     """Write ``stages.csv`` and ``stages.json`` atomically; returns the paths."""
-    from experiments.registry import to_jsonable
-    from defocus_cache import atomic_write_text
-
-    out_dir.mkdir(parents=True, exist_ok=True)
-    fields = list(rows[0]) if rows else list(STAGE_ID_COLUMNS)
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
-    w.writeheader()
-    for r in rows:
-        w.writerow({k: ("" if v is None else v) for k, v in r.items()})
-    csv_path, json_path = out_dir / "stages.csv", out_dir / "stages.json"
-    atomic_write_text(csv_path, buf.getvalue())
     meta = {k: v for k, v in info.items() if k != "columns"}
-    atomic_write_text(json_path, json.dumps(to_jsonable({**meta, "rows": rows}), indent=1, sort_keys=True) + "\n")
-    return [csv_path, json_path]
+    return write_csv_json(out_dir, "stages", rows, list(rows[0]) if rows else list(STAGE_ID_COLUMNS),
+                          {**meta, "rows": rows})
 
 
 #: Options only ``--maps`` takes (flag, attribute, argparse default).
@@ -413,9 +407,7 @@ def format_map_table(rows, summary) -> str:
 
 def main_maps(args) -> int:
     """``--maps``: score external maps; exit status 0 when at least one map was scored, else 2."""
-    from defocus_cache import atomic_write_text
     from experiments.external_maps import MAP_SUFFIXES, score_folder, summarize
-    from experiments.registry import to_jsonable
 
     truth, protocols = _validate_maps(args)
     result = score_folder(args.maps, truth, protocols=protocols, threshold_px=args.detection_threshold,
@@ -432,17 +424,9 @@ def main_maps(args) -> int:
             "occlusion_bands": "excluded in every protocol", "skipped": result.problems}
     if isinstance(getattr(truth, "manifest", None), dict):
         info["layout_version"] = truth.manifest.get("layout_version")
-    args.out.mkdir(parents=True, exist_ok=True)
-    json_path, csv_path = args.out / "maps.json", args.out / "maps.csv"
-    atomic_write_text(json_path, json.dumps(to_jsonable({**info, "summary": summary, "rows": result.rows}),
-                                            indent=1, sort_keys=True) + "\n")
     fields = list(MAP_ID_COLUMNS) + sorted({k for r in result.rows for k in r} - set(MAP_ID_COLUMNS))
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
-    w.writeheader()
-    for r in result.rows:
-        w.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in fields})
-    atomic_write_text(csv_path, buf.getvalue())
+    csv_path, json_path = write_csv_json(args.out, "maps", result.rows, fields,
+                                         {**info, "summary": summary, "rows": result.rows})
     if not args.quiet:
         print(format_map_table(result.rows, summary))
     for p in (json_path, csv_path):

@@ -240,13 +240,16 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
 REDELIVER_CTRL_C_S = 0.05
 
 
-def _redeliver_ctrl_c(previous):
+def _redeliver_ctrl_c(previous, timers: list):
     """An unraisable hook that sends a Ctrl-C swallowed by a callback to the main thread again."""
     def hook(unraisable):
         if (unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt)
                 and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
             # Later, from another thread: raised here it would land in this hook and be lost again.
-            threading.Timer(REDELIVER_CTRL_C_S, _thread.interrupt_main).start()
+            timer = threading.Timer(REDELIVER_CTRL_C_S, _thread.interrupt_main)
+            timer.daemon = True
+            timers.append(timer)
+            timer.start()
             return
         previous(unraisable)
     return hook
@@ -261,12 +264,14 @@ def _ctrl_c_redelivered():
     prints "Exception ignored in ..." with a traceback and goes on as if no key had been pressed.
     The hook presses Ctrl-C again a moment later instead, which Python answers outside the callback.
     """
-    previous = sys.unraisablehook
-    sys.unraisablehook = _redeliver_ctrl_c(previous)
+    previous, timers = sys.unraisablehook, []
+    sys.unraisablehook = _redeliver_ctrl_c(previous, timers)
     try:
         yield
     finally:
         sys.unraisablehook = previous
+        for timer in timers:  # the tool has ended: a Ctrl-C still pending must not reach the caller
+            timer.cancel()
 
 
 def _run_main(main, argv, args, *, prog, command) -> int:

@@ -66,6 +66,24 @@ def test_ctrl_c_swallowed_by_a_callback_still_stops_the_tool_without_a_traceback
     assert "Traceback" not in err and "Exception ignored" not in err, err
 
 
+def test_a_ctrl_c_still_pending_when_the_tool_ends_does_not_reach_the_caller(monkeypatch):
+    monkeypatch.setattr("sys.unraisablehook", sys.__unraisablehook__)
+
+    def swallow_and_return(argv=None):
+        thing = _Thing()
+        ref = weakref.ref(thing, lambda r: (_ for _ in ()).throw(KeyboardInterrupt))
+        del thing
+        gc.collect()
+        return 0 if ref() is None else 1
+
+    def run_then_wait():
+        status = run_cli(swallow_and_return, [], prog="prog")
+        time.sleep(0.3)  # longer than the re-press delay: a timer left running would interrupt here
+        return status
+
+    assert _with_default_sigint(run_then_wait) == 0
+
+
 def test_without_the_hook_python_swallows_the_ctrl_c(capsys, monkeypatch):
     """The failure the hook exists for: outside run_cli the same Ctrl-C is lost and prints a traceback."""
     monkeypatch.setattr("sys.unraisablehook", sys.__unraisablehook__)

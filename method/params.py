@@ -12,6 +12,7 @@ from .blur.estimators import BLUR_ESTIMATORS
 from .blur.model_fit import FIT_PSF_MODELS
 from .blur.region_estimators import REGION_ESTIMATORS, REGION_NOISE_MODELS, REGION_PSFS
 from .edges.isolation import EDGE_ISOLATION_METHODS
+from .luma import MEASURE_LIGHTS
 from .magnify.magnification import MAP_FLOOR_MODES
 from .propagation.cue_fusion import REGION_PLACEMENTS
 from .propagation.defocus import PROPAGATION_REFINEMENTS, PROPAGATION_SOLVERS
@@ -47,15 +48,14 @@ class DefocusParams:
     # the detector's FFT bank then needs no 64-px padding level: edge stage 0.81 → 0.47 s at 1 MP).
     sigma2_scales: tuple[float, ...] = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
     # σ2 of the steerable 2nd-derivative filters, px (Sec. 3.1); searched smallest first. Robust:
-    # 0.5 … 8: robust fits at min(σ2, fit_max_scale = 2 px), so an edge reliable only at
-    # σ2 ≥ 16 was fitted at a scale 8–16× narrower than its response; without them the accuracy
-    # bench's mosaic fails 13 → 12 (dead-leaves σ 6 at 1/255 0.69 → 0.63 px), small renders' mean
-    # textured dense MAE 0.370 / 0.209 → 0.369 / 0.209 px, full-preset renders 1.684 / 0.892 →
-    # 1.687 / 0.892 px (σ up to 4× larger there; their edge MAE: portrait f/4 2.43 → 0.32, clutter
-    # f/4 8.81 → 5.34 px): neutral where it is not better. (0.5 … 4 loses
-    # the σ 8 tiles: 0.65 → 5.64 px.)
+    # 0.5 … 8 (it fits at min(σ2, fit_max_scale = 2 px) anyway; measurements: docs/presets.md).
     noise_std: float = 2.5 / 255.0
     # sensor noise s_n in image units ([0, 1] scale): 2.5 grey levels of 8 bits (Sec. 3.1).
+    measure_light: str = "display"
+    # the light in which edges are detected and their blur measured (key of
+    # method.luma.MEASURE_LIGHTS): "display" (the encoded values, paper) or "linear" (sRGB decoded
+    # first: a lens blurs linear radiance; noise_std is then in linear units). The region cue, Eq. (3)
+    # and Eq. (4) read the encoded image either way.
     false_positive_rate: float = 1e-6
     # image-wide false-positive tolerance α_I = 0.0001 % (Sec. 3.1, Eq. 9).
 
@@ -388,6 +388,7 @@ def _is_int(v, minimum):
 def _check_edges(p):
     """Sec. 3.1 (and the Canny and isolation options beyond the paper)."""
     _need(p, "noise_std", p.noise_std > 0, "> 0")
+    _choice(p, "measure_light", MEASURE_LIGHTS)
     _need(p, "false_positive_rate", 0 < p.false_positive_rate < 1, "0 < α_I < 1")
     _choice(p, "edge_detector", EDGE_DETECTORS)
     _need(p, "canny_sigma", 0 < p.canny_sigma < _INF, "finite and > 0 (px)")

@@ -31,7 +31,7 @@ from .propagation.cue_fusion import fuse_cues
 from .propagation.data_weights import edge_confidence, propagation_confidence
 from .edges.isolation import isolation_weights
 from .edges.elder_zucker import EdgeMap, detect_edges
-from .luma import LUMA_WEIGHTS, luminance  # noqa: F401 (LUMA_WEIGHTS re-exported)
+from .luma import LUMA_WEIGHTS, luminance, measure_luminance  # noqa: F401 (LUMA_WEIGHTS re-exported)
 from .params import DefocusParams
 from .propagation.methods import propagate_blur_measures
 from .validation import validate_image
@@ -118,8 +118,10 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
 
     Notes
     -----
-    1. Luminance (Rec. 709 weights) of the input feeds the edge detector; the RGB input is the
-       reference image of the cross-bilateral filter and of the propagation affinities.
+    1. Luminance (Rec. 709 weights) of the input feeds the edge detector (in the light of
+       ``params.measure_light``: the encoded values, or beyond the paper sRGB decoded to linear
+       light, :func:`method.luma.measure_luminance`); the RGB input is the reference image of the
+       cross-bilateral filter and of the propagation affinities.
     2. Multiscale Elder–Zucker edges with the Eq. (9) thresholds (Sec. 3.1; :func:`edges_stage`);
        for the estimators that sample them again (model fit) the detector keeps its 2nd-derivative
        responses at the σ2 that produced edges.
@@ -140,6 +142,8 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
     image = validate_image(image)
     rgb = image if image.ndim == 3 else np.repeat(image[..., None], 3, axis=2)
     gray = luminance(image)
+    # what the edge and blur stages read (the paper: the encoded luminance itself)
+    seen = gray if params.measure_light == "display" else measure_luminance(image, params.measure_light)
     timings: dict[str, float] = {}
     cpu: dict[str, float] = {}
     t_start = time.perf_counter()
@@ -157,13 +161,13 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
         cpu[name] = time.process_time() - c_last[0]
 
     t = stage("edges")
-    edge_map = edges_stage(gray, params=params)
+    edge_map = edges_stage(seen, params=params)
     done("edges", t)
 
     t = stage("blur_at_edges")
-    sparse, confidence, edge_map, psf_disk = blur_stage(gray, edge_map, params=params)
+    sparse, confidence, edge_map, psf_disk = blur_stage(seen, edge_map, params=params)
     if params.edge_isolation is not None:
-        confidence = isolation_stage(gray, edge_map, sparse, params=params, confidence=confidence)
+        confidence = isolation_stage(seen, edge_map, sparse, params=params, confidence=confidence)
     done("blur_at_edges", t)
 
     if params.region_estimator is not None:
@@ -202,7 +206,7 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
     done("cross_bilateral", t)
 
     t = stage("propagation")
-    isolated = straddle_edges(gray, edge_map, sparse, params=params) if has_region else None
+    isolated = straddle_edges(seen, edge_map, sparse, params=params) if has_region else None
     dense = propagate_stage(refined, rgb, params=params, sparse_sigma=sparse, confidence=confidence,
                             region_sigma=region_sigma, region_information=region_info, gray=gray,
                             isolated_edges=isolated)

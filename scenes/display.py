@@ -1,13 +1,81 @@
-"""Display transform: linear rendered radiance ↔ the sRGB-encoded image a camera delivers.
+"""The camera pipeline: linear radiance → the encoded image a camera delivers (and back).
 
-Uses colour-science's sRGB transfer functions (IEC 61966-2-1); nothing hand-written.
+One pipeline for every synthetic or rendered image that a benchmark scores (the renders' encodings,
+the lens mosaics of :mod:`scenes.analytic.lens`, the exported dataset), in the order a camera applies
+it:
+
+1. exposure (a multiplier on the linear radiance);
+2. sensor noise, Poisson–Gaussian in linear units: variance a·x + b for a signal x in [0, 1] (Foi et
+   al., IEEE TIP 17(10), 2008), at the named levels of :data:`NOISE_LEVELS`;
+3. clipping to [0, 1] and the tone curve (sRGB, IEC 61966-2-1, from colour-science; or none);
+4. quantisation to ``bits`` per channel;
+5. optional JPEG compression at quality q (Pillow's encoder, 4:2:0 chroma subsampling for colour).
+
+Facts behind the noise levels: ../shared/research/LENS-AND-CAMERA.md (Brooks et al., "Unprocessing
+images for learned raw denoising", CVPR 2019: shot noise a log-uniform in [1e-4, 0.012], read noise
+log b = 2.18·log a + 1.20, natural logarithms, a and b as variances of a linear [0, 1] signal).
 """
 
 from __future__ import annotations
 
+import io
+import math
+from types import MappingProxyType
+
 import numpy as np
 
-__all__ = ["linear_to_srgb", "srgb_to_linear", "camera_image"]
+__all__ = ["ENCODINGS", "NOISE_LEVELS", "camera_image", "check_noise_level", "jpeg_roundtrip", "linear_to_srgb",
+           "noise_parameters", "sensor_noise", "srgb_to_linear"]
+
+#: Tone curves of :func:`camera_image`: "srgb" (as a camera JPEG), "linear" (no curve).
+ENCODINGS = ("srgb", "linear")
+
+
+def _brooks_read_noise(a: float) -> float:
+    """Read-noise variance b on the mean line of Brooks et al. 2019: log b = 2.18·log a + 1.20."""
+    return math.exp(2.18 * math.log(a) + 1.20)
+
+
+#: Named sensor noise levels → (a, b): variance a·x + b of a linear signal x in [0, 1]. The shot-noise
+#: gain a is 2e-4 at ISO 100 (near the low end of Brooks et al.'s range [1e-4, 0.012]) and scales with
+#: the ISO gain; b is on their mean read-noise line. Standard deviation at linear 0.2 (sRGB ≈ 0.48,
+#: mid-grey): iso100 0.0063, iso800 0.018, iso3200 0.036 (≈ 1.7, 4.6 and 9.2 grey levels of 8-bit sRGB).
+NOISE_LEVELS = MappingProxyType({
+    "none": (0.0, 0.0),
+    "iso100": (2e-4, _brooks_read_noise(2e-4)),
+    "iso800": (1.6e-3, _brooks_read_noise(1.6e-3)),
+    "iso3200": (6.4e-3, _brooks_read_noise(6.4e-3)),
+})
+
+
+def check_noise_level(noise) -> tuple[float, float]:
+    """(a, b) of a noise level: a name of :data:`NOISE_LEVELS` or a pair of variances (a, b) >= 0.
+
+    Raises
+    ------
+    ValueError
+        An unknown name (the message lists the levels) or negative / non-finite (a, b).
+    """
+    if isinstance(noise, str):
+        if noise not in NOISE_LEVELS:
+            raise ValueError(f"noise={noise!r} is invalid (unknown noise level); allowed: "
+                             f"{', '.join(NOISE_LEVELS)} or (a, b) variances >= 0")
+        return NOISE_LEVELS[noise]
+    try:
+        a, b = (float(v) for v in noise)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"noise={noise!r} is invalid; allowed: {', '.join(NOISE_LEVELS)} "
+                         "or (a, b) variances >= 0") from exc
+    if not (math.isfinite(a) and math.isfinite(b) and a >= 0 and b >= 0):
+        raise ValueError(f"noise={noise!r} is invalid; allowed: (a, b) finite variances >= 0 "
+                         "(variance a·x + b of a linear signal x in [0, 1])")
+    return a, b
+
+
+def noise_parameters(noise) -> dict:
+    """``{"a": a, "b": b}`` of a noise level (:func:`check_noise_level`), for metadata and tables."""
+    a, b = check_noise_level(noise)
+    return {"a": a, "b": b}
 
 
 def linear_to_srgb(linear):
@@ -36,32 +104,121 @@ def srgb_to_linear(encoded):
     return np.clip(colour.cctf_decoding(x, function="sRGB"), 0.0, 1.0)
 
 
-def camera_image(linear_rgb, *, exposure=1.0, quantize_bits=None, encoding="srgb"):
-    """The image the method sees: exposure-scaled, clipped, encoded, optionally quantised.
+def sensor_noise(linear, noise, *, rng=None):
+    """Poisson–Gaussian sensor noise on a linear signal: variance a·x + b.
+
+    Parameters
+    ----------
+    linear : ndarray, any shape, float
+        Linear signal x (exposure applied), nominally in [0, 1]; negative values count as 0 in the
+        shot-noise term.
+    noise : str or (float, float)
+        A name of :data:`NOISE_LEVELS` or the variances (a, b).
+    rng : numpy.random.Generator or int or None, keyword-only
+        Generator or seed (None: seed 0).
+
+    Returns
+    -------
+    ndarray, float64, same shape
+        a·Poisson(x/a) + N(0, b) (mean x, variance a·x + b), not clipped.
+
+    Notes
+    -----
+    1. Shot noise: a times a Poisson count of mean x/a (exact Poisson statistics; a = 0: none).
+    2. Read noise: additive Gaussian of variance b.
+    """
+    a, b = check_noise_level(noise)
+    x = np.asarray(linear, dtype=np.float64)
+    if a == 0 and b == 0:
+        return x.copy()
+    gen = rng if isinstance(rng, np.random.Generator) else np.random.default_rng(0 if rng is None else rng)
+    out = a * gen.poisson(np.maximum(x, 0.0) / a) if a > 0 else x.copy()
+    if b > 0:
+        out = out + gen.normal(0.0, math.sqrt(b), size=x.shape)
+    return out
+
+
+def jpeg_roundtrip(image, quality: int):
+    """Encode an 8-bit image as JPEG at ``quality`` (Pillow) and decode it again.
+
+    Parameters
+    ----------
+    image : ndarray, HxW or HxWx3, float in [0, 1] on the 8-bit grid (k/255)
+    quality : int
+        JPEG quality 1–100 (Pillow's scale; cameras use 75–95).
+
+    Returns
+    -------
+    ndarray, same shape, float64 in [0, 1] (k/255)
+    """
+    from PIL import Image
+
+    q = _check_quality(quality)
+    arr = np.asarray(image, dtype=np.float64)
+    u8 = np.round(np.clip(arr, 0.0, 1.0) * 255.0).astype(np.uint8)
+    buf = io.BytesIO()
+    Image.fromarray(u8).save(buf, format="JPEG", quality=q)
+    buf.seek(0)
+    with Image.open(buf) as im:
+        out = np.asarray(im, dtype=np.float64) / 255.0
+    return out.reshape(arr.shape)
+
+
+def _check_quality(quality):
+    if isinstance(quality, (bool, np.bool_)) or not isinstance(quality, (int, np.integer)) or not 1 <= quality <= 100:
+        raise ValueError(f"jpeg_quality={quality!r} is invalid; allowed: an integer 1..100")
+    return int(quality)
+
+
+def camera_image(linear_rgb, *, exposure=1.0, quantize_bits=None, encoding="srgb", noise="none", jpeg_quality=None,
+                 rng=None):
+    """The image the method sees: exposure, sensor noise, clipping, tone curve, quantisation, JPEG.
 
     Parameters
     ----------
     linear_rgb : ndarray, HxWx3 (or HxW), float
         Linear rendered radiance.
     exposure : float, keyword-only
-        Multiplier applied before clipping to [0, 1].
+        Multiplier applied before the noise and clipping.
     quantize_bits : int or None, keyword-only
         If given (e.g. 8), round to that many bits per channel, as a JPEG/PNG would store.
     encoding : {"srgb", "linear"}, keyword-only
         ``"srgb"`` (default) as a camera JPEG would be; ``"linear"`` keeps linear values.
+    noise : str or (float, float), keyword-only
+        Sensor noise level, a name of :data:`NOISE_LEVELS` (default "none") or variances (a, b).
+    jpeg_quality : int or None, keyword-only
+        JPEG quality 1–100 applied last (needs 8 bits: ``quantize_bits`` None or 8); None: no JPEG.
+    rng : numpy.random.Generator or int or None, keyword-only
+        The noise's generator or seed (None: seed 0).
 
     Returns
     -------
     ndarray, float64, same shape, in [0, 1]
+
+    Raises
+    ------
+    ValueError
+        Unknown encoding or noise level, negative noise variances, a JPEG quality outside 1–100 or
+        with ``quantize_bits`` other than 8.
+
+    Notes
+    -----
+    The steps of the module docstring, in that order; with ``noise="none"`` and no JPEG this is the
+    deterministic exposure → clip → encode → quantise of a noise-free camera.
     """
+    if encoding not in ENCODINGS:
+        raise ValueError(f"encoding={encoding!r} is invalid; allowed: {', '.join(ENCODINGS)}")
+    if jpeg_quality is not None:
+        _check_quality(jpeg_quality)
+        if quantize_bits not in (None, 8):
+            raise ValueError(f"quantize_bits={quantize_bits!r} is invalid with jpeg_quality; allowed: 8 or None")
+        quantize_bits = 8
     x = np.asarray(linear_rgb, dtype=np.float64) * float(exposure)
-    if encoding == "srgb":
-        out = linear_to_srgb(x)
-    elif encoding == "linear":
-        out = np.clip(x, 0.0, 1.0)
-    else:
-        raise ValueError(f"unknown encoding {encoding!r}; choose 'srgb' or 'linear'")
+    x = sensor_noise(x, noise, rng=rng)
+    out = linear_to_srgb(x) if encoding == "srgb" else np.clip(x, 0.0, 1.0)
     if quantize_bits is not None:
         levels = float(2**int(quantize_bits) - 1)
         out = np.round(out * levels) / levels
+    if jpeg_quality is not None:
+        out = jpeg_roundtrip(out, jpeg_quality)
     return out

@@ -167,6 +167,7 @@ def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageO
     map is repeated for every α (``timings`` then has one ``"propagation"`` entry).
     """
     from method import DefocusParams, luminance
+    from method.luma import measure_luminance
     from method.pipeline import (blur_stage, edge_psf_family, edges_stage, isolation_stage, propagate_stage,
                                  refine_stage, region_stage, straddle_edges)
 
@@ -176,20 +177,21 @@ def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageO
         raise ValueError(f"alphas={alphas!r} is invalid; allowed: non-empty sequence of values > 0")
     rgb = np.asarray(image, dtype=np.float64)
     gray = luminance(rgb)
+    seen = measure_luminance(rgb, params.measure_light)  # what the edge and blur stages read
     timings = {}
     t0 = time.perf_counter()
-    sparse, confidence, edge_map, psf_disk = blur_stage(gray, edges_stage(gray, params=params), params=params)
+    sparse, confidence, edge_map, psf_disk = blur_stage(seen, edges_stage(seen, params=params), params=params)
     if not np.any(np.isfinite(sparse)):
         raise ValueError("no edge pixel found in the image; the α sweep needs edge measures")
     if params.edge_isolation is not None:
-        confidence = isolation_stage(gray, edge_map, sparse, params=params, confidence=confidence)
+        confidence = isolation_stage(seen, edge_map, sparse, params=params, confidence=confidence)
     region = {}
     if params.region_estimator is not None:  # the second cue of Eq. (4), as estimate_defocus_map fuses it
         region_sigma, region_information = region_stage(gray, params=params,
                                                         edge_psf=edge_psf_family(sparse, psf_disk))
         has_region = bool(np.any(np.isfinite(region_sigma)))
         region = dict(region_sigma=region_sigma, region_information=region_information, gray=gray,
-                      isolated_edges=straddle_edges(gray, edge_map, sparse, params=params) if has_region else None)
+                      isolated_edges=straddle_edges(seen, edge_map, sparse, params=params) if has_region else None)
     refined = refine_stage(sparse, rgb, params=params, confidence=confidence)
     timings["shared"] = time.perf_counter() - t0
 

@@ -39,20 +39,25 @@ def _errors(estimate, truth, mask, bins) -> dict:
     t = truth[ok]
     out = {"n": int(e.size), "mae": float(np.mean(np.abs(e))) if e.size else None,
            "bias": float(np.mean(e)) if e.size else None,
+           "median": float(np.median(e)) if e.size else None,
            "coverage": float(ok.sum() / max(1, (mask & np.isfinite(truth)).sum()))}
     per = []
+    region_t = truth[mask & np.isfinite(truth)]
     for lo, hi in zip(bins[:-1], bins[1:]):
         sel = (t >= lo) & (t < hi)
         n = int(sel.sum())
+        n_region = int(np.count_nonzero((region_t >= lo) & (region_t < hi)))
         per.append({"lo": float(lo), "hi": float(hi), "n": n,
                     "mae": float(np.mean(np.abs(e[sel]))) if n else None,
-                    "bias": float(np.mean(e[sel])) if n else None})
+                    "bias": float(np.mean(e[sel])) if n else None,
+                    "median": float(np.median(e[sel])) if n else None,
+                    "coverage": n / n_region if n_region else None})
     out["bins"] = per
     return out
 
 
 def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, texture_threshold=0.02,
-                 result=None) -> dict:
+                 result=None, oracles=True) -> dict:
     """Errors after every stage for the estimated and the two oracle inputs.
 
     Parameters
@@ -71,15 +76,18 @@ def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, textur
         Local luminance std above which a pixel is textured (image units).
     result : method.DefocusResult, optional, keyword-only
         The pipeline's result for (image, params) if already computed.
+    oracles : bool, keyword-only
+        Also run the two oracle inputs (False: ``oracle_refine`` and ``oracle_propagate`` are empty).
 
     Returns
     -------
     dict
         ``{input: {stage: errors}}`` with inputs :data:`INPUTS`; stages ``sparse`` (estimated
         only), ``refined`` (not for ``oracle_propagate``), ``dense_all``, ``dense_textured``,
-        ``dense_edges``. ``errors`` = ``n``, ``mae``, ``bias`` (px), ``coverage`` (fraction of the
-        region's valid pixels with a finite value) and ``bins`` (per σ_gt bin: ``lo``, ``hi``,
-        ``n``, ``mae``, ``bias``). Also ``n_edges``.
+        ``dense_edges``. ``errors`` = ``n``, ``mae``, ``bias`` (mean signed error), ``median`` (median
+        signed error) (px), ``coverage`` (fraction of the region's valid pixels with a finite value)
+        and ``bins`` (per σ_gt bin: ``lo``, ``hi``, ``n``, ``mae``, ``bias``, ``median``, ``coverage``).
+        Also ``n_edges``.
 
     Notes
     -----
@@ -117,7 +125,7 @@ def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, textur
                          **dense_block(result.defocus_map)},
            "n_edges": int(edges.sum())}
     oracle = np.where(edges & np.isfinite(gt), gt, np.nan)
-    if np.isfinite(oracle).any():
+    if oracles and np.isfinite(oracle).any():
         refined = refine_stage(oracle, rgb, params=params)
         out["oracle_refine"] = {"refined": _errors(refined, gt, at_edges, bins),
                                 **dense_block(propagate_stage(refined, rgb, params=params, sparse_sigma=oracle))}

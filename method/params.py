@@ -10,6 +10,7 @@ import dataclasses
 
 from .blur.estimators import BLUR_ESTIMATORS
 from .blur.model_fit import FIT_PSF_MODELS
+from .blur.local_spectrum import REGION_GATES
 from .blur.region_estimators import REGION_ESTIMATORS, REGION_NOISE_MODELS, REGION_PSFS
 from .edges.isolation import EDGE_ISOLATION_METHODS
 from .luma import MEASURE_LIGHTS
@@ -99,14 +100,8 @@ class DefocusParams:
     # used by estimator "model_fit_checked" only: largest normalised residual ρ of the Eq. (2c) fit
     # (residual sum of squares / energy of the sampled response in the fit window; dimensionless,
     # in [0, 1]) for which a σb is returned; a poorer fit gives NaN (no measure). Not in the paper.
-    # Chosen from analytic step edges (scenes.analytic, σ = 0.5–8 px, 80×80, edge pixels within
-    # 1.5 px of the edge): ρ ≤ 0.0036 noise-free (100 % kept), ≤ 0.03 with noise 2 or 2.5/255 +
-    # 8 bits (100 % kept), 99.2 % ≤ 0.05 at 5/255 (twice noise_std); bars/thin lines whose two
-    # opposite edges are 1–3σ apart give median ρ ≈ 0.12–0.13 (rejected), at 4σ 0.04–0.12.
-    # On the rendered scenes it keeps only ~55 % of the model-fit estimates. 1 keeps every estimate.
-    # Robust preset: 0.03 (the largest ρ of analytic steps with noise 2.5/255 + 8 bits) with
-    # estimator "model_fit_checked": on the dead-leaves mosaic the in-focus bias of the fit grows with
-    # ρ (+0.08 px at ρ < 0.01, +0.74 px at 0.1–0.2); small renders' edge MAE 1.4–2.1 → 0.27–0.73 px.
+    # Analytic steps (σ 0.5–8 px) give ρ ≤ 0.03 with noise 2.5/255 + 8 bits; bars whose edges are
+    # 1–3σ apart ≈ 0.12. Robust: 0.03 (measurements: docs/presets.md). 1 keeps every estimate.
     fit_residual_noise: float = 0.0
     # beyond the paper (estimator "model_fit_checked"): k, dimensionless; the residual test becomes
     # ρ ≤ fit_max_residual + k · N · v_n(σ2) / ‖r‖², with N the samples in the fit window, ‖r‖² their
@@ -163,10 +158,7 @@ class DefocusParams:
     # "gaussian" (Eq. 2c, the paper), "disk" (a uniform disk, the thin lens's defocus;
     # method.blur.disk_edge_response), "best" (both, per edge the smaller residual) or "auto" (both, one
     # model per image: method.blur.model_fit.select_psf_model). Every model reports the per-axis std
-    # of its PSF through Eq. (2d) (a disk of diameter c: c/4). Robust: "auto" (picks Eq. 2c
-    # on every Gaussian mosaic of the accuracy bench, so those are unchanged; small renders'
-    # textured dense MAE tabletop 0.393 → 0.370, paper_cameras 0.234 → 0.208 px; "best" 0.370 / 0.221
-    # but dead-leaves σ 3 0.28 → 0.39 px; "disk" 0.383 / 0.208, clutter f/4 0.53 → 0.75 px).
+    # of its PSF through Eq. (2d) (a disk of diameter c: c/4). Robust: "auto" (docs/presets.md).
 
     # --- region (spectral) blur, beyond the paper (method.blur.region_estimators) -------------
     region_estimator: str | None = None
@@ -175,6 +167,9 @@ class DefocusParams:
     region_psf: str = "gaussian"
     # blur kernel of the region likelihood: "gaussian", "disk" (disk ⊗ 1-px box, reports
     # √((R/2)² + 1/12) px) or "edges" (the family the edge fit chose; gaussian if unknown).
+    region_gate: str = "none"
+    # which region fits are measures (key of method.blur.local_spectrum.REGION_GATES): "none" (every
+    # fit above the noise) or "adequacy" (the 1/f² model fits and pins σ down; docs/region-blur.md).
     region_noise_model: str = "white"
     # noise term: "white" (variance from the image's quietest blocks, ≥ 8-bit LSB²/12), "spectrum"
     # (per-frequency floor read from the image's own spectrum; fails on blurry texture,
@@ -431,6 +426,7 @@ def _check_region(p):
     _choice(p, "region_estimator", REGION_ESTIMATORS, optional=True)
     _choice(p, "region_psf", REGION_PSFS)
     _choice(p, "region_noise_model", REGION_NOISE_MODELS)
+    _choice(p, "region_gate", REGION_GATES)
     for name in ("region_window_min", "region_window_max"):
         _need(p, name, _is_int(getattr(p, name), 16), "integer >= 16 (px)")
     _need(p, "region_stride", _is_int(p.region_stride, 1), "integer >= 1 (px)")

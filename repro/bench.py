@@ -17,6 +17,11 @@ edge errors per σ bin on analytic truth (dead-leaves / photo mosaics, step-edge
 noise), on the rendered scenes, and the whole-pipeline speed of the presets, with pass/fail per
 target. Writes ``accuracy.json`` and ``accuracy.md`` (``--sizes`` / ``--repeat`` do not apply).
 
+``--psf NAME…`` chooses the PSFs of its lens part (:mod:`experiments.bench.lens`: texture families and
+steps blurred by a lens PSF in linear light, then a camera's noise and tone curve) and ``--full`` its
+full grid. ``python -m repro.bench --ablation`` runs the robust preset's ablation on the lens bench, the
+paper_cameras renders and the real photos (:mod:`experiments.bench.ablation`; ``ablation.md``).
+
 ``python -m repro.bench --sweep [--out report/bench]`` benchmarks the sweep engine
 (:func:`repro._sweep_bench.run_sweep_bench`): cells per minute for 1 and 2 workers on the small preset and the
 engine's overhead per cell. Writes ``sweep.json`` and ``sweep.md``.
@@ -86,8 +91,9 @@ def _speed_bench(args) -> None:
 
 
 def _parser():
-    from experiments.bench import BENCH_PRESETS
+    from experiments.bench import BENCH_PRESETS, LENS_CONFIG
     from method import PRESETS
+    from scenes.analytic.psfs import PSFS
     from repro._cli import ArgumentParser, add_quiet_option, int_type
 
     parser = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
@@ -98,6 +104,14 @@ def _parser():
     parser.add_argument("--out", type=Path, default=Path("report") / "bench", help="output folder")
     parser.add_argument("--accuracy", action="store_true",
                         help="record the dense-map accuracy targets (accuracy.md / accuracy.json) instead")
+    parser.add_argument("--psf", nargs="+", metavar="NAME",
+                        help=f"with --accuracy: the lens PSFs of the lens benchmark ({', '.join(PSFS)}; default: "
+                             f"{' '.join(LENS_CONFIG['psfs'])})")
+    parser.add_argument("--full", action="store_true",
+                        help="with --accuracy: the full lens grid (every PSF and noise level, JPEG 85, two seeds)")
+    parser.add_argument("--ablation", action="store_true",
+                        help="run the robust preset's ablation on the lens bench, the paper_cameras renders (full "
+                             "preset, f/8 f/4 f/2) and the real photos instead (ablation.md / ablation.json)")
     parser.add_argument("--sweep", action="store_true",
                         help="benchmark the sweep engine instead (cells/minute for 1 and 2 workers, engine overhead "
                              "per cell; sweep.md / sweep.json)")
@@ -118,10 +132,28 @@ def main(argv=None) -> int:
 
         print(json.dumps(time_pipeline(args.worker, args.repeat, args.worker_preset)))
         return 0
+    if (args.psf or args.full) and not args.accuracy:
+        raise ValueError("--psf and --full go with --accuracy")
     if args.accuracy:
         require_extras("render", command="repro.bench --accuracy")
-        run_accuracy(out=args.out)  # a ValueError is one line + exit 2 (repro._cli.run_cli)
+        from experiments.bench import accuracy, lens_config
+
+        config = dict(accuracy.ACCURACY_CONFIG)
+        if config.get("lens") is not None and (args.psf or args.full):
+            config["lens"] = {**lens_config(psfs=args.psf, full=args.full), "variants": config["lens"]["variants"]}
+        run_accuracy(config, out=args.out, progress=not args.quiet)  # a ValueError is one line + exit 2
         print((args.out / "accuracy.md").read_text(encoding="utf-8"))
+        return 0
+    if args.ablation:
+        require_extras("render", command="repro.bench --ablation")
+        from defocus_cache import atomic_write_text
+        from experiments.bench import ablation_markdown, ablation_report
+
+        report = ablation_report(progress=not args.quiet)
+        args.out.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(args.out / "ablation.json", json.dumps(report, indent=1, allow_nan=False, default=str))
+        atomic_write_text(args.out / "ablation.md", ablation_markdown(report) + "\n")
+        print((args.out / "ablation.md").read_text(encoding="utf-8"))
         return 0
     if args.sweep:
         require_extras("sweep", "render", command="repro.bench --sweep")

@@ -230,7 +230,8 @@ def test_result_says_which_model_the_robust_preset_chose(psf):
     from method.pipeline import estimate_defocus_map
 
     img = _blurred_step(3.0, psf)
-    res = estimate_defocus_map(img, DefocusParams.preset("robust"))
+    # these steps are blurred in display values: the fit is judged in the light the blur acted in
+    res = estimate_defocus_map(img, DefocusParams.preset("robust", measure_light="display"))
     assert res.psf_model == psf
     assert res.psf_disk.shape == img.shape and res.psf_disk.sum() == (
         np.isfinite(res.sparse_sigma).sum() if psf == "disk" else 0)
@@ -245,7 +246,7 @@ def test_result_psf_model_mixed():
     from method.pipeline import estimate_defocus_map
 
     img = np.concatenate([_blurred_step(3.0, "gaussian"), _blurred_step(3.0, "disk")], axis=1)
-    res = estimate_defocus_map(img, DefocusParams.preset("robust", fit_psf="best"))
+    res = estimate_defocus_map(img, DefocusParams.preset("robust", fit_psf="best", measure_light="display"))
     measured = np.isfinite(res.sparse_sigma)
     assert res.psf_model == "mixed"
     left, right = np.zeros_like(measured), np.zeros_like(measured)

@@ -34,6 +34,11 @@ from tests.tolerances import (MOSAIC_ABLATION_MARGIN_PX, MOSAIC_ABLATION_MIN_GAI
 
 PAPER = DefocusParams()
 ROBUST = DefocusParams.preset("robust")
+#: The mosaic of the ablation below blurs display values (a Gaussian after the tone curve), so its
+#: switches are measured with the edge fit in display light; measure_light itself is judged on blur in
+#: each light (test_measure_light_reads_the_blur_in_the_light_it_acted_in).
+ROBUST_DISPLAY = ROBUST.replace(measure_light="display")
+MOSAIC_CHANGES = {k: v for k, v in ROBUST_CHANGES.items() if k != "measure_light"}
 
 # --- the paper preset is the literal reproduction ------------------------------------
 
@@ -263,12 +268,15 @@ GAUSSIAN_IDENTICAL = ("fit_psf",)
 #:   (no 64-px FFT padding level): the coarse-scale caps sigma1_scales ≤ 16, sigma2_scales ≤ 8
 #:   (their accuracy on σ 5–8 tiles and renders: method/params.py, the accuracy bench).
 SCALE_CAPS_IDENTICAL = ("sigma1_scales", "sigma2_scales")
+#: * the light of the edge stage: linear (a lens blurs linear radiance): judged on steps blurred in each
+#:   light (below) and on the lens bench, the renders and the photos (docs/presets.md).
+LIGHT = ("measure_light",)
 
 
 def test_every_robust_switch_has_a_measured_claim():
     """A switch added to ROBUST_CHANGES must be measured and put in one of the groups above."""
     groups = (DENSE_HELPS + DENSE_NEUTRAL_SPARSE_HELPS + DENSE_NEUTRAL_BLURRY_HELPS + DENSE_HURTS + GAUSSIAN_IDENTICAL
-              + SCALE_CAPS_IDENTICAL + DENSE_HELPS_EDGE_ONLY + REGION_CUE)
+              + SCALE_CAPS_IDENTICAL + DENSE_HELPS_EDGE_ONLY + REGION_CUE + LIGHT)
     assert len(set(groups)) == len(groups)
     assert set(ROBUST_CHANGES) <= set(groups), sorted(set(ROBUST_CHANGES) - set(groups))
 
@@ -276,7 +284,7 @@ def test_every_robust_switch_has_a_measured_claim():
 @pytest.fixture(scope="module")
 def mosaic_ablation():
     """{row: {"dense": [MAE per seed], "sparse": [...], "n_sparse": [...]}} over paper + ablation rows."""
-    rows = {"paper": PAPER, **ablation_params(ROBUST, ROBUST_CHANGES)}
+    rows = {"paper": PAPER, **ablation_params(ROBUST_DISPLAY, MOSAIC_CHANGES)}
     out = {name: {"dense": [], "sparse": [], "n_sparse": []} for name in rows}
     for seed in MOSAIC_SEEDS:
         m = texture_mosaic(**MOSAIC, rng=seed)
@@ -305,7 +313,7 @@ def _gain(ab, field, key="dense"):
 
 
 def _in_preset(field):
-    if field not in ROBUST_CHANGES:
+    if field not in MOSAIC_CHANGES:
         pytest.skip(f"{field} is no longer a switch of the robust preset")
 
 
@@ -326,7 +334,7 @@ def test_switch_identical_on_the_gaussian_mosaic(mosaic_ablation, field):
     assert ab[f"no {field}"] == ab["all"]
 
 
-@pytest.mark.parametrize("field", sorted(set(ROBUST_CHANGES) - set(DENSE_HURTS)))
+@pytest.mark.parametrize("field", sorted(set(MOSAIC_CHANGES) - set(DENSE_HURTS)))
 def test_switch_off_does_not_improve_the_dense_map(mosaic_ablation, field):
     """Turning one switch off (others on) does not improve the dense map by more than a small margin
     (every switch of the preset except the recorded DENSE_HURTS)."""
@@ -365,6 +373,33 @@ def test_switch_does_not_help_the_dense_map_on_the_mosaic(mosaic_ablation, field
     map beyond the margin. If this starts failing, re-measure and re-classify the switch."""
     _in_preset(field)
     assert _gain(mosaic_ablation, field) <= -MOSAIC_ABLATION_MARGIN_PX, (field, _gain(mosaic_ablation, field))
+
+
+@pytest.mark.parametrize("blur_light", ["linear", "display"])
+def test_measure_light_reads_the_blur_in_the_light_it_acted_in(blur_light):
+    """A disk-blurred step (σ 4 px, ISO 100 noise, 8 bits): the robust fit in the light the blur acted in
+    measures it (≥ 90 % of the edge pixels, median within 5 %); in the other light the tone curve makes
+    the profile asymmetric and the checked fit declines it (measured: 0 %). A lens blurs linear light."""
+    from method.luma import measure_luminance
+    from method.pipeline import blur_stage, edges_stage
+    from scenes.analytic.lens import lens_step_edge
+
+    e = lens_step_edge((128, 128), sigma=4.0, psf="disk", angle=0.4, light=blur_light, noise="iso100",
+                       quantize_bits=8, rng=0)
+    near = np.abs(e.edge_distance) < 4.0
+    near[:30], near[-30:], near[:, :30], near[:, -30:] = False, False, False, False
+    coverage = {}
+    for light in ("linear", "display"):
+        p = ROBUST.replace(measure_light=light)
+        gray = measure_luminance(e.image, light)
+        edges = edges_stage(gray, params=p)
+        sparse = blur_stage(gray, edges, params=p)[0][near & edges.edges]
+        ok = np.isfinite(sparse)
+        coverage[light] = ok.mean()
+        if light == blur_light:
+            assert ok.mean() >= 0.9 and abs(np.median(sparse[ok]) - 4.0) <= 0.2
+    other = "display" if blur_light == "linear" else "linear"
+    assert coverage[other] < 0.1, coverage
 
 
 def test_refinement_switches_leave_the_sparse_stage_alone(mosaic_ablation):

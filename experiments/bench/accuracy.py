@@ -16,6 +16,7 @@ import statistics
 import time
 import warnings
 
+from .lens import LENS_CONFIG, judge_lens, measure_lens
 from .mosaics import ANALYTIC_DATASETS, STEP_BASE_ANGLE, STEP_SEAM_BAND_PX, analytic_case, noise_label, sigma_bins
 from .speed import machine_info, bench_image
 from .targets import judge_accuracy, targets
@@ -46,6 +47,9 @@ ACCURACY_CONFIG = {
     "speed_sizes": (512, 1024),  # px (square astronaut, as the speed bench)
     "speed_repeat": 3,  # median of this many runs
     "speed_single": {"zhuo_sim": (512,)},  # preset -> sizes timed once
+    # the lens benchmark (experiments.bench.lens): texture families and steps blurred by a lens PSF in
+    # linear light, then a camera; None skips it. ``repro.bench --accuracy --psf …`` / ``--full`` change it.
+    "lens": LENS_CONFIG,
 }
 
 
@@ -202,7 +206,8 @@ def measure_accuracy(config: dict, *, progress: bool = True) -> dict:
     dict
         ``analytic`` (``runs``: one per dataset x noise x seed x preset; ``pooled``: pixel-weighted over
         seeds), ``rendered`` (``cases``: per scene set x scene x f-number, every preset and estimator),
-        ``speed`` (``rows``: per preset x size, wall times in s and load averages).
+        ``speed`` (``rows``: per preset x size, wall times in s and load averages), ``lens`` (the rows
+        of :func:`experiments.bench.lens.measure_lens`; empty without ``config["lens"]``).
 
     Notes
     -----
@@ -211,6 +216,7 @@ def measure_accuracy(config: dict, *, progress: bool = True) -> dict:
     2. Rendered scenes: cached renders, σ_gt in the line-spread convention, occlusion boundaries
        excluded; every preset and every estimator (paper pipeline) through ``stage_errors``.
     3. Speed: :func:`experiments.bench.speed.bench_image` at each size, median wall time, load averages around it.
+    4. Lens blur: :func:`experiments.bench.lens.measure_lens` on ``config["lens"]``.
     """
     from tqdm import tqdm
 
@@ -226,6 +232,7 @@ def measure_accuracy(config: dict, *, progress: bool = True) -> dict:
         out["rendered"] = _measure_rendered(config, bar) if n_render else {"cases": []}
     with tqdm(total=n_speed, desc="accuracy: speed", unit="run", disable=not progress or not n_speed) as bar:
         out["speed"] = _measure_speed(config, bar) if n_speed else {"rows": []}
+    out["lens"] = measure_lens(config["lens"], progress=progress) if config.get("lens") else []
     return out
 
 
@@ -284,9 +291,10 @@ def accuracy_report(config: dict | None = None, *, progress: bool = True) -> dic
     Returns
     -------
     dict
-        ``config``, ``analytic``, ``rendered``, ``speed`` (:func:`measure_accuracy`), ``verdict``
-        (:func:`experiments.bench.targets.judge_accuracy`), ``targets``, ``notes``, ``machine``,
-        ``date``, ``runtime_s``.
+        ``config``, ``analytic``, ``rendered``, ``speed``, ``lens`` (:func:`measure_accuracy`), ``verdict``
+        (:func:`experiments.bench.targets.judge_accuracy`), ``lens_verdict``
+        (:func:`experiments.bench.lens.judge_lens`, None without lens rows), ``targets``, ``notes``,
+        ``machine``, ``date``, ``runtime_s``.
 
     Raises
     ------
@@ -305,6 +313,7 @@ def accuracy_report(config: dict | None = None, *, progress: bool = True) -> dic
     load0 = os.getloadavg()
     measured = measure_accuracy(cfg, progress=progress)
     report = {"config": cfg, **measured, "verdict": judge_accuracy(measured), "targets": targets(),
+              "lens_verdict": judge_lens(measured["lens"]) if measured["lens"] else None,
               "notes": _notes(cfg, load0), "machine": machine_info(),
               "date": time.strftime("%Y-%m-%d %H:%M:%S"), "runtime_s": time.perf_counter() - t0}
     return json_safe(report)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from . import targets as _t
 from .accuracy import seeds_text
+from .lens import lens_markdown
 from .mosaics import ANALYTIC_DATASETS, noise_label
 
 __all__ = ["accuracy_markdown"]
@@ -181,7 +182,8 @@ def accuracy_markdown(report: dict) -> str:
     ----------
     report : dict
         An :func:`experiments.bench.accuracy.accuracy_report` record (``config``, ``analytic``,
-        ``rendered``, ``speed``, ``verdict``, ``notes``, ``date``, ``machine``, ``runtime_s``).
+        ``rendered``, ``speed``, ``verdict``, ``notes``, ``date``, ``machine``, ``runtime_s``; with
+        ``lens`` rows also ``lens_verdict``: the lens section, :func:`experiments.bench.lens.lens_markdown`).
 
     Returns
     -------
@@ -189,4 +191,6 @@ def accuracy_markdown(report: dict) -> str:
         Without a final newline.
     """
     lines = _header(report) + _analytic_sections(report) + _rendered_section(report) + _speed_section(report)
+    if report.get("lens"):
+        lines += ["", lens_markdown(report["lens"], report["config"]["lens"], report["lens_verdict"])]
     return "\n".join(lines)

@@ -11,8 +11,8 @@ import math
 
 from method.registry import Registry
 
-__all__ = ["ANALYTIC_DATASETS", "STEP_BASE_ANGLE", "STEP_SEAM_BAND_PX", "analytic_case", "noise_label",
-           "sigma_bins", "step_mosaic"]
+__all__ = ["ANALYTIC_DATASETS", "STEP_BASE_ANGLE", "STEP_SEAM_BAND_PX", "analytic_case", "lens_step_mosaic",
+           "noise_label", "sigma_bins", "step_mosaic"]
 
 #: Half-width (px) of the band masked on each side of the step-edge mosaic's tile seams.
 STEP_SEAM_BAND_PX = 6
@@ -48,6 +48,21 @@ def _near_seam(n: int, tile: int):
     return inner & (d < STEP_SEAM_BAND_PX)
 
 
+def _mirrored_steps(sigmas, tile: int, make):
+    """2 rows x len(sigmas) tiles: ``make(sigma, angle)`` (a tile²-px image) at the mirrored normal angles."""
+    import numpy as np
+
+    rows = []
+    for base in (STEP_BASE_ANGLE, -STEP_BASE_ANGLE):
+        angles = [base if c % 2 == 0 else math.pi - base for c in range(len(sigmas))]
+        rows.append(np.concatenate([make(float(s), a) for s, a in zip(sigmas, angles)], axis=1))
+    image = np.concatenate(rows, axis=0)
+    h, w = image.shape[:2]
+    sigma_gt = np.broadcast_to(np.repeat(np.asarray(sigmas, dtype=np.float64), tile)[None, :], (h, w)).copy()
+    valid = ~(_near_seam(h, tile)[:, None] | _near_seam(w, tile)[None, :])
+    return image, sigma_gt, valid
+
+
 def step_mosaic(sigmas, tile: int, noise_std: float, seed: int):
     """Mosaic of straight blurred step edges: 2 rows x len(sigmas) tiles of ``tile``² px.
 
@@ -77,16 +92,33 @@ def step_mosaic(sigmas, tile: int, noise_std: float, seed: int):
 
     from scenes.analytic import degrade, step_edge
 
-    rows = []
-    for base in (STEP_BASE_ANGLE, -STEP_BASE_ANGLE):
-        angles = [base if c % 2 == 0 else math.pi - base for c in range(len(sigmas))]
-        rows.append(np.concatenate([step_edge((tile, tile), sigma=float(s), angle=a).image
-                                    for s, a in zip(sigmas, angles)], axis=1))
-    image = degrade(np.concatenate(rows, axis=0), noise_std=noise_std, quantize_bits=8,
-                    rng=np.random.default_rng(seed))
-    h, w = image.shape
-    sigma_gt = np.broadcast_to(np.repeat(np.asarray(sigmas, dtype=np.float64), tile)[None, :], (h, w)).copy()
-    valid = ~(_near_seam(h, tile)[:, None] | _near_seam(w, tile)[None, :])
+    image, sigma_gt, valid = _mirrored_steps(sigmas, tile, lambda s, a: step_edge((tile, tile), sigma=s, angle=a).image)
+    image = degrade(image, noise_std=noise_std, quantize_bits=8, rng=np.random.default_rng(seed))
+    return image, sigma_gt, valid
+
+
+def lens_step_mosaic(sigmas, tile: int, *, psf: str, noise: str, seed: int, light: str = "linear"):
+    """:func:`step_mosaic`'s layout with steps blurred by a lens PSF in linear light, then the camera.
+
+    Each tile is :func:`scenes.analytic.lens.lens_step_edge` (display values 0.2 → 0.8, PSF ``psf`` of
+    reported σ = sigmas[c], kernel ⊗ pixel box); then Poisson–Gaussian noise ``noise`` in linear
+    units, the sRGB curve and 8 bits (:func:`scenes.display.camera_image`).
+
+    Returns
+    -------
+    image, sigma_gt, valid
+        As :func:`step_mosaic`.
+    """
+    import numpy as np
+
+    from scenes.analytic.lens import lens_step_edge
+    from scenes.display import camera_image, srgb_to_linear
+
+    def make(s, a):
+        return lens_step_edge((tile, tile), sigma=s, psf=psf, angle=a, light=light).image
+
+    image, sigma_gt, valid = _mirrored_steps(sigmas, tile, make)
+    image = camera_image(srgb_to_linear(image), noise=noise, quantize_bits=8, rng=np.random.default_rng(seed))
     return image, sigma_gt, valid
 
 

@@ -20,18 +20,23 @@ convolved with the 1-px box of the pixel (the harness's renders) and the reporte
 
 from __future__ import annotations
 
+import dataclasses
+import math
+
 import numpy as np
 import scipy.fft
 from numpy.lib.stride_tricks import sliding_window_view
 
 from .image_noise import estimate_noise_variance
 from .spectrum_model import hann_window, model_tables, ring_matrix, sigma_grid
-from ..registry import Registry
+from ..registry import Entry, Registry
 
 __all__ = [
     "LSB",
     "PSF_MODELS",
     "NOISE_MODELS",
+    "REGION_GATES",
+    "AdequacyGate",
     "estimate_blur_local_spectrum",
     "estimate_noise_variance",
     "local_spectrum_grid",
@@ -51,6 +56,39 @@ COARSE_WINDOW = 32
 #: Smallest log-likelihood-ratio 2·(L_noise − L_fit) for a measure; below it the window's spectrum
 #: is explained by noise alone (flat or noise-only region): NaN, information 0.
 MIN_LOG_LR = 25.0
+
+
+@dataclasses.dataclass(frozen=True)
+class AdequacyGate:
+    """When a window's fit is a measure: the model explains its spectrum and pins σ down.
+
+    Attributes
+    ----------
+    max_deviance : float
+        Largest mean Gamma deviance per band of the fitted spectrum (≈ 1 when the 1/|ω|² texture model
+        fits; periodic textures and text give peaks far above it), dimensionless.
+    max_rel_std : float
+        Largest relative standard deviation 1/(σ̂·√I) of σ̂ (I its Fisher information, the scale
+        profiled out): a window whose likelihood is flat in σ (smooth shading, a single edge, a
+        texture with little high-frequency power) gives no measure, dimensionless.
+    top_margin : float
+        σ̂ ≥ sigma_max / top_margin is a bound at the top of the grid, not a measure (smooth shading
+        reads as "as blurry as the grid allows"), dimensionless ≥ 1.
+    """
+
+    max_deviance: float = math.inf
+    max_rel_std: float = math.inf
+    top_margin: float = 1.0
+
+
+#: ``DefocusParams.region_gate``: which fits are measures. The "adequacy" thresholds were chosen on
+#: lens mosaics of eight texture families (disk PSF in linear light, ISO 100; docs/region-blur.md).
+REGION_GATES = Registry("region gate", {
+    "none": Entry(AdequacyGate(), "every fit with evidence above the noise (2·ΔL > 25) is a measure"),
+    "adequacy": Entry(AdequacyGate(max_deviance=2.0, max_rel_std=0.05, top_margin=1.1),
+                      "also: the model fits (deviance ≤ 2 per band), σ̂ is pinned down (rel. std ≤ 5 %), "
+                      "not at the grid's top"),
+})
 #: Windows processed per FFT batch (bounds memory: 512 windows of 128² complex64 = 64 MB).
 _BATCH = 512
 
@@ -166,14 +204,25 @@ def _refine(grid, nll_f, jf, j):
     return np.where(inner, np.clip(v, grid[np.maximum(j - 1, 0)], grid[np.minimum(j + 1, G - 1)]), grid[j])
 
 
-def _information(sig, s, grid, A, dA, N, kappa):
-    """Fisher information of σ (s profiled), 1/px², at (σ̂, ŝ) with A, dA interpolated in σ."""
+def _model_at(sig, s, grid, A, dA, N):
+    """(a, da, M): A and dA interpolated linearly in σ at σ̂, and the expected powers M = ŝ·a + N."""
     G = len(grid)
     k = np.clip(np.searchsorted(grid, sig) - 1, 0, G - 2)
     t = ((sig - grid[k]) / (grid[k + 1] - grid[k]))[:, None]
     a = (1 - t) * A[k] + t * A[k + 1]
     da = (1 - t) * dA[k] + t * dA[k + 1]
-    M = s[:, None] * a + N
+    return a, da, s[:, None] * a + N
+
+
+def _deviance(P, M, kappa):
+    """Mean Gamma deviance per band, 2·Σ κ_b (P_b/M_b − ln(P_b/M_b) − 1) / B: ≈ 1 when the model fits."""
+    r = np.maximum(P, 1e-30) / M
+    return 2.0 * np.sum(kappa * (r - np.log(r) - 1.0), -1) / P.shape[-1]
+
+
+def _information(sig, s, grid, A, dA, N, kappa):
+    """Fisher information of σ (s profiled), 1/px², at (σ̂, ŝ) with A, dA interpolated in σ."""
+    a, da, M = _model_at(sig, s, grid, A, dA, N)
     i_ss = np.sum(kappa * (a / M) ** 2, -1)
     i_sg = np.sum(kappa * a * s[:, None] * da / M ** 2, -1)
     i_gg = np.sum(kappa * (s[:, None] * da / M) ** 2, -1)
@@ -211,7 +260,7 @@ def _nan_median3(a):
 
 def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=0.0, sigma_max=12.0,
                         window_min=16, window_max=96, window_scale=12.0, stride=32, noise_variance=None,
-                        likelihood="profile"):
+                        likelihood="profile", gate=AdequacyGate()):
     """Per-window blur measures on a block grid of window centres (the kernel of :func:`estimate_blur_local_spectrum`).
 
     Parameters
@@ -233,13 +282,16 @@ def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=
     likelihood : {"profile", "gsm"}, keyword-only
         "profile": the scale s maximised out (Zhu et al.); "gsm": s marginalised under a
         log-uniform scale-mixture prior (:mod:`method.blur.gsm`).
+    gate : AdequacyGate, keyword-only
+        Which fits are measures beyond the noise test (default: all; :data:`REGION_GATES`).
 
     Returns
     -------
     dict
         ``cy``, ``cx`` (ny,), (nx,) centre rows / columns, px; ``sigma`` (ny, nx) px, NaN without a
         measure; ``information`` (ny, nx) 1/px², 0 without a measure; ``window`` (ny, nx) side used, px
-        (0 where none fits); ``noise_variance`` float.
+        (0 where none fits); ``noise_variance`` float; ``deviance`` (ny, nx) the fit's mean Gamma
+        deviance per band (NaN without a measure).
     """
     g = np.asarray(gray, dtype=np.float64)
     H, W = g.shape
@@ -250,7 +302,8 @@ def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=
     sigma = np.full((ny, nx), np.nan)
     info = np.zeros((ny, nx))
     wins = np.zeros((ny, nx), dtype=np.int64)
-    out = dict(cy=cy, cx=cx, sigma=sigma, information=info, window=wins, noise_variance=v)
+    deviance = np.full((ny, nx), np.nan)
+    out = dict(cy=cy, cx=cx, sigma=sigma, information=info, window=wins, noise_variance=v, deviance=deviance)
     z = _gradient_field(g)
     hz, wz = z.shape
     sizes = [s for s in WINDOW_SIZES if window_min <= s <= window_max and s <= min(hz, wz)]
@@ -272,15 +325,20 @@ def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=
         j, s, nll_f, jf, lr = _fit(P, A.astype(np.float32), N, kappa.astype(np.float32), likelihood=likelihood,
                                    allowed=allowed)
         sig = _refine(garr, nll_f.astype(np.float64), jf, j)
-        inf = _information(sig, s.astype(np.float64), garr, A, dA, N.astype(np.float64), kappa)
-        ok = (lr > MIN_LOG_LR) & (inf > 0)
-        return np.where(ok, sig, np.nan), np.where(ok, inf, 0.0)
+        s64, n64 = s.astype(np.float64), N.astype(np.float64)
+        inf = _information(sig, s64, garr, A, dA, n64, kappa)
+        dev = _deviance(P.astype(np.float64), _model_at(sig, s64, garr, A, dA, n64)[2], kappa)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rel_std = 1.0 / (sig * np.sqrt(inf))
+        ok = ((lr > MIN_LOG_LR) & (inf > 0) & (dev <= gate.max_deviance) & (rel_std <= gate.max_rel_std)
+              & (sig < garr[-1] / gate.top_margin if gate.top_margin > 1.0 else True))
+        return np.where(ok, sig, np.nan), np.where(ok, inf, 0.0), np.where(ok, dev, np.nan)
 
     # coarse pass on every other centre, then each centre's window from its coarse σ̂ (3×3 median)
     n0 = min(sizes, key=lambda s: abs(s - COARSE_WINDOW))
     sub = (slice(None, None, 2), slice(None, None, 2))
     idx0 = np.arange(ny * nx).reshape(ny, nx)[sub].ravel()
-    s0, _ = run(n0, idx0)
+    s0, _, _ = run(n0, idx0)
     coarse_sub = _nan_median3(s0.reshape(np.arange(ny * nx).reshape(ny, nx)[sub].shape))
     coarse = np.repeat(np.repeat(coarse_sub, 2, 0), 2, 1)[:ny, :nx].ravel()
     want = np.where(np.isfinite(coarse), window_scale * coarse, sizes[0])
@@ -288,6 +346,7 @@ def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=
     choice = size_arr[np.minimum(np.searchsorted(size_arr, want), len(sizes) - 1)]
     res_s = np.full(ny * nx, np.nan)
     res_i = np.zeros(ny * nx)
+    res_d = np.full(ny * nx, np.nan)
     iy, ix = np.divmod(np.arange(ny * nx), nx)
 
     def final_pass(which, prior):
@@ -297,12 +356,12 @@ def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=
                 continue
             f = max(1, n // (2 * stride))  # windows ≥ 2·stride: one measure per f×f centres (≥ 50 % overlap)
             if f == 1:
-                res_s[sel], res_i[sel] = run(n, sel, prior)
+                res_s[sel], res_i[sel], res_d[sel] = run(n, sel, prior)
                 continue
             rep = np.minimum(iy[sel] // f * f + f // 2, ny - 1) * nx + np.minimum(ix[sel] // f * f + f // 2, nx - 1)
             uniq, inv = np.unique(rep, return_inverse=True)
-            s_u, i_u = run(n, uniq, prior)
-            res_s[sel], res_i[sel] = s_u[inv], i_u[inv]
+            s_u, i_u, d_u = run(n, uniq, prior)
+            res_s[sel], res_i[sel], res_d[sel] = s_u[inv], i_u[inv], d_u[inv]
 
     final_pass(np.arange(ny * nx), coarse)
     # one more pass where the final σ̂ (3×3 median) asks for a larger window than the coarse one gave
@@ -317,6 +376,7 @@ def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=
     sigma[:] = res_s.reshape(ny, nx)
     info[:] = res_i.reshape(ny, nx)
     wins[:] = choice.reshape(ny, nx)
+    deviance[:] = res_d.reshape(ny, nx)
     return out
 
 
@@ -370,7 +430,7 @@ def estimate_blur_local_spectrum(gray, *, params, edge_psf=None):
     gray : ndarray, HxW, float in [0, 1]
         Luminance of the sRGB input (``method.luma.luminance``).
     params : DefocusParams, keyword-only
-        Uses ``region_psf``, ``region_noise_model``, ``region_sigma_min`` / ``region_sigma_max``,
+        Uses ``region_psf``, ``region_noise_model``, ``region_gate``, ``region_sigma_min`` / ``region_sigma_max``,
         ``region_window_min`` / ``region_window_max`` / ``region_window_scale`` and ``region_stride``.
     edge_psf : {"gaussian", "disk"} or None, keyword-only
         The PSF family the edge fit chose; used when ``params.region_psf == "edges"`` (None there:
@@ -397,7 +457,10 @@ def estimate_blur_local_spectrum(gray, *, params, edge_psf=None):
        autocorrelations (window × field) at integer lags; ring sums Gamma(κ_b) distributed, κ_b the
        ring's bins / the window's variance inflation.
     5. Maximum likelihood: per σ of the grid, s by Newton steps on the profile score; the grid
-       minimum refined by a parabola; "no measure" when 2·(L_noise − L_fit) < MIN_LOG_LR.
+       minimum refined by a parabola; "no measure" when 2·(L_noise − L_fit) < MIN_LOG_LR, and with
+       ``params.region_gate`` "adequacy" also where the model does not fit the window's spectrum
+       (mean Gamma deviance per band > 2: periodic texture, text), where σ̂ is not pinned down
+       (relative std 1/(σ̂√I) > 5 %: shading, lone edges) or where σ̂ is at the grid's top.
     6. Information: I_σσ − I_σs²/I_ss of the Gamma model at (σ̂, ŝ).
     7. Multi-window: a coarse 32-px pass on every other centre; each centre then uses the smallest
        window of WINDOW_SIZES ≥ window_scale · σ̂ (3×3 median of the coarse σ̂), within
@@ -414,6 +477,7 @@ def estimate_blur_local_spectrum(gray, *, params, edge_psf=None):
     out = local_spectrum_grid(g, psf=psf, noise_model=params.region_noise_model,
                               sigma_min=params.region_sigma_min, sigma_max=params.region_sigma_max,
                               window_min=params.region_window_min, window_max=params.region_window_max,
-                              window_scale=params.region_window_scale, stride=params.region_stride)
+                              window_scale=params.region_window_scale, stride=params.region_stride,
+                              gate=REGION_GATES[params.region_gate])
     sigma, info = spread_to_pixels(out, g.shape)
     return sigma, info / float(params.region_stride) ** 2

@@ -179,7 +179,10 @@ def lens_step_edge(shape, *, sigma, psf="disk", angle=0.0, offset=0.0, low=0.2, 
 
 
 def _tile_layer(family, entropy, t, rect, shape, kernel, s, light):
-    """One tile's layer on its output window: (window (a0, a1, b0, b1), box(K ∗ (M·T)) (h, w, 3), box(K ∗ M) (h, w))."""
+    """One tile's layer on its output window.
+
+    Returns ((a0, a1, b0, b1) output window, box(K ∗ (M·T)) (h, w, 3), box(K ∗ M) (h, w)).
+    """
     r0, r1, c0, c1 = rect
     H, W = shape
     rad = kernel.shape[0] // 2

@@ -90,7 +90,8 @@ def kernel_sigma(sigma: float) -> float:
     """
     s = float(sigma)
     if not (math.isfinite(s) and s >= math.sqrt(BOX_VARIANCE)):
-        raise ValueError(f"sigma={sigma!r} is invalid; allowed: finite σ >= 1/√12 ≈ 0.289 px (the pixel box alone)")
+        raise ValueError(f"sigma={sigma!r} is invalid; allowed: finite σ >= 1/√12 ≈ 0.289 px "
+                         "(the pixel box alone)")
     return math.sqrt(max(s * s - BOX_VARIANCE, 0.0))
 
 

@@ -1,0 +1,351 @@
+"""The lens benchmark: every cue and preset on mosaics blurred the way a lens blurs.
+
+Analytic truth that does *not* share the method's assumptions: tiles of the texture families of
+:mod:`scenes.analytic.families` (dead leaves, photographs, and the periodic, text, flat and shading
+families that break a 1/f² spectral model) and straight steps, blurred by a lens PSF of
+:mod:`scenes.analytic.psfs` (disk, hexagon, soft disk; or a Gaussian) in **linear light**, then a
+camera (Poisson–Gaussian noise at a named ISO level, the sRGB curve, 8 bits, optionally JPEG;
+:func:`scenes.display.camera_image`). Per PSF × noise × family × σ bin it records, as rows of one
+long table (:func:`measure_lens`):
+
+* ``dense_textured`` — the dense map of each preset over textured valid pixels (MAE, mean and median
+  signed error, px);
+* ``sparse`` — the edge measures (the same, plus coverage: the share of detected edge pixels that
+  measure);
+* ``region`` — the region (spectral) cue alone, with the robust preset's region settings: median
+  relative error of σ̂ and the share of valid pixels it measures ("no measure" elsewhere).
+
+:func:`judge_lens` gives the verdicts of the targets (:data:`LENS_TARGETS`) and :func:`lens_markdown`
+the report; ``python -m repro.bench --accuracy`` runs it (``--psf`` chooses the PSFs, ``--full`` the
+full grid).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+
+from .mosaics import lens_step_mosaic, sigma_bins
+
+__all__ = ["LENS_CONFIG", "LENS_FULL_CONFIG", "LENS_TARGETS", "judge_lens", "lens_case", "lens_config",
+           "lens_markdown", "measure_lens"]
+
+#: The default grid (about 6 min on the project's 2-core machine; measured in docs/performance.md).
+LENS_CONFIG = {
+    "psfs": ("disk", "hexagon"),
+    "families": ("step_edges", "dead_leaves", "photo", "checker", "stripes", "text", "brick", "flat_patches",
+                 "shading"),
+    "noises": ("iso100", "iso800"),
+    "jpeg_qualities": (None,),
+    "sigmas": (0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 5.0, 6.0, 8.0),
+    "tile": 96,
+    "cols": 3,
+    "seeds": (0,),
+    # name -> (preset, field changes): the presets and the ablations every target is judged against
+    "variants": {"paper": ("paper", {}), "robust": ("robust", {}),
+                 "robust, display light": ("robust", {"measure_light": "display"}),
+                 "robust + region cue (gated disk)": ("robust", {"region_estimator": "local_spectrum",
+                                                                 "region_psf": "disk", "region_gate": "adequacy"})},
+    # the region cue measured alone, label -> changes to the robust preset; the first is judged (the disk
+    # model of a lens with the adequacy gate; docs/region-blur.md), the others are its ablation
+    "regions": {"disk + adequacy gate": {"region_estimator": "local_spectrum", "region_psf": "disk",
+                                         "region_gate": "adequacy"},
+                "disk, no gate": {"region_estimator": "local_spectrum", "region_psf": "disk"},
+                "Gaussian, no gate (as fused before)": {"region_estimator": "local_spectrum"}},
+}
+#: The full grid: every PSF and noise level, JPEG at quality 85 too, two seeds.
+LENS_FULL_CONFIG = {**LENS_CONFIG, "psfs": ("gaussian", "disk", "soft_disk", "hexagon"),
+                    "noises": ("none", "iso100", "iso800", "iso3200"), "jpeg_qualities": (None, 85), "seeds": (0, 1)}
+
+#: Targets (robust): edge fit on lens-blurred steps, the region cue where it measures, the dense map at ISO 100.
+LENS_TARGETS = {
+    "edge_min_coverage": 0.9,      # share of detected step-edge pixels with a measure, σ 1–8
+    "edge_max_rel_bias": 0.05,     # |median signed error| / σ_gt, σ 1–8
+    "region_max_rel_error": 0.10,  # |median σ̂ − σ_gt| / σ_gt where the cue measures, σ 1–8
+    "region_min_share": 0.05,      # below this share of measured pixels a family counts as "no measure"
+    "dense_mae_px": 0.3,           # dense textured MAE for σ ≤ 4 px …
+    "dense_rel_mae": 0.10,         # … and ≤ 10 % of σ_gt for 4 < σ ≤ 8 (noise iso100)
+    "sigma_range": (1.0, 8.0),
+}
+
+
+def lens_config(*, psfs=None, full=False) -> dict:
+    """The grid to run: :data:`LENS_CONFIG` (or :data:`LENS_FULL_CONFIG`), optionally with other PSFs.
+
+    Raises
+    ------
+    ValueError
+        An unknown PSF (the message lists them).
+    """
+    from scenes.analytic.psfs import check_psf
+
+    cfg = dict(LENS_FULL_CONFIG if full else LENS_CONFIG)
+    if psfs:
+        cfg["psfs"] = tuple(dict.fromkeys(check_psf(p) for p in psfs))
+    return cfg
+
+
+def lens_case(family: str, psf: str, noise: str, jpeg, seed: int, cfg: dict) -> dict:
+    """One image of the grid: ``image``, ``sigma_gt`` (px), ``valid`` (bool), per-tile ``nominal`` and ``gt``.
+
+    ``family`` "step_edges" is :func:`experiments.bench.mosaics.lens_step_mosaic`; any other is a
+    :func:`scenes.analytic.lens.lens_mosaic` of that texture family.
+    """
+    import numpy as np
+
+    from scenes.analytic.lens import lens_mosaic
+
+    sigmas = tuple(float(s) for s in cfg["sigmas"])
+    if family == "step_edges":
+        if jpeg is not None:
+            raise ValueError("the step-edge mosaic has no JPEG variant")
+        image, gt, valid = lens_step_mosaic(sigmas, cfg["tile"], psf=psf, noise=noise, seed=seed)
+        nominal = tuple(sorted(set(sigmas)))
+        return {"image": image, "sigma_gt": gt, "valid": valid, "nominal": nominal, "gt": nominal}
+    m = lens_mosaic(family=family, psf=psf, sigmas=sigmas, tile=cfg["tile"], cols=cfg["cols"], noise=noise,
+                    jpeg_quality=jpeg, rng=seed)
+    nominal = tuple(sorted(set(sigmas)))
+    gt = tuple(float(np.hypot(s, m.intrinsic_sigma)) for s in nominal)
+    return {"image": m.image, "sigma_gt": m.sigma, "valid": ~m.boundary, "nominal": nominal, "gt": gt}
+
+
+def _bin_rows(errors: dict, nominal, gt, **ids) -> list[dict]:
+    return [{**ids, "sigma": s, "sigma_gt": g, **{k: b[k] for k in ("n", "mae", "bias", "median", "coverage")}}
+            for s, g, b in zip(nominal, gt, errors["bins"])]
+
+
+def _region_rows(image, case, params, bins, **ids) -> list[dict]:
+    """Per tile σ: the region cue's median relative error and the share of valid pixels it measures."""
+    import numpy as np
+
+    from method.blur.region_estimators import estimate_region_blur
+    from method.luma import luminance
+
+    sig, _ = estimate_region_blur(luminance(image), params=params)
+    gt, valid = case["sigma_gt"], case["valid"]
+    rows = []
+    for s, g, lo, hi in zip(case["nominal"], case["gt"], bins[:-1], bins[1:]):
+        sel = valid & (gt >= lo) & (gt < hi)
+        v, t = sig[sel], gt[sel]
+        ok = np.isfinite(v)
+        rel = (v[ok] - t[ok]) / t[ok]
+        rows.append({**ids, "sigma": s, "sigma_gt": g, "n": int(ok.sum()),
+                     "mae": float(np.mean(np.abs(v[ok] - t[ok]))) if ok.any() else None,
+                     "bias": float(np.mean(v[ok] - t[ok])) if ok.any() else None,
+                     "median": float(np.median(rel)) if ok.any() else None,  # relative, for the region cue
+                     "coverage": float(ok.mean()) if sel.any() else None})
+    return rows
+
+
+def measure_lens(cfg: dict, *, progress: bool = True) -> list[dict]:
+    """Run the grid; one row per (psf, noise, jpeg, family, seed, variant, cue, σ bin).
+
+    Parameters
+    ----------
+    cfg : dict
+        Keys as :data:`LENS_CONFIG`.
+    progress : bool, keyword-only
+
+    Returns
+    -------
+    list of dict
+        ``psf``, ``noise``, ``jpeg``, ``family``, ``seed``, ``variant`` (a key of ``cfg["variants"]``, or
+        "region: " + a key of ``cfg["regions"]`` for the cue alone), ``cue`` ("dense_textured", "sparse",
+        "region"), ``sigma`` (tile σ, px), ``sigma_gt`` (px), ``n``, ``mae``, ``bias`` (px), ``median``
+        (px; for the region cue the median *relative* error), ``coverage`` (share, see the module
+        docstring), ``seconds`` (per variant).
+
+    Notes
+    -----
+    1. Per (psf, noise, jpeg, family, seed): :func:`lens_case`; one σ bin per tile σ.
+    2. Per variant: :func:`method.estimate_defocus_map` and
+       :func:`experiments.stage_attribution.stage_errors` (no oracles) → dense textured and sparse rows.
+    3. The region cue alone, per setting of ``cfg["regions"]``
+       (:func:`method.blur.region_estimators.estimate_region_blur`; texture families only).
+    """
+    from tqdm import tqdm
+
+    from experiments.stage_attribution import stage_errors
+    from method import DefocusParams
+
+    variants = {name: DefocusParams.preset(p, **ch) for name, (p, ch) in cfg["variants"].items()}
+    regions = {f"region: {k}": DefocusParams.preset("robust", **ch) for k, ch in cfg["regions"].items()}
+    cases = [(psf, noise, jpeg, fam, seed) for psf in cfg["psfs"] for noise in cfg["noises"]
+             for jpeg in cfg["jpeg_qualities"] for fam in cfg["families"] for seed in cfg["seeds"]
+             if not (fam == "step_edges" and jpeg is not None)]
+    rows = []
+    with tqdm(total=len(cases), desc="accuracy: lens", unit="image", disable=not progress) as bar:
+        for psf, noise, jpeg, fam, seed in cases:
+            bar.set_postfix_str(f"{psf} {noise} {fam}")
+            case = lens_case(fam, psf, noise, jpeg, seed, cfg)
+            bins = sigma_bins(case["gt"])
+            ids = {"psf": psf, "noise": noise, "jpeg": jpeg, "family": fam, "seed": seed}
+            for name, params in variants.items():
+                t0 = time.perf_counter()
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    err = stage_errors(case["image"], case["sigma_gt"], params=params, valid=case["valid"],
+                                       bins=bins, oracles=False)["estimated"]
+                dt = time.perf_counter() - t0
+                for cue in ("dense_textured", "sparse"):
+                    rows += [{**r, "seconds": dt} for r in
+                             _bin_rows(err[cue], case["nominal"], case["gt"], **ids, variant=name, cue=cue)]
+            if fam != "step_edges":
+                for name, params in regions.items():
+                    rows += _region_rows(case["image"], case, params, bins, **ids, variant=name, cue="region")
+            bar.update(1)
+    return rows
+
+
+def _in_range(s) -> bool:
+    lo, hi = LENS_TARGETS["sigma_range"]
+    return lo <= s <= hi
+
+
+def judge_lens(rows: list[dict], *, variant: str = "robust", region: str | None = None) -> dict:
+    """Verdicts of :data:`LENS_TARGETS` for ``variant`` (the robust preset) from :func:`measure_lens` rows.
+
+    ``region`` names the region-cue rows judged (default: the first "region: …" variant in ``rows``).
+
+    Returns
+    -------
+    dict
+        ``edges`` / ``region`` / ``dense``: lists of failing cells (each a dict naming psf, noise,
+        family, σ and the number), ``pass`` per part and overall (None where nothing was measured).
+    """
+    t = LENS_TARGETS
+    if region is None:
+        region = next((r["variant"] for r in rows if r["cue"] == "region"), None)
+    fails = {"edges": [], "region": [], "dense": []}
+    seen = dict.fromkeys(fails, False)
+    no_region = {}
+    for r in rows:
+        if not _in_range(r["sigma"]):
+            continue
+        key = {k: r[k] for k in ("psf", "noise", "jpeg", "family", "seed", "sigma")}
+        if r["cue"] == "sparse" and r["variant"] == variant and r["family"] == "step_edges":
+            seen["edges"] = True
+            cov, med = r["coverage"] or 0.0, r["median"]
+            if cov < t["edge_min_coverage"] or med is None or abs(med) > t["edge_max_rel_bias"] * r["sigma_gt"]:
+                fails["edges"].append({**key, "coverage": cov, "median": med})
+        elif r["cue"] == "region" and r["variant"] == region:
+            if (r["coverage"] or 0.0) < t["region_min_share"]:
+                no_region.setdefault(r["family"], []).append(r["sigma"])
+                continue
+            seen["region"] = True
+            if abs(r["median"]) > t["region_max_rel_error"]:
+                fails["region"].append({**key, "coverage": r["coverage"], "median_rel": r["median"]})
+        elif (r["cue"] == "dense_textured" and r["variant"] == variant and r["noise"] == "iso100"
+              and r["family"] != "step_edges" and r["n"] and r["mae"] is not None):
+            seen["dense"] = True
+            limit = t["dense_mae_px"] if r["sigma"] <= 4.0 else t["dense_rel_mae"] * r["sigma_gt"]
+            if r["mae"] > limit:
+                fails["dense"].append({**key, "mae": r["mae"], "limit": limit})
+    out = {k: {"pass": (not fails[k]) if seen[k] else None, "fails": fails[k]} for k in fails}
+    out["region"]["no_measure"] = no_region
+    out["region"]["judged"] = region
+    parts = [v["pass"] for v in out.values() if isinstance(v, dict) and "pass" in v]
+    out["pass"] = all(p for p in parts if p is not None) if any(p is not None for p in parts) else None
+    return out
+
+
+def _pooled(rows, **match):
+    """Rows matching ``match`` pooled over seeds: n-weighted mae/bias/median, mean coverage, by σ."""
+    out = {}
+    for r in rows:
+        if all(r.get(k) == v for k, v in match.items()):
+            out.setdefault(r["sigma"], []).append(r)
+    pooled = {}
+    for s, rs in out.items():
+        n = sum(r["n"] for r in rs)
+        avg = (lambda k: sum(r["n"] * r[k] for r in rs if r[k] is not None) / n if n else None)  # noqa: E731
+        covs = [r["coverage"] for r in rs if r["coverage"] is not None]
+        pooled[s] = {"n": n, "mae": avg("mae"), "bias": avg("bias"), "median": avg("median"),
+                     "coverage": sum(covs) / len(covs) if covs else None, "sigma_gt": rs[0]["sigma_gt"]}
+    return pooled
+
+
+def _fmt(v, spec=".2f", none="—"):
+    return none if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v, spec)
+
+
+def lens_markdown(rows: list[dict], cfg: dict, verdict: dict) -> str:
+    """The report section of the lens benchmark (markdown): compact table, edges, region cue, dense map."""
+    sig = sorted({r["sigma"] for r in rows})
+    head = "| " + " | ".join(f"σ {s:g}" for s in sig) + " |"
+    sep = "|" + "---|" * (len(sig))
+    out = ["## Lens blur: PSFs in linear light, a camera's noise and tone curve",
+           "",
+           "`python -m repro.bench --accuracy` (`--psf NAME…`, `--full`). Mosaics of texture families and "
+           "straight steps blurred by a lens PSF in linear light (σ = PSF ⊗ pixel box), then Poisson–Gaussian "
+           "noise, the sRGB curve and 8 bits (experiments/bench/lens.py). Grid: PSFs " + ", ".join(cfg["psfs"])
+           + "; noise "
+           + ", ".join(cfg["noises"]) + "; JPEG " + ", ".join("none" if q is None else str(q)
+                                                               for q in cfg["jpeg_qualities"])
+           + "; seeds " + ", ".join(map(str, cfg["seeds"])) + ".",
+           "",
+           f"**Verdict (robust): {'PASS' if verdict['pass'] else 'FAIL' if verdict['pass'] is False else 'n/a'}** — "
+           f"edges {_verdict_word(verdict['edges'])}, region cue {_verdict_word(verdict['region'])}, "
+           f"dense map at ISO 100 {_verdict_word(verdict['dense'])}. Targets: edge measures at ≥ "
+           f"{LENS_TARGETS['edge_min_coverage']:.0%} of step-edge pixels with |median error| ≤ "
+           f"{LENS_TARGETS['edge_max_rel_bias']:.0%} of σ; region cue |median error| ≤ "
+           f"{LENS_TARGETS['region_max_rel_error']:.0%} of σ on every family where it measures (≥ "
+           f"{LENS_TARGETS['region_min_share']:.0%} of pixels); dense textured MAE ≤ "
+           f"{LENS_TARGETS['dense_mae_px']} px for σ ≤ 4 and ≤ {LENS_TARGETS['dense_rel_mae']:.0%} of σ to 8; "
+           "all for σ 1–8.", ""]
+    for psf in cfg["psfs"]:
+        for noise in cfg["noises"]:
+            for jpeg in cfg["jpeg_qualities"]:
+                sub = [r for r in rows if r["psf"] == psf and r["noise"] == noise and r["jpeg"] == jpeg]
+                if sub:
+                    out += _section(sub, psf, noise, jpeg, sig, head, sep, list(cfg["variants"]))
+    return "\n".join(out)
+
+
+def _verdict_word(part) -> str:
+    return "n/a" if part["pass"] is None else "pass" if part["pass"] else f"FAIL ({len(part['fails'])} cells)"
+
+
+def _section(sub, psf, noise, jpeg, sig, head, sep, variants) -> list[str]:
+    title = f"### PSF {psf}, noise {noise}" + ("" if jpeg is None else f", JPEG {jpeg}")
+    fams = list(dict.fromkeys(r["family"] for r in sub))
+    out = [title, "", "Worst texture family per σ bin (dense textured MAE, px, of each variant):", "",
+           "| variant " + head, "|---" + sep]
+    for v in variants:
+        cells = []
+        for s in sig:
+            worst = None
+            for f in fams:
+                if f == "step_edges":
+                    continue
+                p = _pooled(sub, variant=v, cue="dense_textured", family=f).get(s)
+                if p and p["n"] and p["mae"] is not None and (worst is None or p["mae"] > worst[1]):
+                    worst = (f, p["mae"])
+            cells.append("—" if worst is None else f"{worst[0]} {worst[1]:.2f}")
+        out.append(f"| {v} | " + " | ".join(cells) + " |")
+    out += ["", "Edge measures on the straight steps: median signed error, px (coverage):", "",
+            "| variant " + head, "|---" + sep]
+    for v in variants:
+        p = _pooled(sub, variant=v, cue="sparse", family="step_edges")
+        out.append(f"| {v} | " + " | ".join(f"{_fmt(p[s]['median'], '+.2f')} ({_fmt(p[s]['coverage'], '.0%')})"
+                                            if s in p else "—" for s in sig) + " |")
+    out += ["", "Region cue alone: median relative error (share of pixels measured), per setting:", "",
+            "| family | setting " + head, "|---|---" + sep]
+    settings = list(dict.fromkeys(r["variant"] for r in sub if r["cue"] == "region"))
+    for f in fams:
+        for name in settings:
+            p = _pooled(sub, variant=name, cue="region", family=f)
+            if p:
+                out.append(f"| {f} | {name.removeprefix('region: ')} | " + " | ".join(
+                    f"{_fmt(p[s]['median'], '+.0%')} ({_fmt(p[s]['coverage'], '.0%')})" if s in p else "—"
+                    for s in sig) + " |")
+    out += ["", "Dense map over textured pixels: MAE / mean signed error, px:", "",
+            "| family | variant " + head, "|---|---" + sep]
+    for f in fams:
+        for v in variants:
+            p = _pooled(sub, variant=v, cue="dense_textured", family=f)
+            out.append(f"| {f} | {v} | " + " | ".join(
+                f"{_fmt(p[s]['mae'])} / {_fmt(p[s]['bias'], '+.2f')}" if s in p and p[s]["n"] else "—"
+                for s in sig) + " |")
+    return out + [""]

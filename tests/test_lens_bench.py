@@ -1,0 +1,98 @@
+"""The lens benchmark (experiments.bench.lens): its rows, its verdict rules on both sides, its CLI flags."""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+import pytest
+
+from experiments.bench import lens
+from tests.cli_run import run_in_process
+
+TINY = dict(lens.LENS_CONFIG, psfs=("disk",), families=("step_edges", "checker"), noises=("iso100",),
+            sigmas=(1.0, 4.0), tile=48, cols=2, variants={"robust": ("robust", {})},
+            regions={"gated": lens.LENS_CONFIG["regions"]["disk + adequacy gate"]})
+
+
+@pytest.fixture(scope="module")
+def rows():
+    return lens.measure_lens(TINY, progress=False)
+
+
+def test_rows_cover_the_grid_and_cues(rows):
+    keys = {(r["family"], r["variant"], r["cue"]) for r in rows}
+    assert keys == {("step_edges", "robust", "dense_textured"), ("step_edges", "robust", "sparse"),
+                    ("checker", "robust", "dense_textured"), ("checker", "robust", "sparse"),
+                    ("checker", "region: gated", "region")}
+    assert sorted({r["sigma"] for r in rows}) == [1.0, 4.0]
+    steps = [r for r in rows if r["family"] == "step_edges" and r["cue"] == "sparse"]
+    # the robust fit reads lens-blurred steps in linear light: measures at most edge pixels, small bias
+    for r in steps:
+        assert r["coverage"] > 0.9 and abs(r["median"]) < 0.05 * r["sigma_gt"]
+
+
+def _row(**kw):
+    base = {"psf": "disk", "noise": "iso100", "jpeg": None, "family": "dead_leaves", "seed": 0, "variant": "robust",
+            "cue": "dense_textured", "sigma": 2.0, "sigma_gt": 2.0, "n": 100, "mae": 0.1, "bias": 0.0,
+            "median": 0.0, "coverage": 1.0}
+    return {**base, **kw}
+
+
+def test_verdict_rules_both_sides():
+    good = [_row(), _row(cue="sparse", family="step_edges", median=0.05, coverage=0.95),
+            _row(cue="region", variant="region: gated", median=0.05, coverage=0.5),
+            _row(cue="region", variant="region: gated", family="shading", median=3.0, coverage=0.01),
+            _row(cue="region", variant="region: other", median=3.0, coverage=0.5)]  # not the judged setting
+    v = lens.judge_lens(good)
+    assert v["pass"] is True and v["edges"]["pass"] and v["region"]["pass"] and v["dense"]["pass"]
+    assert v["region"]["no_measure"] == {"shading": [2.0]}  # too few measures: "no measure", not a failure
+    # each rule fails on its own
+    for bad, part in ((_row(mae=0.31), "dense"),  # σ ≤ 4: 0.3 px
+                      (_row(sigma=6.0, sigma_gt=6.0, mae=0.61), "dense"),  # σ > 4: 10 % of σ
+                      (_row(cue="sparse", family="step_edges", coverage=0.89), "edges"),
+                      (_row(cue="sparse", family="step_edges", median=0.11), "edges"),
+                      (_row(cue="region", variant="region: gated", median=-0.11, coverage=0.5), "region")):
+        v = lens.judge_lens(good + [bad])
+        assert v[part]["pass"] is False and v["pass"] is False, bad
+        assert len(v[part]["fails"]) == 1
+    # outside σ 1–8 and at other noise levels the dense target does not apply
+    assert lens.judge_lens(good + [_row(sigma=0.5, sigma_gt=0.5, mae=2.0), _row(noise="iso800", mae=2.0)])["pass"]
+    assert lens.judge_lens([])["pass"] is None
+
+
+def test_markdown_names_every_section(rows):
+    v = lens.judge_lens(rows)
+    md = lens.lens_markdown(rows, TINY, v)
+    for text in ("### PSF disk, noise iso100", "Worst texture family", "Edge measures on the straight steps",
+                 "Region cue alone", "| checker | gated |", "Dense map over textured pixels", "| checker | robust |"):
+        assert text in md
+    assert ("PASS" in md) == bool(v["pass"])
+
+
+def test_lens_config_and_bad_psf():
+    assert lens.lens_config()["psfs"] == lens.LENS_CONFIG["psfs"]
+    assert lens.lens_config(psfs=["hexagon", "hexagon"])["psfs"] == ("hexagon",)
+    full = lens.lens_config(full=True)
+    assert set(full["psfs"]) == {"gaussian", "disk", "soft_disk", "hexagon"} and 85 in full["jpeg_qualities"]
+    with pytest.raises(ValueError, match="unknown PSF"):
+        lens.lens_config(psfs=["square"])
+
+
+def test_cli_bad_psf_and_flags():
+    r = run_in_process("repro.bench", ["--accuracy", "--psf", "square"])
+    assert r.returncode == 2 and "unknown PSF" in r.stderr and r.stderr.count("\n") == 1
+    r = run_in_process("repro.bench", ["--psf", "disk"])
+    assert r.returncode == 2 and "--psf and --full go with --accuracy" in r.stderr
+
+
+def test_region_rows_measure_only_where_the_cue_measures():
+    cfg = copy.deepcopy(TINY)
+    case = lens.lens_case("shading", "disk", "iso100", None, 0, cfg)
+    from method import DefocusParams
+
+    params = DefocusParams.preset("robust", **cfg["regions"]["gated"])
+    rr = lens._region_rows(case["image"], case, params, (0.0, 2.5, np.inf), family="shading", variant="region: gated",
+                           cue="region")
+    # smooth shading carries no blur information: the gated cue gives (almost) no measure
+    assert all((r["coverage"] or 0.0) < 0.05 for r in rr)

@@ -65,7 +65,7 @@ def run_accuracy(config: dict | None = None, *, out: Path, progress: bool = True
 
     report = accuracy_report(config, progress=progress)
     out.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(out / "accuracy.json", json.dumps(report, indent=1, allow_nan=False))
+    atomic_write_text(out / "accuracy.json", json.dumps(report, allow_nan=False, separators=(",", ":")))
     atomic_write_text(out / "accuracy.md", accuracy_markdown(report) + "\n")
     return report
 

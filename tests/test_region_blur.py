@@ -253,3 +253,62 @@ def test_information_density_sums_to_one_window_per_block():
     # at a window centre the bilinear spread is that window's own value, divided by stride²
     np.testing.assert_allclose(s[np.ix_(cy, cx)], grid["sigma"], rtol=1e-12, equal_nan=True)
     np.testing.assert_allclose(info[np.ix_(cy, cx)] * 16 ** 2, grid["information"], rtol=1e-12)
+
+
+# --- under lens blur: the disk model and the adequacy gate --------------------------------------
+#: The gated disk model on lens mosaics (disk PSF in linear light, ISO 100, sRGB, 8 bits; one 3×2 mosaic
+#: of 128-px tiles, σ 1–6): measured (benchmarks/region_gate.py, 2 seeds, 6 tiles) dead leaves 60 % of
+#: windows kept at median +1 %, photos 34 % at +1 %, smooth shading 4 %.
+GATED = dict(region_estimator="local_spectrum", region_psf="disk", region_gate="adequacy")
+LENS_SIGMAS = (1.0, 2.0, 3.0, 4.0, 5.0, 6.0)
+GATED_MAX_REL_MEDIAN = 0.05  # |median relative error| of the measured windows, dead leaves and photos
+GATED_MIN_SHARE = 0.2
+SHADING_MAX_SHARE = 0.1  # gated; ungated it measures everywhere, at +100 % and more
+
+
+def _lens_case(family, seed=0):
+    from scenes.analytic.lens import lens_mosaic
+
+    m = lens_mosaic(family=family, psf="disk", sigmas=LENS_SIGMAS, tile=128, cols=3, noise="iso100", rng=seed)
+    return m, ~m.boundary
+
+
+def _region_rel(m, inner, **changes):
+    s, _ = estimate_region_blur(m.image, params=DefocusParams.preset("robust", **changes))
+    ok = inner & np.isfinite(s)
+    return ok.sum() / inner.sum(), (s[ok] - m.sigma[ok]) / m.sigma[ok]
+
+
+@pytest.mark.parametrize("family", ["dead_leaves", "photo"])
+def test_gated_disk_model_reads_lens_blur_where_it_measures(family):
+    m, inner = _lens_case(family)
+    share, rel = _region_rel(m, inner, **GATED)
+    assert share >= GATED_MIN_SHARE and abs(np.median(rel)) <= GATED_MAX_REL_MEDIAN, (share, np.median(rel))
+    # the Gaussian model reads the same lens blur far too small (its transfer function has no sidelobes)
+    _, rel_g = _region_rel(m, inner, region_estimator="local_spectrum", region_psf="gaussian")
+    assert np.median(rel_g) < -0.2
+
+
+def test_gate_says_no_measure_on_smooth_shading():
+    m, inner = _lens_case("shading")
+    share, _ = _region_rel(m, inner, **GATED)
+    assert share <= SHADING_MAX_SHARE
+    share_u, rel_u = _region_rel(m, inner, region_estimator="local_spectrum", region_psf="disk")
+    assert share_u > 0.9 and np.median(rel_u) > 1.0  # without the gate: a confident wrong number
+
+
+@pytest.mark.render
+@pytest.mark.parametrize("scene,f_number", [("portrait", 8.0), ("street_figures", 4.0)])
+def test_gated_disk_model_on_a_thin_lens_render(scene, f_number):
+    """Small Mitsuba thin-lens renders (disk blur in linear light, sRGB, 8 bits): where the gated cue
+    measures, its median relative error is within 10 % (measured +1.4 % / +2.7 %). It does not hold
+    everywhere: docs/region-blur.md lists the renders where it misses."""
+    from experiments.evaluation import ground_truth_sigma, input_image
+    from scenes import render_scene
+
+    r = render_scene(scene, preset="small", f_number=f_number, progress=False)
+    gt = ground_truth_sigma(r)
+    s, _ = estimate_region_blur(input_image(r), params=DefocusParams.preset("robust", **GATED))
+    ok = np.isfinite(s) & np.isfinite(gt) & ~r.occlusion_boundary
+    assert ok.mean() > 0.03
+    assert abs(np.median((s[ok] - gt[ok]) / gt[ok])) <= 0.10

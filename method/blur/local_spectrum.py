@@ -314,7 +314,7 @@ def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=
     yy, xx = np.meshgrid(cy, cx, indexing="ij")
     yy, xx = yy.ravel(), xx.ravel()
 
-    def run(n, idx, prior=None):
+    def run(n, idx, prior=None, gated=True):
         A, dA, Nu, kappa = model_tables(n, psf, grid)
         P = _ring_powers(z, _window_starts(yy[idx], n, hz), _window_starts(xx[idx], n, wz), n)
         N = _noise_rings(P, v, Nu, noise_model)
@@ -330,15 +330,18 @@ def local_spectrum_grid(gray, *, psf="gaussian", noise_model="white", sigma_min=
         dev = _deviance(P.astype(np.float64), _model_at(sig, s64, garr, A, dA, n64)[2], kappa)
         with np.errstate(divide="ignore", invalid="ignore"):
             rel_std = 1.0 / (sig * np.sqrt(inf))
-        ok = ((lr > MIN_LOG_LR) & (inf > 0) & (dev <= gate.max_deviance) & (rel_std <= gate.max_rel_std)
-              & (sig < garr[-1] / gate.top_margin if gate.top_margin > 1.0 else True))
+        ok = (lr > MIN_LOG_LR) & (inf > 0)
+        if gated:  # the coarse pass only chooses window sizes: every fit above the noise counts there
+            ok &= (dev <= gate.max_deviance) & (rel_std <= gate.max_rel_std)
+            if gate.top_margin > 1.0:
+                ok &= sig < garr[-1] / gate.top_margin
         return np.where(ok, sig, np.nan), np.where(ok, inf, 0.0), np.where(ok, dev, np.nan)
 
     # coarse pass on every other centre, then each centre's window from its coarse σ̂ (3×3 median)
     n0 = min(sizes, key=lambda s: abs(s - COARSE_WINDOW))
     sub = (slice(None, None, 2), slice(None, None, 2))
     idx0 = np.arange(ny * nx).reshape(ny, nx)[sub].ravel()
-    s0, _, _ = run(n0, idx0)
+    s0, _, _ = run(n0, idx0, gated=False)
     coarse_sub = _nan_median3(s0.reshape(np.arange(ny * nx).reshape(ny, nx)[sub].shape))
     coarse = np.repeat(np.repeat(coarse_sub, 2, 0), 2, 1)[:ny, :nx].ravel()
     want = np.where(np.isfinite(coarse), window_scale * coarse, sizes[0])

@@ -98,6 +98,10 @@ def _probe_key(variant: str) -> str:
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
+#: Marks a probe result that only says the probe ran out of time: never stored, so it is probed again.
+_TIMED_OUT = "probe timed out"
+
+
 def probe_variant(variant: str, *, timeout: float = 300.0, use_cache: bool = True) -> tuple[bool, str]:
     """Render a tiny scene with ``variant`` in a subprocess.
 
@@ -105,17 +109,25 @@ def probe_variant(variant: str, *, timeout: float = 300.0, use_cache: bool = Tru
     -------
     (ok, reason) : (bool, str)
         ``reason`` is the last line the subprocess printed when it failed.
+
+    Notes
+    -----
+    Results are kept in ``cache_root() / "variant-probes.json"`` under a key of the variant, the
+    Mitsuba version, the interpreter, the libLLVM files and ``$DRJIT_LIBLLVM_PATH``; the file is read
+    and rewritten under a file lock (atomically), so concurrent probes do not lose each other's
+    results. A timeout is not a property of the variant (a busy machine): it is not stored, and the next
+    call probes again.
     """
+    from filelock import FileLock
+
+    from defocus_cache import atomic_write_text
+
     _configure_drjit_cache()
     cache_file = cache_root() / "variant-probes.json"
     key = _probe_key(variant)
-    cached = {}
-    if use_cache and cache_file.exists():
-        try:
-            cached = json.loads(cache_file.read_text())
-        except (OSError, ValueError):
-            cached = {}
-        if key in cached:
+    if use_cache:
+        cached = _read_probes(cache_file)
+        if key in cached and not str(cached[key][1]).startswith(_TIMED_OUT):
             return tuple(cached[key])  # type: ignore[return-value]
     try:
         proc = subprocess.run(
@@ -126,20 +138,29 @@ def probe_variant(variant: str, *, timeout: float = 300.0, use_cache: bool = Tru
         tail = (proc.stderr.strip().splitlines() or [f"exit status {proc.returncode}"])[-1]
         result = (ok, "ok" if ok else tail[:300])
     except subprocess.TimeoutExpired:
-        result = (False, f"probe timed out after {timeout:.0f} s")
+        return (False, f"{_TIMED_OUT} after {timeout:.0f} s")
     if use_cache:
-        cached[key] = list(result)
-        tmp = cache_file.with_name(f".{cache_file.name}.{os.getpid()}.tmp")
-        tmp.write_text(json.dumps(cached, indent=1))
-        os.replace(tmp, cache_file)
+        cache_file.parent.mkdir(parents=True, exist_ok=True)
+        with FileLock(str(cache_file) + ".lock"):
+            cached = _read_probes(cache_file)  # another process may have added its own meanwhile
+            cached[key] = list(result)
+            atomic_write_text(cache_file, json.dumps(cached, indent=1))
     return result
 
 
-@functools.lru_cache(maxsize=None)
+def _read_probes(path: Path) -> dict:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+
+
 def select_variant(requested: str | None = None) -> str:
     """Choose the Mitsuba variant: ``requested`` or ``$DEFOCUS_MITSUBA_VARIANT``, else the fastest that works.
 
-    Falls back to ``scalar_rgb`` with a one-line warning when the LLVM variant does not work.
+    Falls back to ``scalar_rgb`` with a one-line warning when the LLVM variant does not work. The choice
+    is remembered per process for each (``requested``, ``$DEFOCUS_MITSUBA_VARIANT``): setting the
+    variable later in the same process takes effect.
 
     Raises
     ------
@@ -148,7 +169,13 @@ def select_variant(requested: str | None = None) -> str:
     ModuleNotFoundError
         Without the ``render`` extra (:func:`require_mitsuba`).
     """
-    requested = requested or os.environ.get(VARIANT_ENV) or None
+    return _select_variant(requested or None, os.environ.get(VARIANT_ENV) or None)
+
+
+@functools.lru_cache(maxsize=None)
+def _select_variant(requested: str | None, env_variant: str | None) -> str:
+    """:func:`select_variant` for an explicit (argument, environment variable) pair: the cache key."""
+    requested = requested or env_variant
     if requested is not None:
         if requested not in _available_variants():
             raise BackendError(

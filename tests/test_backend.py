@@ -82,3 +82,43 @@ def test_scalar_variant_ground_truth_matches_llvm():
     assert a.metadata["variant"] == "scalar_rgb"
     np.testing.assert_allclose(a.depth, b.depth, atol=1e-5)
     np.testing.assert_array_equal(a.occlusion_boundary, b.occlusion_boundary)
+
+
+def test_variant_env_var_is_part_of_the_selection_key(monkeypatch):
+    """Setting $DEFOCUS_MITSUBA_VARIANT later in the same process changes the selection."""
+    from scenes import backend
+
+    probed = []
+    monkeypatch.setattr(backend, "_available_variants", lambda: ("scalar_rgb", "llvm_ad_rgb"))
+    monkeypatch.setattr(backend, "probe_variant", lambda v, **k: (probed.append(v), (True, "ok"))[1])
+    backend._select_variant.cache_clear()
+    try:
+        monkeypatch.setenv(backend.VARIANT_ENV, "scalar_rgb")
+        assert backend.select_variant() == "scalar_rgb"
+        monkeypatch.setenv(backend.VARIANT_ENV, "llvm_ad_rgb")
+        assert backend.select_variant() == "llvm_ad_rgb"
+        assert backend.select_variant("scalar_rgb") == "scalar_rgb"  # an explicit request wins
+        assert probed == ["scalar_rgb", "llvm_ad_rgb", "scalar_rgb"]
+        assert backend.select_variant() == "llvm_ad_rgb" and len(probed) == 3  # remembered per key
+    finally:
+        backend._select_variant.cache_clear()
+
+
+def test_probe_results_are_kept_but_a_timeout_is_probed_again(monkeypatch, tmp_path):
+    from scenes import backend
+
+    monkeypatch.setenv("DEFOCUS_CACHE_DIR", str(tmp_path))
+    calls = []
+
+    def fake_run(cmd, **kw):
+        calls.append(cmd[-1])
+        if len(calls) == 1:
+            raise subprocess.TimeoutExpired(cmd, kw["timeout"])
+        return subprocess.CompletedProcess(cmd, 0, stdout="ok\n", stderr="")
+
+    monkeypatch.setattr(backend.subprocess, "run", fake_run)
+    assert backend.probe_variant("scalar_rgb", timeout=1)[1].startswith("probe timed out")
+    assert not (tmp_path / "variant-probes.json").exists()  # a timeout is not stored
+    assert backend.probe_variant("scalar_rgb") == (True, "ok")  # probed again
+    assert backend.probe_variant("scalar_rgb") == (True, "ok") and len(calls) == 2  # now from the file
+    assert (tmp_path / "variant-probes.json.lock").exists()  # written under a lock

@@ -276,25 +276,26 @@ def summary_rows(rows) -> list[dict]:
 
 
 def latest_evaluations(root) -> dict:
-    """The newest finished evaluation of each split under ``root`` (folders holding ``results.parquet``).
+    """The newest finished evaluation of each split under ``root`` (folders holding ``summary.json`` and
+    ``results.csv``, as ``repro.evaluate --procedural`` writes them last).
 
     Returns
     -------
     dict
-        ``{split: {"path": Path, "meta": dict}}``, newest by the ``finished_utc`` of their metadata;
-        empty when there is none. Unreadable folders are skipped.
+        ``{split: {"path": Path of results.csv, "meta": the summary's metadata}}``, newest by
+        ``finished_utc``; empty when there is none. Unreadable folders are skipped.
     """
-    import pyarrow.parquet as pq
-
-    from .results_table import RESULTS_META_KEY
-
     best: dict[str, dict] = {}
-    for path in sorted(Path(root).glob("*/results.parquet")) if Path(root).is_dir() else []:
+    for path in sorted(Path(root).glob("*/summary.json")) if Path(root).is_dir() else []:
         try:
-            meta = json.loads(pq.read_schema(path).metadata[RESULTS_META_KEY])
-        except (OSError, KeyError, TypeError, ValueError):
+            meta = json.loads(path.read_text())
+        except (OSError, ValueError):
             continue
-        split = meta.get("plan", {}).get("split")
-        if split and (split not in best or meta.get("finished_utc", "") > best[split]["meta"].get("finished_utc", "")):
-            best[split] = {"path": path, "meta": meta}
+        split = meta.get("plan", {}).get("split") if isinstance(meta, dict) else None
+        csv_path = path.parent / "results.csv"
+        if not split or not csv_path.is_file():
+            continue
+        meta = {k: v for k, v in meta.items() if k != "summary"}
+        if split not in best or meta.get("finished_utc", "") > best[split]["meta"].get("finished_utc", ""):
+            best[split] = {"path": csv_path, "meta": meta}
     return best

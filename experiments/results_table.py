@@ -28,7 +28,8 @@ from types import MappingProxyType
 import numpy as np
 
 __all__ = ["COLUMNS", "GROUP_COLUMNS", "RESULTS_META_KEY", "SCHEMA_VERSION", "SUMMARY_METRICS", "Column",
-           "column_names", "difference", "metric_rows", "metric_unit", "read_results", "summarise", "write_results"]
+           "column_names", "difference", "mean_interval", "metric_rows", "metric_unit", "read_results",
+           "read_results_csv", "summarise", "write_results"]
 
 #: Version of the table's columns; in every table's metadata.
 SCHEMA_VERSION = 1
@@ -184,6 +185,23 @@ def read_results(path) -> tuple[list[dict], dict]:
     return table.to_pylist(), json.loads(raw)
 
 
+def read_results_csv(path) -> list[dict]:
+    """The rows of a ``results.csv``, typed as :data:`COLUMNS` say (empty cells → None); needs no pyarrow.
+
+    Raises
+    ------
+    ValueError
+        A file whose header is not :data:`COLUMNS`.
+    """
+    conv = {"string": str, "int64": int, "float64": float}
+    with open(path, newline="", encoding="utf-8") as fh:
+        reader = csv.DictReader(fh)
+        if tuple(reader.fieldnames or ()) != column_names():
+            raise ValueError(f"{path} is not a results table (columns {reader.fieldnames}); allowed: a results.csv "
+                             "written by experiments.results_table.write_results")
+        return [{k: (None if v == "" else conv[_TYPES[k]](v)) for k, v in row.items()} for row in reader]
+
+
 def _interval(samples: tuple, statistic, *, confidence: float, n_resamples: int, seed: int):
     """(low, high) percentile-bootstrap interval of ``statistic`` (None, None with too few scenes)."""
     from scipy.stats import bootstrap
@@ -241,12 +259,26 @@ def summarise(rows: Iterable[dict], *, by: tuple = GROUP_COLUMNS, metrics: tuple
     """
     out = []
     for key, per_scene in _groups(rows, by, metrics).items():
-        values = np.array(list(per_scene.values()))
-        lo, hi = _interval((values,), _mean, confidence=confidence, n_resamples=n_resamples, seed=seed)
         row = dict(zip(by, key))
-        out.append({**row, "n_scenes": int(values.size), "mean": float(values.mean()), "ci_low": lo, "ci_high": hi,
-                    "unit": metric_unit(row["metric"])})
+        out.append({**row, **mean_interval(per_scene.values(), confidence=confidence, n_resamples=n_resamples,
+                                           seed=seed), "unit": metric_unit(row["metric"])})
     return out
+
+
+def mean_interval(values: Iterable[float], *, confidence: float = 0.95, n_resamples: int = 9999,
+                  seed: int = 0) -> dict:
+    """Mean of per-scene values with a percentile-bootstrap interval.
+
+    Returns
+    -------
+    dict
+        ``n_scenes``, ``mean`` (None without values), ``ci_low``, ``ci_high`` (None with fewer than two).
+    """
+    v = np.asarray([float(x) for x in values], dtype=np.float64)
+    if v.size == 0:
+        return {"n_scenes": 0, "mean": None, "ci_low": None, "ci_high": None}
+    lo, hi = _interval((v,), _mean, confidence=confidence, n_resamples=n_resamples, seed=seed)
+    return {"n_scenes": int(v.size), "mean": float(v.mean()), "ci_low": lo, "ci_high": hi}
 
 
 def _difference_of_means(x, y, axis=-1):

@@ -328,13 +328,17 @@ def draw_layout(seed: int, *, camera: str | None = None) -> dict:
 
 
 # --- the Mitsuba shapes -------------------------------------------------------------------------------
+@functools.lru_cache(maxsize=32)
 def _texture(family: str, seed: int, key: tuple, *, scale: float) -> np.ndarray:
-    """A sharp texture of ``family`` as linear float32 values in [0, scale] (decoded from display values)."""
+    """A sharp texture of ``family`` as linear float32 values in [0, scale] (decoded from display values);
+    cached (read-only): a scene's shapes are built for its hash and again for its render."""
     from ..analytic.families import texture_bitmap
     from ..display import srgb_to_linear
 
     size = _TEXTURE_SIZE.get(family, _DEFAULT_TEXTURE_SIZE)
-    return (srgb_to_linear(texture_bitmap(family, size, seed=seed, key=key)) * scale).astype(np.float32)
+    out = (srgb_to_linear(texture_bitmap(family, size, seed=seed, key=key)) * scale).astype(np.float32)
+    out.setflags(write=False)
+    return out
 
 
 def _bitmap(texture: np.ndarray, repeat: float) -> dict:
@@ -476,7 +480,6 @@ def _shapes(layout: dict) -> dict:
     return out
 
 
-@functools.lru_cache(maxsize=4096)
 def procedural_scene(seed: int, *, camera: str | None = None) -> SceneDefinition:
     """The procedural scene of ``seed`` (the same object for the same arguments within a process).
 
@@ -491,12 +494,21 @@ def procedural_scene(seed: int, *, camera: str | None = None) -> SceneDefinition
     -------
     SceneDefinition
         Named :func:`procedural_name`; ``facts`` holds the layout (:func:`draw_layout`) and the split.
+        The same object for the same seed and camera (cached), as :func:`scenes.render.scene_content_hash`
+        needs to memoise the scene's hash.
 
     Raises
     ------
     ValueError
         A negative or non-integer seed, an unknown camera.
     """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed={seed!r} is invalid; allowed: an integer >= 0")
+    return _procedural_scene(int(seed), camera)
+
+
+@functools.lru_cache(maxsize=4096)
+def _procedural_scene(seed: int, camera: str | None) -> SceneDefinition:
     layout = draw_layout(seed, camera=camera)
     kinds = [layout["subject"]["kind"], *(o["kind"] for o in layout["objects"])]
     desc = (f"procedural seed {seed}: {layout['lighting']}, {layout['camera_name']} focused at "

@@ -187,21 +187,22 @@ def _single_threaded():
     return stack
 
 
-def _score_render(render, ids: dict, plan: ProceduralPlan, seed: int) -> tuple[list[dict], float]:
-    """Rows of every encoding × noise × preset on one render, and the seconds spent."""
+def _score_render(render, ids: dict, plan: ProceduralPlan, seed: int) -> tuple[list[dict], dict]:
+    """Rows of every encoding × noise × preset on one render, and the seconds spent per preset."""
     import numpy as np
 
     from method import DefocusParams, NoEdgesWarning, estimate_defocus_map
 
     from .evaluation import evaluate_result, flatten_metrics, input_image
 
-    rows, t0 = [], time.perf_counter()
+    rows, seconds = [], dict.fromkeys(plan.presets, 0.0)
     f_number = ids["aperture"]
     for encoding in plan.encodings:
         for noise in plan.noises:
             image = input_image(render, encoding=encoding, quantize_bits=8, noise=noise,
                                 rng=noise_seed(seed, f_number, noise))
             for preset in plan.presets:
+                t0 = time.perf_counter()
                 params = DefocusParams.preset(preset)
                 with _single_threaded(), warnings.catch_warnings():
                     warnings.simplefilter("ignore", NoEdgesWarning)
@@ -210,7 +211,8 @@ def _score_render(render, ids: dict, plan: ProceduralPlan, seed: int) -> tuple[l
                 metrics = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in metrics.items()}
                 rows += metric_rows({**ids, "preset": preset, "estimator": params.estimator, "encoding": encoding,
                                      "noise": noise}, metrics)
-    return rows, time.perf_counter() - t0
+                seconds[preset] += time.perf_counter() - t0
+    return rows, seconds
 
 
 def score_scene(seed: int, *, plan: dict, evaluation_id: str) -> dict:
@@ -230,8 +232,8 @@ def score_scene(seed: int, *, plan: dict, evaluation_id: str) -> dict:
     dict
         ``rows`` (the scene's rows of the results table: ground-truth facts per aperture, then every
         metric per aperture × encoding × noise × preset), ``timings`` (``lighting``, per aperture the
-        seconds this task spent on the render (≈ 0 when cached) and the seconds the render took when
-        it was made, the seconds of scoring, ``host``, ``pid``) and ``variant`` (Mitsuba's).
+        seconds this task spent on the render (≈ 0 when cached), the seconds the render took when
+        it was made and the seconds of scoring per preset, ``host``, ``pid``) and ``variant`` (Mitsuba's).
 
     Notes
     -----
@@ -276,14 +278,14 @@ def summary_rows(rows) -> list[dict]:
 
 
 def latest_evaluations(root) -> dict:
-    """The newest finished evaluation of each split under ``root`` (folders holding ``summary.json`` and
-    ``results.csv``, as ``repro.evaluate --procedural`` writes them last).
+    """The newest finished evaluation of each split and render size under ``root`` (folders holding
+    ``summary.json`` and ``results.csv``, which ``repro.evaluate --procedural`` writes last).
 
     Returns
     -------
     dict
-        ``{split: {"path": Path of results.csv, "meta": the summary's metadata}}``, newest by
-        ``finished_utc``; empty when there is none. Unreadable folders are skipped.
+        ``{split: {scene_size: {"path": Path of results.csv, "meta": the summary's metadata}}}``, the
+        newest by ``finished_utc``; empty when there is none. Unreadable folders are skipped.
     """
     best: dict[str, dict] = {}
     for path in sorted(Path(root).glob("*/summary.json")) if Path(root).is_dir() else []:
@@ -291,11 +293,13 @@ def latest_evaluations(root) -> dict:
             meta = json.loads(path.read_text())
         except (OSError, ValueError):
             continue
-        split = meta.get("plan", {}).get("split") if isinstance(meta, dict) else None
+        plan = meta.get("plan", {}) if isinstance(meta, dict) else {}
+        split, size = plan.get("split"), plan.get("scene_size")
         csv_path = path.parent / "results.csv"
         if not split or not csv_path.is_file():
             continue
         meta = {k: v for k, v in meta.items() if k != "summary"}
-        if split not in best or meta.get("finished_utc", "") > best[split]["meta"].get("finished_utc", ""):
-            best[split] = {"path": csv_path, "meta": meta}
+        old = best.setdefault(split, {}).get(size)
+        if old is None or meta.get("finished_utc", "") > old["meta"].get("finished_utc", ""):
+            best[split][size] = {"path": csv_path, "meta": meta}
     return best

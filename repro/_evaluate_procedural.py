@@ -36,9 +36,24 @@ NOT_PROCEDURAL = (("--estimator", "estimator", None), ("--scenes", "scenes", Non
                   ("--photos", "photos", None), ("--maps", "maps", None))
 
 
+def noises(names) -> list[str]:
+    """``--noise`` names (default ``["none"]``), duplicates dropped; ValueError naming the levels on a bad one."""
+    from scenes.display import NOISE_LEVELS
+
+    out = list(dict.fromkeys(names or ["none"]))
+    for level in out:
+        if level not in NOISE_LEVELS:
+            raise ValueError(f"--noise {level!r} is invalid (unknown noise level); allowed: {', '.join(NOISE_LEVELS)}")
+    return out
+
+
 def add_options(p) -> None:
-    """The ``--procedural`` flags of ``repro.evaluate``'s parser."""
+    """``--noise`` and the ``--procedural`` flags of ``repro.evaluate``'s parser."""
     from repro._cli import int_type
+    from scenes.display import NOISE_LEVELS
+
+    p.add_argument("--noise", nargs="+", default=None, metavar="LEVEL",
+                   help=f"sensor noise level(s) of the input, an axis ({', '.join(NOISE_LEVELS)}; default: none)")
 
     p.add_argument("--procedural", type=int_type("--procedural"), default=None, metavar="N",
                    help="score the presets on N scenes of the procedural family (docs/procedural.md) instead of "
@@ -142,18 +157,21 @@ def _local_iter(todo, plan, eid):
 
 
 def _timing_summary(records: dict) -> dict:
-    """Per lighting kind: scenes, mean seconds per render when it was made (per aperture), mean scoring s."""
+    """Per lighting kind: scenes, mean seconds of a render when it was made, mean seconds of scoring one
+    render per preset (all encodings and noise levels)."""
     out: dict[str, dict] = {}
     for rec in records.values():
         t = rec["result"]["timings"]
-        kind = out.setdefault(t["lighting"], {"scenes": 0, "render_built_s": [], "score_s": []})
+        kind = out.setdefault(t["lighting"], {"scenes": 0, "render": [], "score": {}})
         kind["scenes"] += 1
-        kind["render_built_s"] += list(t["render_built_s"].values())
-        kind["score_s"] += list(t["score_s"].values())
+        kind["render"] += list(t["render_built_s"].values())
+        for per in t["score_s"].values():
+            for preset, s in per.items():
+                kind["score"].setdefault(preset, []).append(s)
     for kind in out.values():
-        for k in ("render_built_s", "score_s"):
-            v = kind.pop(k)
-            kind[f"mean_{k}_per_aperture"] = sum(v) / len(v) if v else None
+        r = kind.pop("render")
+        kind["mean_render_built_s_per_aperture"] = sum(r) / len(r) if r else None
+        kind["mean_score_s_per_aperture"] = {p: sum(v) / len(v) for p, v in kind.pop("score").items()}
     return out
 
 
@@ -284,7 +302,8 @@ def main_procedural(args) -> int:
     run = run_evaluation(plan, root, workers=args.workers, scheduler=args.scheduler, force=args.force,
                          progress=not args.quiet, command=list(sys.argv))
     print(format_summary(run.summary))
-    kinds = ", ".join(f"{k}: {v['scenes']} scene(s), {v['mean_render_built_s_per_aperture']:.1f} s per render"
+    kinds = "; ".join(f"{k}: {v['scenes']} scene(s), {v['mean_render_built_s_per_aperture']:.1f} s per render, "
+                      "scoring " + ", ".join(f"{p} {t:.1f} s" for p, t in v["mean_score_s_per_aperture"].items())
                       for k, v in run.timings["per_lighting"].items())
     print(f"scenes: {plan.n} ({run.n_resumed} read back); {kinds}; {run.wall_s:.1f} s")
     for p in run.paths:

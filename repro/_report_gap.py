@@ -23,21 +23,26 @@ def load_generalisation(root) -> dict | None:
     -------
     dict or None
         ``rows`` (:func:`experiments.leaderboard.generalisation_gap`), ``tables``
-        (:func:`experiments.leaderboard.generalisation_tables`) and ``sources``: per split the
-        evaluation id, its folder, when it finished, its seeds and the command that reruns it.
+        (:func:`experiments.leaderboard.generalisation_tables`) and ``sources``: per split and render
+        size the evaluation id, its folder, when it finished, its seeds and the command that reruns it.
+        Render sizes with both a dev and a test evaluation are compared.
     """
     from experiments.leaderboard import generalisation_gap, generalisation_tables
     from experiments.procedural_eval import latest_evaluations
     from experiments.results_table import read_results_csv
 
     latest = latest_evaluations(root)
-    if "dev" not in latest or "test" not in latest:
+    sizes = sorted(set(latest.get("dev", {})) & set(latest.get("test", {})))
+    if not sizes:
         return None
-    rows = {split: read_results_csv(info["path"]) for split, info in latest.items()}
+    used = {split: {size: latest[split][size] for size in sizes if size in latest.get(split, {})}
+            for split in latest}
+    rows = {split: [r for info in per.values() for r in read_results_csv(info["path"])] for split, per in used.items()}
     gap = generalisation_gap(rows["dev"], rows["test"], fresh_rows=rows.get("fresh"))
-    sources = {split: {"evaluation_id": info["meta"].get("evaluation_id"), "folder": str(info["path"].parent),
-                       "finished_utc": info["meta"].get("finished_utc"), "seeds": info["meta"].get("seeds"),
-                       "rerun": info["meta"].get("rerun")} for split, info in latest.items()}
+    sources = [{"split": split, "scene_size": size, "evaluation_id": info["meta"].get("evaluation_id"),
+                "folder": str(info["path"].parent), "finished_utc": info["meta"].get("finished_utc"),
+                "seeds": info["meta"].get("seeds"), "rerun": info["meta"].get("rerun")}
+               for split, per in used.items() for size, info in per.items()]
     return {"rows": gap, "tables": generalisation_tables(gap), "sources": sources}
 
 
@@ -53,8 +58,8 @@ def _fmt(s) -> str:
 def generalisation_intro(gen: dict) -> str:
     """The section's paragraph: the rule, the evaluations it reads, the headline preset's pooled gap."""
     src = gen["sources"]
-    used = "; ".join(f"{split}: `{s['evaluation_id']}` (seeds {s['seeds'][0]}–{s['seeds'][1]}, finished "
-                     f"{s['finished_utc']})" for split, s in src.items() if s.get("seeds"))
+    used = "; ".join(f"{s['split']} ({s['scene_size']}): `{s['evaluation_id']}` (seeds {s['seeds'][0]}–{s['seeds'][1]}, "
+                     f"finished {s['finished_utc']})" for s in src if s.get("seeds"))
     preset, metric = HEADLINE
     pooled = [r for r in gen["rows"] if r.get("preset") == preset and r["metric"] == metric and r["aperture"] == "all"]
     head = "".join(f" {preset}'s {metric} test − dev over all apertures ({r['scene_size']}, {r['encoding']}, "
@@ -63,4 +68,4 @@ def generalisation_intro(gen: dict) -> str:
             "`test` and `fresh`. Per preset and aperture, the mean over scenes with a 95 % bootstrap interval "
             "(resampling scenes), and test − dev (resampling each split's scenes independently); `all` pools "
             f"each scene's apertures. A preset tuned to the dev scenes shows a positive gap.{head} "
-            f"Newest evaluation of each split: {used}.")
+            f"Newest evaluation of each split and render size: {used}.")

@@ -1,8 +1,12 @@
 """Compare blur estimators on the rendered scenes: one metrics table per estimator × scene × aperture.
 
 ``python -m repro.evaluate [--preset paper robust zhuo_sim] [--estimator NAME ...] [--scenes NAME ...]
-[--fnumber N ...] [--scene-preset small|full] [--encoding srgb linear] [--stages] [--out DIR] [--force]
-[--variant V] [-q]``
+[--fnumber N ...] [--scene-preset small|full] [--encoding srgb linear] [--noise LEVEL ...] [--stages] [--out DIR]
+[--force] [--variant V] [-q]``
+
+``python -m repro.evaluate --procedural N --split dev|test|fresh [--scene-seed-start S] [--preset NAME ...]
+[--fnumber N ...] [--scene-preset small|full] [--noise LEVEL ...] [--encoding ...] [--spp N]
+[--workers W | --scheduler ADDR] [--out DIR] [--force] [-q]``
 
 ``python -m repro.evaluate --photos [NAME ...] [--preset NAME ...] [--out DIR] [--force] [-q]``
 
@@ -16,6 +20,10 @@ tabulated, per method preset (:data:`method.PRESETS`) and estimator: the sparse 
 over all / edge / textured pixels, RTF-normalised errors and the in-focus outlier fraction
 (occlusion boundaries excluded everywhere). The table is printed and written to
 ``<out>/evaluate.csv`` and ``<out>/evaluate.json`` (atomically).
+
+``--noise`` adds the sensor noise levels (:data:`scenes.display.NOISE_LEVELS`) as an axis. ``--procedural N``
+scores the presets on N seeded scenes of a ``--split`` (tune on dev, report test and fresh), one Dask task
+per scene, into the long results table (:mod:`repro._evaluate_procedural`, docs/procedural.md).
 
 ``--stages`` adds the stage attribution (:mod:`experiments.stage_attribution`): the error after
 each stage (sparse, refined, dense over all / textured / edge pixels) for the estimated measures
@@ -103,8 +111,6 @@ def _parser():
                    help="also print and write the stage attribution (errors after each stage, with oracle inputs)")
     p.add_argument("--encoding", nargs="+", default=["srgb"], choices=("srgb", "linear"),
                    help="input encoding(s) given to the method (default: srgb, as a camera stores it)")
-    p.add_argument("--noise", nargs="+", default=None, metavar="LEVEL",
-                   help=f"sensor noise level(s) of the input, an axis ({', '.join(_noise_levels())}; default: none)")
     _procedural.add_options(p)
     p.add_argument("--photos", nargs="*", default=None, metavar="NAME",
                    help="score the presets on the real photos with hand-drawn regions instead of the renders "
@@ -129,12 +135,6 @@ def _parser():
     add_force_option(p)
     add_quiet_option(p, what="no progress display")
     return p
-
-
-def _noise_levels() -> tuple[str, ...]:
-    from scenes.display import NOISE_LEVELS
-
-    return tuple(NOISE_LEVELS)
 
 
 def _photo_names() -> tuple[str, ...]:
@@ -244,11 +244,7 @@ def _validate(args):
     else:
         estimators = (None,)
     scenes, f_numbers = scene_grid(args.scenes, args.fnumber or [8.0, 4.0], args.scene_preset, out=args.out)
-    noises = list(dict.fromkeys(args.noise or ["none"]))
-    for level in noises:
-        if level not in _noise_levels():
-            raise ValueError(f"--noise {level!r} is invalid (unknown noise level); allowed: {', '.join(_noise_levels())}")
-    return presets, estimators, scenes, f_numbers, list(dict.fromkeys(args.encoding)), noises
+    return presets, estimators, scenes, f_numbers, list(dict.fromkeys(args.encoding)), _procedural.noises(args.noise)
 
 
 def table_rows(cases) -> list[dict]:

@@ -31,6 +31,14 @@ def test_schema_has_the_required_columns_once():
         assert c in names
 
 
+def test_the_docs_page_lists_exactly_the_columns_in_order():
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "results-schema.md").read_text(encoding="utf-8")
+    assert re.findall(r"^\| `(\w+)` \|", text, flags=re.MULTILINE) == list(column_names())
+
+
 def test_units_of_the_metric_families():
     assert metric_unit("dense_textured_mae") == "px (σ)" and metric_unit("sparse_n") == "pixels"
     assert metric_unit("sparse_outlier_fraction") == "fraction of pixels" and metric_unit("rtf_nmae") == "dimensionless"
@@ -105,7 +113,7 @@ def _evaluation(root, eid, split, values, finished):
 
     folder = root / eid
     write_results(folder, _rows(split, values, eid=eid), {})
-    meta = {"evaluation_id": eid, "plan": {"split": split}, "finished_utc": finished, "seeds": [0, len(values) - 1],
+    meta = {"evaluation_id": eid, "plan": {"split": split, "scene_size": "small"}, "finished_utc": finished, "seeds": [0, len(values) - 1],
             "rerun": f"python -m repro.evaluate --procedural {len(values)} --split {split}", "summary": []}
     (folder / "summary.json").write_text(json.dumps(meta))
 
@@ -133,6 +141,7 @@ def test_report_shows_the_newest_dev_and_test_side_by_side(tmp_path):
     assert "| 3 | 2.000 [" in line and "| 3 | 3.000 [" in line and "+1.000 [" in line
     gen = json.loads((out / "generalisation.json").read_text())
     assert gen["rows"][0]["gap"]["value"] == pytest.approx(1.0)
+    assert {s["evaluation_id"] for s in gen["sources"]} == {"dev-new", "test-a"}
     assert GENERALISATION_HEADING in (out / "index.html").read_text()
     # without a test evaluation the section is left out
     for p in (ev / "test-a").iterdir():

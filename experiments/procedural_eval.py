@@ -24,7 +24,7 @@ from pathlib import Path
 
 from .results_table import metric_rows, summarise
 
-__all__ = ["DEFAULT_PRESETS", "PROCEDURAL_EVAL_VERSION", "SOURCE", "ProceduralPlan", "latest_evaluations",
+__all__ = ["DEFAULT_PRESETS", "FAILED_METRIC", "PROCEDURAL_EVAL_VERSION", "SOURCE", "ProceduralPlan", "latest_evaluations",
            "noise_seed", "plan_evaluation", "scene_key", "score_scene", "summary_rows"]
 
 #: Version of :func:`score_scene`'s output; part of every scene's resume key.
@@ -33,6 +33,9 @@ PROCEDURAL_EVAL_VERSION = 1
 SOURCE = "procedural"
 #: Presets scored by default: every registered one (read at call time).
 DEFAULT_PRESETS = None
+#: Metric of every (render, input, preset): 1 when the method raised on it (its other metrics are then
+#: absent), else 0; its mean over scenes is the failure rate.
+FAILED_METRIC = "pipeline_failed"
 #: Ground-truth facts of a render stored as rows (metadata ``stats`` key → metric name).
 _GT_FACTS = (("sigma_px_min", "gt_sigma_min"), ("sigma_px_median", "gt_sigma_median"),
              ("sigma_px_p95", "gt_sigma_p95"), ("sigma_px_max", "gt_sigma_max"),
@@ -187,8 +190,9 @@ def _single_threaded():
     return stack
 
 
-def _score_render(render, ids: dict, plan: ProceduralPlan, seed: int) -> tuple[list[dict], dict]:
-    """Rows of every encoding × noise × preset on one render, and the seconds spent per preset."""
+def _score_render(render, ids: dict, plan: ProceduralPlan, seed: int, failures: list) -> tuple[list[dict], dict]:
+    """Rows of every encoding × noise × preset on one render, and the seconds spent per preset; a run of the
+    method that raises gets one :data:`FAILED_METRIC` row of 1 and a line in ``failures``."""
     import numpy as np
 
     from method import DefocusParams, NoEdgesWarning, estimate_defocus_map
@@ -204,13 +208,20 @@ def _score_render(render, ids: dict, plan: ProceduralPlan, seed: int) -> tuple[l
             for preset in plan.presets:
                 t0 = time.perf_counter()
                 params = DefocusParams.preset(preset)
-                with _single_threaded(), warnings.catch_warnings():
-                    warnings.simplefilter("ignore", NoEdgesWarning)
-                    result = estimate_defocus_map(image, params)
+                row_ids = {**ids, "preset": preset, "estimator": params.estimator, "encoding": encoding, "noise": noise}
+                try:
+                    with _single_threaded(), warnings.catch_warnings():
+                        warnings.simplefilter("ignore", NoEdgesWarning)
+                        result = estimate_defocus_map(image, params)
+                except Exception as exc:  # the method failing on a scene is a result: recorded, not fatal
+                    failures.append(f"{preset} on {ids['scene']} f/{f_number:g} {encoding} {noise}: "
+                                    f"{type(exc).__name__}: {exc}")
+                    rows += metric_rows(row_ids, {FAILED_METRIC: 1.0})
+                    seconds[preset] += time.perf_counter() - t0
+                    continue
                 metrics = flatten_metrics(evaluate_result(result, render, image=image))
                 metrics = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in metrics.items()}
-                rows += metric_rows({**ids, "preset": preset, "estimator": params.estimator, "encoding": encoding,
-                                     "noise": noise}, metrics)
+                rows += metric_rows(row_ids, {FAILED_METRIC: 0.0, **metrics})
                 seconds[preset] += time.perf_counter() - t0
     return rows, seconds
 
@@ -231,7 +242,8 @@ def score_scene(seed: int, *, plan: dict, evaluation_id: str) -> dict:
     -------
     dict
         ``rows`` (the scene's rows of the results table: ground-truth facts per aperture, then every
-        metric per aperture × encoding × noise × preset), ``timings`` (``lighting``, per aperture the
+        metric per aperture × encoding × noise × preset, :data:`FAILED_METRIC` among them), ``failures`` (one
+        line per run of the method that raised: preset, input, exception), ``timings`` (``lighting``, per aperture the
         seconds this task spent on the render (≈ 0 when cached), the seconds the render took when
         it was made and the seconds of scoring per preset, ``host``, ``pid``) and ``variant`` (Mitsuba's).
 
@@ -241,7 +253,8 @@ def score_scene(seed: int, *, plan: dict, evaluation_id: str) -> dict:
     2. Per aperture: :func:`scenes.render_scene` (cached), the ground-truth facts of its metadata.
     3. Per encoding × noise level: the input (:func:`experiments.evaluation.input_image`, 8 bits,
        noise seed :func:`noise_seed`); per preset the whole pipeline on one thread and
-       :func:`experiments.evaluation.evaluate_result`, flattened into rows.
+       :func:`experiments.evaluation.evaluate_result`, flattened into rows (a pipeline that raises is
+       recorded as failed, and the other presets and inputs go on).
     """
     from scenes import render_scene
     from scenes.library.procedural import procedural_scene, split_of
@@ -251,7 +264,7 @@ def score_scene(seed: int, *, plan: dict, evaluation_id: str) -> dict:
     layout = sdef.facts["layout"]
     rows, timings = [], {"lighting": layout["lighting"], "camera": layout["camera_name"], "render_s": {},
                          "render_built_s": {}, "score_s": {}, "host": os.uname().nodename, "pid": os.getpid()}
-    variant = None
+    variant, failures = None, []
     for f_number in p.f_numbers:
         t0 = time.perf_counter()
         render = render_scene(sdef.name, preset=p.scene_size, f_number=f_number, spp=p.spp, variant=p.variant,
@@ -266,10 +279,10 @@ def score_scene(seed: int, *, plan: dict, evaluation_id: str) -> dict:
                "split": split_of(int(seed)), "scene_size": p.scene_size, "camera": layout["camera_name"],
                "lighting": layout["lighting"], "aperture": float(f_number)}
         rows += metric_rows(ids, {name: md["stats"].get(k) for k, name in _GT_FACTS})
-        scored, seconds = _score_render(render, ids, p, int(seed))
+        scored, seconds = _score_render(render, ids, p, int(seed), failures)
         rows += scored
         timings["score_s"][key] = seconds
-    return {"rows": rows, "timings": timings, "variant": variant}
+    return {"rows": rows, "timings": timings, "variant": variant, "failures": failures}
 
 
 def summary_rows(rows) -> list[dict]:

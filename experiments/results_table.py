@@ -66,13 +66,13 @@ COLUMNS: tuple[Column, ...] = (
     Column("metric", "string", False, "what was measured (docs/results-schema.md lists the metrics)"),
     Column("value", "float64", True, "the number; empty when undefined (e.g. an MAE over no pixels)"),
     Column("unit", "string", False, "unit of value: 'px (σ)', 'pixels', 'fraction of pixels', 'dimensionless', "
-                                    "'relative', 'm'"),
+                                    "'relative', 'm', 'flag' (1 = yes)"),
 )
 #: Columns that identify a summary group (everything but the scene, its seed and the value).
 GROUP_COLUMNS = ("evaluation_id", "source", "split", "scene_size", "aperture", "preset", "encoding", "noise", "metric")
 #: Metrics of the summaries and the report (flattened :func:`experiments.evaluation.evaluate_result` keys).
 SUMMARY_METRICS = ("dense_textured_mae", "dense_all_mae", "sparse_mae", "refined_mae", "rtf_nmae",
-                   "in_focus_outliers_sparse_fraction")
+                   "in_focus_outliers_sparse_fraction", "pipeline_failed")
 _TYPES = MappingProxyType({c.name: c.type for c in COLUMNS})
 
 
@@ -83,6 +83,8 @@ def column_names() -> tuple[str, ...]:
 
 def metric_unit(metric: str) -> str:
     """Unit of a metric (the ``unit`` column)."""
+    if metric.endswith("_failed"):
+        return "flag"
     if metric.endswith("_n") or metric.startswith("n_") or metric.endswith("_n_in_focus") \
             or metric.endswith("_n_blurry_estimates"):
         return "pixels"

@@ -120,6 +120,7 @@ class EvaluationRun:
     n_resumed: int
     wall_s: float
     paths: list
+    failures: dict  # seed -> lines of the method runs that raised
 
 
 def _now() -> str:
@@ -240,17 +241,21 @@ def run_evaluation(plan, root, *, workers=None, scheduler=None, force=False, pro
     if todo:
         it = _local_iter(todo, plan, eid) if workers == 0 and scheduler is None else \
             _engine_iter(todo, plan, eid, workers=workers, scheduler=scheduler, log=log)
-        with tqdm(total=plan.n, initial=len(resumed), desc="evaluate", unit="scene", file=sys.stderr,
-                  disable=not progress, dynamic_ncols=True) as bar:
-            for seed, result in it:
-                write_cell(out, ids[seed], keys[seed], result)
-                records[seed] = {"key": keys[seed], "result": result}
-                bar.update(1)
+        try:
+            with tqdm(total=plan.n, initial=len(resumed), desc="evaluate", unit="scene", file=sys.stderr,
+                      disable=not progress, dynamic_ncols=True) as bar:
+                for seed, result in it:
+                    write_cell(out, ids[seed], keys[seed], result)
+                    records[seed] = {"key": keys[seed], "result": result}
+                    bar.update(1)
+        finally:
+            it.close()  # on Ctrl-C too: the engine's client and cluster are closed before the exception leaves
     rows = [r for s in plan.seeds for r in records[s]["result"]["rows"]]
     summary = summary_rows(rows)
     timings = {"per_lighting": _timing_summary(records),
                "scenes": {str(s): {**records[s]["result"]["timings"], "resumed": s in resumed} for s in plan.seeds}}
     meta = {**run_info, "finished_utc": _now(), "code": code, "versions": versions, "n_resumed": len(resumed),
+            "failures": [line for s in plan.seeds for line in records[s]["result"].get("failures", [])],
             "mitsuba_variants": sorted({str(records[s]["result"]["variant"]) for s in plan.seeds}),
             "wall_s": time.perf_counter() - t0}
     paths = write_results(out, rows, meta)
@@ -260,7 +265,8 @@ def run_evaluation(plan, root, *, workers=None, scheduler=None, force=False, pro
     atomic_write_text(out / "timings.json", json.dumps(to_jsonable(timings), indent=1, sort_keys=True) + "\n")
     paths.append(out / "timings.json")
     return EvaluationRun(folder=out, rows=rows, summary=summary, timings=timings, n_resumed=len(resumed),
-                         wall_s=meta["wall_s"], paths=paths)
+                         wall_s=meta["wall_s"], paths=paths,
+                         failures={s: records[s]["result"].get("failures", []) for s in plan.seeds})
 
 
 def _ci(row) -> str:
@@ -306,6 +312,12 @@ def main_procedural(args) -> int:
                       "scoring " + ", ".join(f"{p} {t:.1f} s" for p, t in v["mean_score_s_per_aperture"].items())
                       for k, v in run.timings["per_lighting"].items())
     print(f"scenes: {plan.n} ({run.n_resumed} read back); {kinds}; {run.wall_s:.1f} s")
+    failures = [line for s in plan.seeds for line in run.failures.get(s, [])]
+    if failures:
+        print(f"{PROG}: the method raised on {len(failures)} input(s) (recorded as pipeline_failed = 1):",
+              file=sys.stderr)
+        for line in failures:
+            print(f"  {line}", file=sys.stderr)
     for p in run.paths:
         print(f"  {p}")
     return 0

@@ -149,3 +149,35 @@ def test_report_shows_the_newest_dev_and_test_side_by_side(tmp_path):
     out2 = tmp_path / "rep2"
     assert run_cli(main, ["--figures", str(figs), "--out", str(out2), "--evaluations", str(ev)]) == 0
     assert GENERALISATION_HEADING not in (out2 / "README.md").read_text()
+
+
+def test_a_method_that_raises_on_one_input_is_recorded_and_the_others_go_on(monkeypatch):
+    """No renderer: a synthetic render (a blurred step, σ_gt known); the robust preset made to raise."""
+    import method
+    from experiments.procedural_eval import FAILED_METRIC, plan_evaluation
+    from experiments.procedural_eval import _score_render as score_render
+    from scenes.render import Render
+
+    h, w = 48, 64
+    x = np.linspace(0, 1, w)[None, :].repeat(h, 0)
+    rgb = np.repeat((0.1 + 0.6 * (x > 0.5))[..., None], 3, axis=2).astype(np.float32)
+    sigma = np.full((h, w), 0.29, np.float32)
+    render = Render(rgb=rgb, depth=np.ones((h, w), np.float32), coc_px=np.zeros((h, w), np.float32),
+                    sigma_px=sigma, occlusion_boundary=np.zeros((h, w), bool), metadata={})
+    real = method.estimate_defocus_map
+
+    def flaky(image, params):
+        if params.estimator == method.DefocusParams.preset("robust").estimator and params != method.DefocusParams():
+            raise RuntimeError("did not converge")
+        return real(image, params)
+
+    monkeypatch.setattr(method, "estimate_defocus_map", flaky)
+    plan = plan_evaluation(1, split="dev", presets=["paper", "robust"], f_numbers=[2.0])
+    failures = []
+    rows, seconds = score_render(render, {"scene": "procedural_0", "aperture": 2.0}, plan, 0, failures)
+    failed = {r["preset"]: r["value"] for r in rows if r["metric"] == FAILED_METRIC}
+    assert failed == {"paper": 0.0, "robust": 1.0}
+    assert [r["metric"] for r in rows if r["preset"] == "robust"] == [FAILED_METRIC]
+    assert any(r["metric"] == "sparse_mae" for r in rows if r["preset"] == "paper")
+    assert len(failures) == 1 and "robust on procedural_0 f/2" in failures[0] and "did not converge" in failures[0]
+    assert set(seconds) == {"paper", "robust"}

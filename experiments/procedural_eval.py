@@ -24,15 +24,13 @@ from pathlib import Path
 
 from .results_table import metric_rows, summarise
 
-__all__ = ["DEFAULT_PRESETS", "FAILED_METRIC", "PROCEDURAL_EVAL_VERSION", "SOURCE", "ProceduralPlan", "latest_evaluations",
+__all__ = ["FAILED_METRIC", "PROCEDURAL_EVAL_VERSION", "SOURCE", "ProceduralPlan", "latest_evaluations",
            "noise_seed", "plan_evaluation", "scene_key", "score_scene", "summary_rows"]
 
 #: Version of :func:`score_scene`'s output; part of every scene's resume key.
 PROCEDURAL_EVAL_VERSION = 1
 #: The ``source`` column of the family's rows.
 SOURCE = "procedural"
-#: Presets scored by default: every registered one (read at call time).
-DEFAULT_PRESETS = None
 #: Metric of every (render, input, preset): 1 when the method raised on it (its other metrics are then
 #: absent), else 0; its mean over scenes is the failure rate.
 FAILED_METRIC = "pipeline_failed"

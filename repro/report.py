@@ -601,7 +601,7 @@ def _generalisation(args) -> dict | None:
     """The generalisation section from ``--evaluations`` (None when it lacks a dev or a test evaluation)."""
     from ._report_gap import DEFAULT_EVALUATIONS, load_generalisation
 
-    root = args.evaluations if args.evaluations is not None else _PROJECT_ROOT / DEFAULT_EVALUATIONS
+    root = args.evaluations if args.evaluations is not None else DEFAULT_EVALUATIONS
     if args.evaluations is not None and not root.is_dir():
         raise ValueError(f"--evaluations {str(root)!r} is not a folder; allowed: a folder of repro.evaluate "
                          "--procedural evaluations")

@@ -119,7 +119,6 @@ def test_names_resolve_to_the_same_scene_and_bad_ones_are_refused():
 
 _PROBE = r"""
 import json, sys
-import numpy as np
 from scenes.backend import import_mitsuba
 from scenes.render import render_scene, scene_content_hash
 from scenes.library import get_scene
@@ -127,44 +126,51 @@ mi, variant = import_mitsuba(None)
 out = {}
 for name in sys.argv[1:]:
     sdef = get_scene(name)
-    cam = sdef.camera(resolution=(40, 30), f_number=2.0)
-    r = render_scene(name, cam, spp=4, use_cache=False, progress=False)
+    r = render_scene(name, sdef.camera(resolution=(40, 30), f_number=2.0), spp=4, use_cache=False, progress=False)
     out[name] = {"hash": scene_content_hash(sdef, variant=variant), "sigma": r.sigma_px.astype(float).ravel().tolist()}
 print(json.dumps(out))
 """
 
 
 @pytest.mark.render
-def test_same_seed_same_content_hash_and_sigma_gt_in_two_processes(tmp_path):
-    """Two fresh processes, each with its own empty cache (no shared memo): equal hashes and σ_gt per seed,
-    different hashes for different seeds."""
+def test_same_seed_same_content_hash_and_sigma_gt_in_two_processes(tmp_path, monkeypatch):
+    """This process and a fresh one, each with its own empty cache (no shared hash memo): equal hashes and
+    σ_gt per seed, different hashes for different seeds."""
     import shutil
 
+    from scenes import render as render_module
     from scenes.backend import cache_root
 
-    names = ["procedural_4", "procedural_100010"]  # three objects each: quick to build
-    procs = []
-    for i in range(2):
-        cache = tmp_path / f"cache{i}"
-        cache.mkdir()
-        probes = cache_root() / "variant-probes.json"  # the variant probe is not what is tested: reuse it
+    names = ["procedural_4", "procedural_100010"]  # an emission-only and a lit scene, few objects each
+    caches = [tmp_path / "here", tmp_path / "there"]
+    probes = cache_root() / "variant-probes.json"  # the Mitsuba variant probe is not under test: reuse it
+    for c in caches:
+        c.mkdir()
         if probes.is_file():
-            shutil.copy(probes, cache / probes.name)
-        env = {**os.environ, "DEFOCUS_CACHE_DIR": str(cache)}
-        env.setdefault("DRJIT_CACHE_DIR", str(ROOT / ".cache" / "drjit"))
-        procs.append(subprocess.Popen([sys.executable, "-c", _PROBE, *names], cwd=ROOT, env=env, text=True,
-                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE))
-    outs = []
-    for p in procs:
-        stdout, stderr = p.communicate(timeout=300)
-        assert p.returncode == 0, stderr[-2000:]
-        outs.append(json.loads(stdout.strip().splitlines()[-1]))
-    a, b = outs
+            shutil.copy(probes, c / probes.name)
+    env = {**os.environ, "DEFOCUS_CACHE_DIR": str(caches[1])}
+    env.setdefault("DRJIT_CACHE_DIR", str(ROOT / ".cache" / "drjit"))
+    proc = subprocess.Popen([sys.executable, "-c", _PROBE, *names], cwd=ROOT, env=env, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    monkeypatch.setenv("DEFOCUS_CACHE_DIR", str(caches[0]))
+    monkeypatch.setattr(render_module, "_CONTENT_HASHES", {})
+    from scenes.backend import import_mitsuba
+
+    _, variant = import_mitsuba(None)
+    here = {}
+    for name in names:
+        sdef = procedural_scene(seed_of(name)[0])
+        r = render_module.render_scene(name, sdef.camera(resolution=(40, 30), f_number=2.0), spp=4, use_cache=False,
+                                       progress=False)
+        here[name] = {"hash": render_module.scene_content_hash(sdef, variant=variant), "sigma": r.sigma_px}
+    stdout, stderr = proc.communicate(timeout=300)
+    assert proc.returncode == 0, stderr[-2000:]
+    there = json.loads(stdout.strip().splitlines()[-1])
     for n in names:
-        assert a[n]["hash"] == b[n]["hash"]
-        assert np.array_equal(np.array(a[n]["sigma"]), np.array(b[n]["sigma"]))
-        assert max(a[n]["sigma"]) - min(a[n]["sigma"]) > 0.3  # a real σ_gt map (40 px wide), not a constant
-    assert a[names[0]]["hash"] != a[names[1]]["hash"]
+        assert here[n]["hash"] == there[n]["hash"]
+        assert np.array_equal(here[n]["sigma"].astype(float).ravel(), np.array(there[n]["sigma"]))
+        assert np.ptp(here[n]["sigma"]) > 0.3  # a real σ_gt map (40 px wide), not a constant
+    assert here[names[0]]["hash"] != here[names[1]]["hash"]
 
 
 @pytest.mark.render

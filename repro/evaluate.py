@@ -274,9 +274,9 @@ def _fmt(v) -> str:
 
 def format_table(rows) -> str:
     """Fixed-width terminal table of the :data:`SHOWN` columns."""
-    head = [*ID_COLUMNS[:4], ID_COLUMNS[5], *(_SHORT[c] for c in SHOWN)]
+    head = [*ID_COLUMNS[:4], *ID_COLUMNS[5:7], *(_SHORT[c] for c in SHOWN)]
     body = [[str(r["method_preset"]), str(r["estimator"]), str(r["scene"]), f"{r['f_number']:g}", str(r["encoding"]),
-             *(_fmt(r[c]) for c in SHOWN)] for r in rows]
+             str(r["noise"]), *(_fmt(r[c]) for c in SHOWN)] for r in rows]
     widths = [max(len(h), *(len(b[i]) for b in body)) if body else len(h) for i, h in enumerate(head)]
     lines = ["  ".join(h.ljust(w) for h, w in zip(head, widths))]
     lines += ["  ".join(c.ljust(w) for c, w in zip(b, widths)) for b in body]

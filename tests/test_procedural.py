@@ -186,3 +186,24 @@ def test_sigma_gt_spans_in_focus_to_8px_at_f2_full_preset(seed):
     assert r["miss_fraction"] == 0.0  # the background fills the frame
     box = 1.0 / 12.0
     assert math.isclose(f8["max_px"], math.sqrt((f2["max_px"] ** 2 - box) / 16.0 + box), rel_tol=1e-4)
+
+
+def test_render_image_and_input_image_pass_the_noise_level_and_seed_through():
+    """No renderer: a synthetic Render. The noise level and its seed reach the camera pipeline."""
+    from experiments.evaluation import input_image
+    from scenes.display import camera_image
+    from scenes.render import Render
+
+    h, w = 32, 48
+    rgb = np.full((h, w, 3), 0.2, np.float32)
+    z = np.zeros((h, w), np.float32)
+    r = Render(rgb=rgb, depth=z + 1, coc_px=z, sigma_px=z, occlusion_boundary=z > 0, metadata={})
+    clean = input_image(r)
+    noisy = input_image(r, noise="iso800", rng=7)
+    assert np.array_equal(clean, camera_image(rgb, quantize_bits=8))
+    assert np.array_equal(noisy, camera_image(rgb, quantize_bits=8, noise="iso800", rng=7))
+    assert np.array_equal(noisy, input_image(r, noise="iso800", rng=7))  # same seed, same noise
+    assert not np.array_equal(noisy, input_image(r, noise="iso800", rng=8))
+    assert 0.01 < float(np.std(noisy - clean)) < 0.1  # iso800 at linear 0.2: σ ≈ 0.018 linear, ≈ 0.02 in sRGB
+    with pytest.raises(ValueError, match="unknown noise level"):
+        r.image(noise="iso9")

@@ -88,7 +88,8 @@ def estimator_fingerprint(name: str) -> str:
     return source_fingerprint(BLUR_ESTIMATORS[name])
 
 
-def input_image(render, *, encoding: str = "srgb", quantize_bits: int | None = 8) -> np.ndarray:
+def input_image(render, *, encoding: str = "srgb", quantize_bits: int | None = 8, noise="none",
+                rng=None) -> np.ndarray:
     """The image the method is given.
 
     Parameters
@@ -98,6 +99,11 @@ def input_image(render, *, encoding: str = "srgb", quantize_bits: int | None = 8
         ``"srgb"``: sRGB-encoded as a camera delivers it; ``"linear"``: linear radiance (clipped).
     quantize_bits : int or None, keyword-only
         Bits per channel (8: a JPEG-like file); None keeps float values.
+    noise : str or (float, float), keyword-only
+        Sensor noise added to the linear radiance before the tone curve: a name of
+        :data:`scenes.display.NOISE_LEVELS` or variances (a, b) (:func:`scenes.display.sensor_noise`).
+    rng : numpy.random.Generator or int or None, keyword-only
+        The noise's generator or seed (None: seed 0).
 
     Returns
     -------
@@ -105,7 +111,7 @@ def input_image(render, *, encoding: str = "srgb", quantize_bits: int | None = 8
     """
     if encoding not in ENCODINGS:
         raise ValueError(f"encoding={encoding!r} is invalid; allowed: {list(ENCODINGS)}")
-    return render.image(encoding=encoding, quantize_bits=quantize_bits)
+    return render.image(encoding=encoding, quantize_bits=quantize_bits, noise=noise, rng=rng)
 
 
 def ground_truth_sigma(render, *, convention: str = "line_spread") -> np.ndarray:
@@ -275,6 +281,7 @@ class EvaluationCase:
 
 def evaluate_case(estimator: str | None, scene: str, *, f_number: float = 8.0, preset: str = "small",
                   encoding: str = "srgb", quantize_bits: int | None = 8, convention: str = "line_spread",
+                  noise: str = "none", noise_seed: int = 0,
                   params=None, method_preset: str | None = None, variant: str | None = None,
                   use_cache: bool = True, force: bool = False, cache_dir=None) -> EvaluationCase:
     """Render (cached), run the whole pipeline with one estimator, and score it; cached per case.
@@ -294,6 +301,10 @@ def evaluate_case(estimator: str | None, scene: str, *, f_number: float = 8.0, p
         Bits per channel of the input (8 = camera JPEG-like).
     convention : {"line_spread", "erf_fit"}, keyword-only
         σ_gt convention.
+    noise : str, keyword-only
+        Sensor noise level of the input, a name of :data:`scenes.display.NOISE_LEVELS` (default "none").
+    noise_seed : int, keyword-only
+        Seed of the noise (the same seed gives the same noise image).
     params : DefocusParams, optional, keyword-only
         Pipeline parameters; ``estimator`` overrides ``params.estimator``. Default: the preset
         ``method_preset`` (``"paper"`` when that is None too).
@@ -335,17 +346,21 @@ def evaluate_case(estimator: str | None, scene: str, *, f_number: float = 8.0, p
     validate_estimators([estimator])
     if encoding not in ENCODINGS:
         raise ValueError(f"encoding={encoding!r} is invalid; allowed: {list(ENCODINGS)}")
+    from scenes.display import check_noise_level
+
+    check_noise_level(noise)
     validate_render_options(scene, preset=preset, f_number=f_number, sigma_convention=convention)
     params = params.replace(estimator=estimator)
     key_fields = {"estimator": estimator, "method_preset": label, "scene": scene, "f_number": float(f_number), "preset": preset,
-                  "encoding": encoding, "quantize_bits": quantize_bits, "convention": convention}
+                  "encoding": encoding, "quantize_bits": quantize_bits, "convention": convention, "noise": noise,
+                  "noise_seed": int(noise_seed)}
     chosen = select_variant(variant)
 
     def compute() -> tuple[dict, dict]:
         t0 = time.perf_counter()
         render = render_scene(scene, preset=preset, f_number=f_number, variant=chosen, progress=False)
         t_render = time.perf_counter() - t0
-        image = input_image(render, encoding=encoding, quantize_bits=quantize_bits)
+        image = input_image(render, encoding=encoding, quantize_bits=quantize_bits, noise=noise, rng=int(noise_seed))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", NoEdgesWarning)
             result = estimate_defocus_map(image, params)

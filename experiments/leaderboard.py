@@ -6,6 +6,11 @@ parameters on each image's 8-bit sRGB input (the exported PNG, or the render qua
 the maps ``repro.estimate --preset NAME`` writes for the exported PNGs and ``repro.evaluate --preset
 NAME`` scores. An external folder is scored as ``repro.evaluate --maps`` scores it. Each number of a
 row is the mean over the images of the scene set of the per-image metric.
+
+Beside it, the generalisation gap (:func:`generalisation_gap`, :func:`generalisation_tables`): per
+preset, the mean error over the ``dev`` seeds of the procedural scene family (the ones to tune on)
+and over the ``test`` seeds (held out), each with a 95 % bootstrap interval over scenes, and
+test − dev: a preset tuned to the dev scenes shows a positive gap.
 """
 
 from __future__ import annotations
@@ -17,7 +22,8 @@ from pathlib import Path
 from .external_maps import (DETECTION_THRESHOLD_PX, HEADLINE, PNG_SCALE, PROTOCOLS, score_folder, score_maps,
                             summarize)
 
-__all__ = ["ALL_SCENES", "build_leaderboard", "leaderboard_tables", "preset_maps", "scene_set_of"]
+__all__ = ["ALL_APERTURES", "ALL_SCENES", "GAP_METRICS", "build_leaderboard", "generalisation_gap", "generalisation_tables",
+           "leaderboard_tables", "preset_maps", "scene_set_of"]
 
 #: Scene-set label of the rows over every image (given when the images span more than one set).
 ALL_SCENES = "all"
@@ -127,3 +133,104 @@ def leaderboard_tables(board: dict) -> list[dict]:
         tables.append({"title": title, "header": ["scene set", "entry", "kind", "images", *(l for _, l in cols)],
                        "rows": body})
     return tables
+
+
+# --- generalisation: the same presets on the dev and the test seeds of the procedural family ---------
+#: Metrics of the generalisation tables (results-table metric names).
+GAP_METRICS = ("dense_textured_mae", "sparse_mae")
+#: Label of the row that averages a scene's apertures.
+ALL_APERTURES = "all"
+
+
+def _per_scene(rows, metric: str, by: tuple) -> dict:
+    """``{group: {scene: value}}`` of one metric; the ``aperture`` of ``by`` also gets an :data:`ALL_APERTURES`
+    group holding each scene's mean over the apertures it has a value at."""
+    groups: dict[tuple, dict] = {}
+    pooled: dict[tuple, dict] = {}
+    for r in rows:
+        if r["metric"] != metric or r.get("value") is None or r.get("preset") is None:
+            continue
+        key = tuple(r.get(c) for c in by)
+        groups.setdefault(key, {})[r["scene"]] = float(r["value"])
+        all_key = tuple(ALL_APERTURES if c == "aperture" else r.get(c) for c in by)
+        pooled.setdefault(all_key, {}).setdefault(r["scene"], []).append(float(r["value"]))
+    for key, per in pooled.items():
+        if any(len(v) > 1 for v in per.values()):  # more than one aperture to pool
+            groups[key] = {s: sum(v) / len(v) for s, v in per.items()}
+    return groups
+
+
+def generalisation_gap(dev_rows, test_rows, *, metrics=GAP_METRICS, fresh_rows=None,
+                       by=("scene_size", "preset", "aperture", "encoding", "noise")) -> list[dict]:
+    """Per preset (and aperture, …) the dev and test means over scenes side by side, and test − dev.
+
+    Parameters
+    ----------
+    dev_rows, test_rows : iterable of dict
+        Results rows (:mod:`experiments.results_table`) of an evaluation on the dev and on the test seeds.
+    metrics : tuple of str, keyword-only
+        Metrics compared.
+    fresh_rows : iterable of dict, optional, keyword-only
+        Rows of a ``fresh`` evaluation, shown beside test.
+    by : tuple of str, keyword-only
+        Columns that must match between the splits; ``aperture`` also gets the pooled
+        :data:`ALL_APERTURES` group (each scene's mean over its apertures).
+
+    Returns
+    -------
+    list of dict
+        One per group present in both splits, in the dev table's order: the ``by`` columns, ``metric``,
+        ``unit``, ``dev`` / ``test`` / ``fresh`` (each :func:`experiments.results_table.summarise`-like
+        ``{"n_scenes", "mean", "ci_low", "ci_high"}`` or None) and ``gap`` (test − dev,
+        :func:`experiments.results_table.difference`: resampling dev and test scenes independently).
+    """
+    from .results_table import difference, mean_interval, metric_unit
+
+    def stats(per):
+        return mean_interval(per.values()) if per else None
+
+    out = []
+    for metric in metrics:
+        dev, test = _per_scene(dev_rows, metric, by), _per_scene(test_rows, metric, by)
+        fresh = _per_scene(fresh_rows, metric, by) if fresh_rows is not None else {}
+        for key, per_dev in dev.items():
+            if key not in test:
+                continue
+            gap = difference(list(per_dev.values()), list(test[key].values()))
+            out.append({**dict(zip(by, key)), "metric": metric, "unit": metric_unit(metric), "dev": stats(per_dev),
+                        "test": stats(test[key]), "fresh": stats(fresh.get(key)),
+                        "gap": {k: gap[k] for k in ("value", "ci_low", "ci_high")}})
+    return out
+
+
+def _ci_text(s) -> str:
+    if not s or s.get("mean", s.get("value")) is None:
+        return "–"
+    m = s.get("mean", s.get("value"))
+    sign = "+" if "value" in s else ""
+    if s.get("ci_low") is None:
+        return f"{m:{sign}.3f}"
+    return f"{m:{sign}.3f} [{s['ci_low']:{sign}.3f}, {s['ci_high']:{sign}.3f}]"
+
+
+def generalisation_tables(gap_rows) -> list[dict]:
+    """One table per metric, scene size, encoding and noise of :func:`generalisation_gap`'s rows:
+    ``{"title", "header", "rows"}``, a row per preset × aperture (cells are strings)."""
+    tables: dict[tuple, dict] = {}
+    has_fresh = any(r.get("fresh") for r in gap_rows)
+    for r in gap_rows:
+        key = (r["metric"], r.get("scene_size"), r.get("encoding"), r.get("noise"))
+        if key not in tables:
+            head = ["preset", "f/N", "dev scenes", "dev mean [95 % CI]", "test scenes", "test mean [95 % CI]",
+                    "test − dev [95 % CI]"]
+            tables[key] = {"title": f"{r['metric']} ({r['unit']}), {r.get('scene_size')} renders, "
+                                    f"{r.get('encoding')} input, noise {r.get('noise')}",
+                           "header": head + (["fresh scenes", "fresh mean [95 % CI]"] if has_fresh else []),
+                           "rows": []}
+        ap = r.get("aperture")
+        row = [str(r.get("preset")), ap if isinstance(ap, str) else f"{ap:g}", str(r["dev"]["n_scenes"]),
+               _ci_text(r["dev"]), str(r["test"]["n_scenes"]), _ci_text(r["test"]), _ci_text(r["gap"])]
+        if has_fresh:
+            row += [str(r["fresh"]["n_scenes"]) if r.get("fresh") else "0", _ci_text(r.get("fresh"))]
+        tables[key]["rows"].append(row)
+    return list(tables.values())

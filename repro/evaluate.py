@@ -1,8 +1,12 @@
 """Compare blur estimators on the rendered scenes: one metrics table per estimator × scene × aperture.
 
 ``python -m repro.evaluate [--preset paper robust zhuo_sim] [--estimator NAME ...] [--scenes NAME ...]
-[--fnumber N ...] [--scene-preset small|full] [--encoding srgb linear] [--stages] [--out DIR] [--force]
-[--variant V] [-q]``
+[--fnumber N ...] [--scene-preset small|full] [--encoding srgb linear] [--noise LEVEL ...] [--stages] [--out DIR]
+[--force] [--variant V] [-q]``
+
+``python -m repro.evaluate --procedural N --split dev|test|fresh [--scene-seed-start S] [--preset NAME ...]
+[--fnumber N ...] [--scene-preset small|full] [--noise LEVEL ...] [--encoding ...] [--spp N]
+[--workers W | --scheduler ADDR] [--out DIR] [--force] [-q]``
 
 ``python -m repro.evaluate --photos [NAME ...] [--preset NAME ...] [--out DIR] [--force] [-q]``
 
@@ -16,6 +20,10 @@ tabulated, per method preset (:data:`method.PRESETS`) and estimator: the sparse 
 over all / edge / textured pixels, RTF-normalised errors and the in-focus outlier fraction
 (occlusion boundaries excluded everywhere). The table is printed and written to
 ``<out>/evaluate.csv`` and ``<out>/evaluate.json`` (atomically).
+
+``--noise`` adds the sensor noise levels (:data:`scenes.display.NOISE_LEVELS`) as an axis. ``--procedural N``
+scores the presets on N seeded scenes of a ``--split`` (tune on dev, report test and fresh), one Dask task
+per scene, into the long results table (:mod:`repro._evaluate_procedural`, docs/procedural.md).
 
 ``--stages`` adds the stage attribution (:mod:`experiments.stage_attribution`): the error after
 each stage (sparse, refined, dense over all / textured / edge pixels) for the estimated measures
@@ -54,11 +62,13 @@ import sys
 import time
 from pathlib import Path
 
+from repro import _evaluate_procedural as _procedural
+
 PROG = "python -m repro.evaluate"
 DEFAULT_OUT = Path("report") / "evaluate"
 
 #: Identifying columns, then metric columns (flattened ``experiments.evaluation.evaluate_result`` keys).
-ID_COLUMNS = ("method_preset", "estimator", "scene", "f_number", "scene_preset", "encoding")
+ID_COLUMNS = ("method_preset", "estimator", "scene", "f_number", "scene_preset", "encoding", "noise")
 METRIC_COLUMNS = (
     "sparse_n", "sparse_mae", "sparse_median_ae", "sparse_rmse", "sparse_bias", "sparse_median_rel_error",
     "sparse_outlier_fraction",
@@ -93,14 +103,15 @@ def _parser():
                         "default: all registered with the paper preset alone, else each preset's own estimator)")
     p.add_argument("--scenes", nargs="+", default=None, metavar="NAME",
                    help=f"scenes (default: all: {', '.join(SCENES)})")
-    p.add_argument("--fnumber", nargs="+", type=float_type("--fnumber"), default=[8.0, 4.0], metavar="N",
-                   help="apertures (default: 8 4)")
+    p.add_argument("--fnumber", nargs="+", type=float_type("--fnumber"), default=None, metavar="N",
+                   help="apertures (default: 8 4; with --procedural: 8 4 2)")
     p.add_argument("--scene-preset", default="small", choices=("small", "full"),
                    help="render resolution preset (small 160x120, full 640x480; default small)")
     p.add_argument("--stages", action="store_true",
                    help="also print and write the stage attribution (errors after each stage, with oracle inputs)")
     p.add_argument("--encoding", nargs="+", default=["srgb"], choices=("srgb", "linear"),
                    help="input encoding(s) given to the method (default: srgb, as a camera stores it)")
+    _procedural.add_options(p)
     p.add_argument("--photos", nargs="*", default=None, metavar="NAME",
                    help="score the presets on the real photos with hand-drawn regions instead of the renders "
                         f"(photos: {', '.join(_photo_names())}; default: all; presets default: "
@@ -118,7 +129,9 @@ def _parser():
                    help="with --maps: blurred where σ > PX in the detection protocol (default 1)")
     p.add_argument("--png-scale", type=float_type("--png-scale"), default=1000.0, metavar="S",
                    help="with --maps: a 16-bit PNG map holds σ × S (default 1000: 0.001 px steps)")
-    p.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="DIR", help=f"output folder (default: {DEFAULT_OUT})")
+    p.add_argument("--out", type=Path, default=None, metavar="DIR",
+                   help=f"output folder (default: {DEFAULT_OUT}; with --procedural: {_procedural.DEFAULT_ROOT}, one "
+                        "folder per evaluation in it)")
     add_force_option(p)
     add_quiet_option(p, what="no progress display")
     return p
@@ -132,8 +145,8 @@ def _photo_names() -> tuple[str, ...]:
 
 #: Options of the render evaluation that ``--photos`` does not take (flag, argparse default).
 _SCENE_ONLY = (("--estimator", "estimator", None), ("--scenes", "scenes", None), ("--stages", "stages", False),
-               ("--fnumber", "fnumber", [8.0, 4.0]), ("--scene-preset", "scene_preset", "small"),
-               ("--encoding", "encoding", ["srgb"]), ("--variant", "variant", None))
+               ("--fnumber", "fnumber", None), ("--scene-preset", "scene_preset", "small"),
+               ("--encoding", "encoding", ["srgb"]), ("--variant", "variant", None), ("--noise", "noise", None))
 
 
 def _validate_photos(args):
@@ -230,8 +243,8 @@ def _validate(args):
         estimators = validate_estimators(list(BLUR_ESTIMATORS))
     else:
         estimators = (None,)
-    scenes, f_numbers = scene_grid(args.scenes, args.fnumber, args.scene_preset, out=args.out)
-    return presets, estimators, scenes, f_numbers, list(dict.fromkeys(args.encoding))
+    scenes, f_numbers = scene_grid(args.scenes, args.fnumber or [8.0, 4.0], args.scene_preset, out=args.out)
+    return presets, estimators, scenes, f_numbers, list(dict.fromkeys(args.encoding)), _procedural.noises(args.noise)
 
 
 def table_rows(cases) -> list[dict]:
@@ -261,9 +274,9 @@ def _fmt(v) -> str:
 
 def format_table(rows) -> str:
     """Fixed-width terminal table of the :data:`SHOWN` columns."""
-    head = [*ID_COLUMNS[:4], ID_COLUMNS[5], *(_SHORT[c] for c in SHOWN)]
+    head = [*ID_COLUMNS[:4], *ID_COLUMNS[5:7], *(_SHORT[c] for c in SHOWN)]
     body = [[str(r["method_preset"]), str(r["estimator"]), str(r["scene"]), f"{r['f_number']:g}", str(r["encoding"]),
-             *(_fmt(r[c]) for c in SHOWN)] for r in rows]
+             str(r["noise"]), *(_fmt(r[c]) for c in SHOWN)] for r in rows]
     widths = [max(len(h), *(len(b[i]) for b in body)) if body else len(h) for i, h in enumerate(head)]
     lines = ["  ".join(h.ljust(w) for h, w in zip(head, widths))]
     lines += ["  ".join(c.ljust(w) for c, w in zip(b, widths)) for b in body]
@@ -293,7 +306,7 @@ def write_outputs(rows, out_dir: Path, info: dict) -> list[Path]:
     return write_csv_json(out_dir, "evaluate", rows, [*ID_COLUMNS, *METRIC_COLUMNS], {**info, "rows": rows})
 
 
-STAGE_ID_COLUMNS = ("method_preset", "estimator", "scene", "f_number", "scene_preset", "encoding")
+STAGE_ID_COLUMNS = ("method_preset", "estimator", "scene", "f_number", "scene_preset", "encoding", "noise")
 
 
 def stage_table_rows(cases) -> list[dict]:
@@ -339,11 +352,12 @@ def write_stage_outputs(rows, out_dir: Path, info: dict) -> list[Path]:
 _MAPS_ONLY = (("--dataset", "dataset", None), ("--protocol", "protocol", ["harness"]),
               ("--detection-threshold", "detection_threshold", 1.0), ("--png-scale", "png_scale", 1000.0))
 #: Options ``--maps --dataset`` does not take (the dataset fixes the images).
-_NOT_WITH_DATASET = (("--scenes", "scenes", None), ("--fnumber", "fnumber", [8.0, 4.0]),
+_NOT_WITH_DATASET = (("--scenes", "scenes", None), ("--fnumber", "fnumber", None),
                      ("--scene-preset", "scene_preset", "small"), ("--variant", "variant", None))
 #: Options of the method runs that ``--maps`` does not take.
 _METHOD_ONLY = (("--preset", "preset", None), ("--estimator", "estimator", None), ("--stages", "stages", False),
-                ("--encoding", "encoding", ["srgb"]), ("--photos", "photos", None), ("--force", "force", False))
+                ("--encoding", "encoding", ["srgb"]), ("--photos", "photos", None), ("--force", "force", False),
+                ("--noise", "noise", None))
 
 
 def _used(args, table) -> list[str]:
@@ -375,7 +389,7 @@ def _validate_maps(args):
     if not _used(args, _NOT_WITH_DATASET[:3]):  # the maps say which images: files named like a render
         truth = RenderTruth.named_by([args.maps], variant=args.variant)
     else:
-        scenes, f_numbers = scene_grid(args.scenes, args.fnumber, args.scene_preset)
+        scenes, f_numbers = scene_grid(args.scenes, args.fnumber or [8.0, 4.0], args.scene_preset)
         truth = RenderTruth(RenderTruth.grid(scenes, f_numbers, args.scene_preset), variant=args.variant)
     if args.variant:
         from scenes.backend import select_variant
@@ -437,6 +451,16 @@ def main_maps(args) -> int:
 def main(argv=None) -> int:
     """Entry point; returns the exit status."""
     args = _parser().parse_args(argv)
+    if args.procedural is not None:
+        from repro._cli import require_extras
+
+        require_extras("render", command="repro.evaluate --procedural")
+        return _procedural.main_procedural(args)
+    used = _used(args, _procedural.PROCEDURAL_ONLY)
+    if used:
+        raise ValueError(f"{', '.join(used)} is invalid without --procedural; allowed: with --procedural N")
+    if args.out is None:
+        args.out = DEFAULT_OUT
     if args.maps is not None:
         return main_maps(args)
     used = _used(args, _MAPS_ONLY)
@@ -447,7 +471,7 @@ def main(argv=None) -> int:
     require_extras("render", command="repro.evaluate")
     if args.photos is not None:
         return main_photos(args)
-    presets, estimators, scenes, f_numbers, encodings = _validate(args)
+    presets, estimators, scenes, f_numbers, encodings, noises = _validate(args)
     if args.variant:
         from scenes.backend import select_variant
 
@@ -457,14 +481,14 @@ def main(argv=None) -> int:
     from experiments.evaluation import EVAL_VERSION, evaluate_case
     from experiments.registry import code_fingerprint, library_versions
 
-    combos = [(pr, e, s, n, enc) for s in scenes for n in f_numbers for enc in encodings for pr in presets
-              for e in estimators]
+    combos = [(pr, e, s, n, enc, nz) for s in scenes for n in f_numbers for enc in encodings for nz in noises
+              for pr in presets for e in estimators]
     cases = []
     t0 = time.perf_counter()
     with tqdm(combos, desc="evaluate", unit="case", file=sys.stderr, disable=args.quiet) as bar:
-        for pr, e, s, n, enc in bar:
-            bar.set_postfix_str(f"{pr} {e or ''} {s} f/{n:g} {enc}")
-            cases.append(evaluate_case(e, s, f_number=n, preset=args.scene_preset, encoding=enc,
+        for pr, e, s, n, enc, nz in bar:
+            bar.set_postfix_str(f"{pr} {e or ''} {s} f/{n:g} {enc} {nz}")
+            cases.append(evaluate_case(e, s, f_number=n, preset=args.scene_preset, encoding=enc, noise=nz,
                                        method_preset=pr, variant=args.variant, force=args.force))
     rows = table_rows(cases)
     info = {

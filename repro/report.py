@@ -1,6 +1,7 @@
 """Build the report: ``report/index.html`` and ``report/README.md`` from the figures' metrics.
 
-``python -m repro.report [--figures report/figures] [--out report] [--external NAME=MAPDIR ...] [--dataset DIR]``
+``python -m repro.report [--figures report/figures] [--out report] [--external NAME=MAPDIR ...] [--dataset DIR]
+[--evaluations report/evaluations]``
 
 Reads every ``<fig>.metrics.json`` that ``python -m repro.figures`` wrote, checks each of the paper's
 claims (:mod:`experiments.claims`) and writes, atomically, an HTML page (images by relative path)
@@ -12,6 +13,12 @@ method preset and every external map folder, one row each, per scene set and pro
 of ``--dataset DIR`` (a ``repro.dataset export`` folder; no renderer needed) or, without it, on the
 harness's renders named by the maps. Also written to ``<out>/leaderboard.json``. A map that cannot be
 scored is one line on stderr naming the entry and the file.
+
+Generalisation: the newest evaluation of each split of the procedural scene family under
+``--evaluations`` (``python -m repro.evaluate --procedural N --split dev|test|fresh`` writes there)
+gives, per preset and aperture, the dev and test errors side by side with 95 % bootstrap intervals and
+test − dev (:mod:`repro._report_gap`); also written to ``<out>/generalisation.json``. Without both a
+dev and a test evaluation the section is left out.
 """
 
 from __future__ import annotations
@@ -186,7 +193,8 @@ def leaderboard_intro(board: dict) -> str:
 
 
 def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | None,
-                   figures_dir: Path | None = None, leaderboard: dict | None = None) -> str:
+                   figures_dir: Path | None = None, leaderboard: dict | None = None,
+                   generalisation: dict | None = None) -> str:
     """The Markdown report (GitHub renders it next to the figures).
 
     Parameters
@@ -204,6 +212,8 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
         The figures folder on disk, to find the per-scene-set figure files ``<fig>_<set>.png``.
     leaderboard : dict, optional, keyword-only
         :func:`experiments.leaderboard.build_leaderboard`'s result, shown as one table per protocol.
+    generalisation : dict, optional, keyword-only
+        :func:`repro._report_gap.load_generalisation`'s result: dev and test side by side, test − dev.
     """
     matrix = _as_matrix(verdicts)
     lines = [
@@ -228,12 +238,19 @@ def build_markdown(metrics: dict, verdicts, *, figures_rel: str, bench: str | No
     if leaderboard:
         lines += _md_tables("Leaderboard", _md_cell(leaderboard_intro(leaderboard)), leaderboard_tables(leaderboard),
                             escape_titles=True)
+    if generalisation:
+        from ._report_gap import generalisation_intro
+
+        lines += _md_tables(GENERALISATION_HEADING, generalisation_intro(generalisation), generalisation["tables"],
+                            escape_titles=True)
     lines += _md_figures(metrics, figures_rel=figures_rel, figures_dir=figures_dir)
     if bench:
         lines += ["## Speed", "", bench.replace("# Benchmark", "Benchmark", 1), ""]
     return "\n".join(lines) + "\n"
 
 
+#: Heading of the generalisation section (Markdown and HTML).
+GENERALISATION_HEADING = "Generalisation: dev and test scenes"
 #: The paragraph under "Presets side by side" (Markdown and HTML).
 PRESET_TABLES_INTRO = (
     "`paper` is the reproduction (`DefocusParams()`), `robust` goes beyond the paper ("
@@ -363,8 +380,10 @@ def figure_files(name: str, metrics_file: dict, figures_dir: Path | None) -> lis
 
 
 def build_html(metrics: dict, verdicts, *, figures_rel: str, bench: str | None,
-               figures_dir: Path | None = None, leaderboard: dict | None = None) -> str:
-    """A self-contained HTML page (images by relative path); ``leaderboard`` as in :func:`build_markdown`."""
+               figures_dir: Path | None = None, leaderboard: dict | None = None,
+               generalisation: dict | None = None) -> str:
+    """A self-contained HTML page (images by relative path); ``leaderboard`` and ``generalisation`` as in
+    :func:`build_markdown`."""
     e = html.escape
     matrix = _as_matrix(verdicts)
     rows = _html_claims_table(matrix)
@@ -385,6 +404,11 @@ def build_html(metrics: dict, verdicts, *, figures_rel: str, bench: str | None,
     if leaderboard:
         board_html = (f"<h2>Leaderboard</h2><p>{e(leaderboard_intro(leaderboard))}</p>"
                       + _html_tables(leaderboard_tables(leaderboard), "leaderboard"))
+    if generalisation:
+        from ._report_gap import generalisation_intro
+
+        board_html += (f"<h2>{e(GENERALISATION_HEADING)}</h2><p>{e(generalisation_intro(generalisation))}</p>"
+                       + _html_tables(generalisation["tables"], "generalisation"))
     mismatch_html = _html_mismatch(metrics)
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8">
@@ -573,6 +597,17 @@ def external_leaderboard(external: dict, dataset: Path | None) -> dict:
     return build_leaderboard(truth, external=external)
 
 
+def _generalisation(args) -> dict | None:
+    """The generalisation section from ``--evaluations`` (None when it lacks a dev or a test evaluation)."""
+    from ._report_gap import DEFAULT_EVALUATIONS, load_generalisation
+
+    root = args.evaluations if args.evaluations is not None else DEFAULT_EVALUATIONS
+    if args.evaluations is not None and not root.is_dir():
+        raise ValueError(f"--evaluations {str(root)!r} is not a folder; allowed: a folder of repro.evaluate "
+                         "--procedural evaluations")
+    return load_generalisation(root)
+
+
 def main(argv=None) -> int:
     parser = ArgumentParser(prog="python -m repro.report", description=__doc__.splitlines()[0])
     parser.add_argument("--figures", type=Path, default=Path("report") / "figures",
@@ -587,6 +622,9 @@ def main(argv=None) -> int:
     parser.add_argument("--dataset", type=Path, default=None, metavar="DIR",
                         help="with --external: the ground truth of a repro.dataset export folder (default: the "
                              "harness's renders named by the maps)")
+    parser.add_argument("--evaluations", type=Path, default=None, metavar="DIR",
+                        help="folder of repro.evaluate --procedural evaluations; the newest dev and test ones give the "
+                             "generalisation section (default: report/evaluations)")
     args = parser.parse_args(argv)
     external = parse_external(args.external)
     if args.dataset is not None and not external:
@@ -616,10 +654,19 @@ def main(argv=None) -> int:
 
         atomic_write_text(args.out / "leaderboard.json",
                           json.dumps(to_jsonable(board), indent=1, sort_keys=True, ensure_ascii=False) + "\n")
+    generalisation = _generalisation(args)
+    if generalisation is not None:
+        from experiments.registry import to_jsonable
+
+        atomic_write_text(args.out / "generalisation.json", json.dumps(
+            to_jsonable({k: v for k, v in generalisation.items() if k != "tables"}), indent=1, sort_keys=True,
+            ensure_ascii=False) + "\n")
     atomic_write_text(args.out / "README.md", build_markdown(metrics, matrix, figures_rel=rel, bench=bench,
-                                                             figures_dir=args.figures, leaderboard=board))
+                                                             figures_dir=args.figures, leaderboard=board,
+                                                             generalisation=generalisation))
     atomic_write_text(args.out / "index.html", build_html(metrics, matrix, figures_rel=rel, bench=bench,
-                                                          figures_dir=args.figures, leaderboard=board))
+                                                          figures_dir=args.figures, leaderboard=board,
+                                                          generalisation=generalisation))
     summary = {"claims": [{"id": c.id, "section": c.section, "figure": c.figure, "claim": c.text,
                            "rule": c.rule, "varies_with": list(c.varies_with), "verdict": v.verdict,
                            "evidence": v.evidence, "evaluation": v.evaluation}

@@ -101,7 +101,8 @@ class Render:
     metadata: dict
     path: Path | None = None
 
-    def image(self, *, encoding="srgb", exposure=1.0, quantize_bits=None) -> np.ndarray:
+    def image(self, *, encoding="srgb", exposure=1.0, quantize_bits=None, noise="none", jpeg_quality=None,
+              rng=None) -> np.ndarray:
         """The image the method sees (:func:`scenes.display.camera_image`).
 
         Parameters
@@ -111,12 +112,20 @@ class Render:
             Multiplier on the linear radiance before clipping to [0, 1].
         quantize_bits : int or None, keyword-only
             Round to this many bits per channel (8 for a JPEG-like input).
+        noise : str or (float, float), keyword-only
+            Sensor noise level: a name of :data:`scenes.display.NOISE_LEVELS` ("none", "iso100",
+            "iso800", "iso3200") or the variances (a, b) of a linear signal.
+        jpeg_quality : int or None, keyword-only
+            JPEG quality 1–100 applied last (8 bits); None: no JPEG.
+        rng : numpy.random.Generator or int or None, keyword-only
+            The noise's generator or seed (None: seed 0): the same seed gives the same noise.
 
         Returns
         -------
         ndarray, HxWx3 float64 in [0, 1]
         """
-        return camera_image(self.rgb, exposure=exposure, quantize_bits=quantize_bits, encoding=encoding)
+        return camera_image(self.rgb, exposure=exposure, quantize_bits=quantize_bits, encoding=encoding, noise=noise,
+                            jpeg_quality=jpeg_quality, rng=rng)
 
     @property
     def camera(self) -> ThinLensCamera:

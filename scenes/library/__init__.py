@@ -18,6 +18,10 @@ the tabletop macro scenes above (50 mm full frame at 0.2-0.25 m, σ_gt up to 12-
 * ``heron_at_the_lake`` — a heron at 6 m, reeds, lake, shore at 30 m (Nikon D50, 180 mm).
 
 ``SCENE_SETS`` names both sets; ``paper_cameras`` is the default of Figs. 5, 6, 7 and 11.
+
+Beside the named scenes, a family drawn from a seed (:mod:`.procedural`): :func:`get_scene` also
+accepts ``procedural_<seed>`` (and ``procedural_<seed>_<camera>``), returning
+:func:`~.procedural.procedural_scene` of that seed; those names are not in :data:`SCENES`.
 """
 
 from __future__ import annotations
@@ -28,9 +32,10 @@ from types import MappingProxyType
 from .base import DEFAULT_F_NUMBERS, PRESETS, SceneDefinition
 from .catalog import CLUTTER, PLANES, PORTRAIT, SHADOW_GLOSS, TILTED_PLANE
 from .paper_regime import HERON_AT_THE_LAKE, PATIO_TABLE, PORTRAIT_GARDEN, STREET_FIGURES
+from .procedural import is_procedural_name, procedural_scene, seed_of
 
 __all__ = ["DEFAULT_F_NUMBERS", "DEFAULT_SCENE_SET", "PRESETS", "SCENES", "SCENE_SETS", "SceneDefinition",
-           "get_scene", "get_scene_set"]
+           "get_scene", "get_scene_set", "procedural_scene"]
 
 _TABLETOP = (PLANES, TILTED_PLANE, PORTRAIT, CLUTTER, SHADOW_GLOSS)
 _PAPER = (PORTRAIT_GARDEN, STREET_FIGURES, PATIO_TABLE, HERON_AT_THE_LAKE)
@@ -65,14 +70,21 @@ def get_scene_set(name: str) -> tuple[str, ...]:
 def get_scene(scene) -> SceneDefinition:
     """A :class:`SceneDefinition` from its name (or the definition itself).
 
+    A name ``procedural_<seed>[_<camera>]`` gives :func:`~.procedural.procedural_scene` of that seed
+    (the same object every time within a process).
+
     Raises
     ------
     ValueError
-        If the name is not in :data:`SCENES`.
+        If the name is neither in :data:`SCENES` nor a procedural scene's.
     """
     if isinstance(scene, SceneDefinition):
         return scene
+    if is_procedural_name(scene):
+        seed, camera = seed_of(scene)
+        return procedural_scene(seed, camera=camera)
     try:
         return SCENES[scene]
     except (KeyError, TypeError):
-        raise ValueError(f"unknown scene {scene!r}; choose one of {sorted(SCENES)}") from None
+        raise ValueError(f"unknown scene {scene!r}; choose one of {sorted(SCENES)} "
+                         "or procedural_<seed>") from None

@@ -1,0 +1,323 @@
+"""``python -m repro.evaluate --procedural N``: the procedural scene family scored at scale, on Dask.
+
+One task per scene (:func:`experiments.procedural_eval.score_scene`: its renders at every aperture
+through the render cache, every preset on every input, scored against σ_gt), on a Dask LocalCluster
+of single-threaded workers (``--workers``, default one per core), an existing scheduler
+(``--scheduler``) — the engine of ``repro.sweep`` (:mod:`repro._sweep_engine`) — or in this process
+(``--workers 0``). Each finished scene is written at once, atomically, to
+``DIR/<evaluation id>/cells/<key>.json``, so the same command after Ctrl-C, a crash or a killed worker
+reads finished scenes back. Then the long results table (:mod:`experiments.results_table`:
+``results.parquet`` + ``results.csv``), the summary per preset and aperture with 95 % bootstrap
+intervals over scenes (``summary.csv``, ``summary.json``), the timings per scene and lighting kind
+(``timings.json``) and ``run.json`` (the plan, the seeds and the command that reruns them; written
+first, so a ``fresh`` evaluation's drawn seeds are on disk before anything is rendered).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import json
+import os
+import socket
+import sys
+import time
+from pathlib import Path
+from urllib.parse import urlparse
+
+PROG = "python -m repro.evaluate"
+#: Default output root of ``--procedural`` (one folder per evaluation id; ``repro.report`` reads the newest).
+DEFAULT_ROOT = Path("report") / "evaluations"
+#: Options only ``--procedural`` takes (flag, attribute, argparse default).
+PROCEDURAL_ONLY = (("--split", "split", None), ("--scene-seed-start", "scene_seed_start", None),
+                   ("--workers", "workers", None), ("--scheduler", "scheduler", None), ("--spp", "spp", None))
+#: Options of the named-scene evaluation that ``--procedural`` does not take.
+NOT_PROCEDURAL = (("--estimator", "estimator", None), ("--scenes", "scenes", None), ("--stages", "stages", False),
+                  ("--photos", "photos", None), ("--maps", "maps", None))
+
+
+def noises(names) -> list[str]:
+    """``--noise`` names (default ``["none"]``), duplicates dropped; ValueError naming the levels on a bad one."""
+    from scenes.display import NOISE_LEVELS
+
+    out = list(dict.fromkeys(names or ["none"]))
+    for level in out:
+        if level not in NOISE_LEVELS:
+            raise ValueError(f"--noise {level!r} is invalid (unknown noise level); allowed: {', '.join(NOISE_LEVELS)}")
+    return out
+
+
+def add_options(p) -> None:
+    """``--noise`` and the ``--procedural`` flags of ``repro.evaluate``'s parser."""
+    from repro._cli import int_type
+    from scenes.display import NOISE_LEVELS
+
+    p.add_argument("--noise", nargs="+", default=None, metavar="LEVEL",
+                   help=f"sensor noise level(s) of the input, an axis ({', '.join(NOISE_LEVELS)}; default: none)")
+
+    p.add_argument("--procedural", type=int_type("--procedural"), default=None, metavar="N",
+                   help="score the presets on N scenes of the procedural family (docs/procedural.md) instead of "
+                        "the named scenes")
+    p.add_argument("--split", default=None, metavar="dev|test|fresh",
+                   help="with --procedural: the seed split (tune on dev; report test and fresh)")
+    p.add_argument("--scene-seed-start", type=int_type("--scene-seed-start", minimum=0), default=None, metavar="S",
+                   help="with --procedural: first scene seed (default: the split's first; fresh: drawn at run time "
+                        "and recorded). Not --seed: that one is a render's sampler seed")
+    p.add_argument("--workers", type=int_type("--workers", minimum=0), default=None, metavar="W",
+                   help="with --procedural: LocalCluster worker processes, one thread each (default: one per core; "
+                        "0: in this process, no Dask)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="with --procedural: an existing Dask scheduler, e.g. tcp://10.0.0.5:8786 (workers must see "
+                        "the same $DEFOCUS_CACHE_DIR)")
+    p.add_argument("--spp", type=int_type("--spp"), default=None, metavar="N",
+                   help="with --procedural: samples per pixel of every render (default: each scene's own)")
+
+
+def _check_scheduler(address: str) -> None:
+    """ValueError (one line) unless something accepts a TCP connection at ``tcp://HOST:PORT`` within 5 s."""
+    url = urlparse(address)
+    if url.scheme != "tcp" or not url.hostname or url.port is None:
+        raise ValueError(f"--scheduler {address!r} is invalid; allowed: an address like tcp://HOST:PORT")
+    try:
+        socket.create_connection((url.hostname, url.port), timeout=5).close()
+    except OSError as exc:
+        raise ValueError(f"--scheduler {address} is unreachable ({exc.strerror or exc}); allowed: the address of a "
+                         "running dask scheduler") from None
+
+
+def validate(args):
+    """The :class:`experiments.procedural_eval.ProceduralPlan` of the flags and the output root (ValueError)."""
+    from experiments.procedural_eval import plan_evaluation
+
+    used = [flag for flag, attr, default in NOT_PROCEDURAL if getattr(args, attr, default) != default]
+    if used:
+        raise ValueError(f"--procedural does not take {', '.join(used)}; allowed with --procedural: --split, "
+                         "--scene-seed-start, --preset, --fnumber, --scene-preset, --noise, --encoding, --spp, "
+                         "--workers | --scheduler, --variant, --out, --force, -q")
+    if args.split is None:
+        raise ValueError("--procedural needs --split; allowed: dev, test, fresh (tune on dev; report test and fresh)")
+    if args.workers is not None and args.scheduler is not None:
+        raise ValueError("--workers and --scheduler are exclusive; allowed: one of them")
+    plan = plan_evaluation(args.procedural, split=args.split, start=args.scene_seed_start, presets=args.preset,
+                           f_numbers=args.fnumber, scene_size=args.scene_preset, noises=args.noise or ["none"],
+                           encodings=args.encoding, spp=args.spp, variant=args.variant)
+    root = args.out if args.out is not None else DEFAULT_ROOT
+    if root.exists() and not root.is_dir():
+        raise ValueError(f"--out {str(root)!r} is a file; allowed: a folder")
+    if args.scheduler is not None:
+        _check_scheduler(args.scheduler)
+    return plan, root
+
+
+@dataclasses.dataclass
+class EvaluationRun:
+    """What :func:`run_evaluation` did."""
+
+    folder: Path
+    rows: list
+    summary: list
+    timings: dict
+    n_resumed: int
+    wall_s: float
+    paths: list
+    failures: dict  # seed -> lines of the method runs that raised
+
+
+def _now() -> str:
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+
+
+def _engine_iter(todo, plan, eid, *, workers, scheduler, log):
+    """(seed, result) as each scene finishes on Dask; the client and cluster are closed at the end."""
+    from dask.distributed import as_completed
+
+    from experiments.procedural_eval import score_scene
+
+    from . import _sweep_engine
+
+    client, cluster = _sweep_engine._start_client(workers=workers, scheduler=scheduler)
+    try:
+        n_workers = len(client.scheduler_info()["workers"]) if scheduler else len(cluster.workers)
+        log(f"engine: {scheduler or 'LocalCluster'} with {n_workers} worker(s); dashboard: {client.dashboard_link}")
+        futs = [client.submit(score_scene, seed, plan=plan.to_dict(), evaluation_id=eid, key=f"scene-{eid}-{seed}")
+                for seed in todo]
+        seeds = {f.key: seed for f, seed in zip(futs, todo)}
+        for fut, result in as_completed(futs, with_results=True):
+            yield seeds[fut.key], result
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _local_iter(todo, plan, eid):
+    from experiments.procedural_eval import score_scene
+
+    for seed in todo:
+        yield seed, score_scene(seed, plan=plan.to_dict(), evaluation_id=eid)
+
+
+def _timing_summary(records: dict) -> dict:
+    """Per lighting kind: scenes, mean seconds of a render when it was made, mean seconds of scoring one
+    render per preset (all encodings and noise levels)."""
+    out: dict[str, dict] = {}
+    for rec in records.values():
+        t = rec["result"]["timings"]
+        kind = out.setdefault(t["lighting"], {"scenes": 0, "render": [], "score": {}})
+        kind["scenes"] += 1
+        kind["render"] += list(t["render_built_s"].values())
+        for per in t["score_s"].values():
+            for preset, s in per.items():
+                kind["score"].setdefault(preset, []).append(s)
+    for kind in out.values():
+        r = kind.pop("render")
+        kind["mean_render_built_s_per_aperture"] = sum(r) / len(r) if r else None
+        kind["mean_score_s_per_aperture"] = {p: sum(v) / len(v) for p, v in kind.pop("score").items()}
+    return out
+
+
+def run_evaluation(plan, root, *, workers=None, scheduler=None, force=False, progress=True, log=None,
+                   command=None) -> EvaluationRun:
+    """Run (or resume) an evaluation and write its tables into ``root / plan.evaluation_id``.
+
+    Parameters
+    ----------
+    plan : experiments.procedural_eval.ProceduralPlan
+    root : path
+        Output root; the evaluation's folder is created in it.
+    workers : int, optional, keyword-only
+        LocalCluster size (default: one per core); 0 runs the scenes in this process.
+    scheduler : str, optional, keyword-only
+        Address of an existing Dask scheduler.
+    force : bool, keyword-only
+        Recompute every scene (stored results are replaced).
+    progress : bool, keyword-only
+        tqdm bar of scenes done / total with an ETA.
+    log : callable, optional, keyword-only
+        One-line messages (default: stderr).
+    command : list of str, optional, keyword-only
+        The command line recorded in ``run.json``.
+
+    Returns
+    -------
+    EvaluationRun
+
+    Notes
+    -----
+    1. ``run.json`` (plan, seeds, the command that reruns them) is written before anything runs.
+    2. Resume keys (:func:`experiments.procedural_eval.scene_key`); scenes whose file in ``cells/``
+       matches are read back.
+    3. The others run on the engine, one task per scene; each result is stored as it arrives.
+    4. Rows in seed order; the results table, the summary and the timings, atomically.
+    """
+    from tqdm import tqdm
+
+    from defocus_cache import atomic_write_text, hash_key
+    from experiments.procedural_eval import scene_key, summary_rows
+    from experiments.registry import code_fingerprint, to_jsonable
+    from experiments.results_table import write_results
+    from scenes.backend import VARIANT_ENV
+
+    from ._sweep_engine import _versions, read_cell, write_cell
+
+    log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
+    t0, eid = time.perf_counter(), plan.evaluation_id
+    out = Path(root) / eid
+    out.mkdir(parents=True, exist_ok=True)
+    rerun = ["python", "-m", "repro.evaluate", *plan.command(), "--out", str(root)]
+    run_info = {"evaluation_id": eid, "plan": plan.to_dict(), "seeds": [plan.start, plan.start + plan.n - 1],
+                "rerun": " ".join(rerun), "command": command, "started_utc": _now()}
+    atomic_write_text(out / "run.json", json.dumps(run_info, indent=1, sort_keys=True) + "\n")
+    log(f"evaluation {eid}: {plan.n} {plan.split} scene(s), seeds {plan.start}..{plan.start + plan.n - 1} -> {out}")
+    code, versions = code_fingerprint(), _versions()
+    asked = plan.variant or os.environ.get(VARIANT_ENV) or "auto"
+    keys = {seed: scene_key(plan, seed, code=code, versions=versions, variant_requested=asked) for seed in plan.seeds}
+    ids = {seed: f"{seed}-{hash_key(k)[:12]}" for seed, k in keys.items()}
+    records = {} if force else {s: r for s in plan.seeds if (r := read_cell(out, ids[s], keys[s])) is not None}
+    resumed = set(records)
+    if resumed:
+        log(f"resuming: {len(resumed)} of {plan.n} scenes read back from {out / 'cells'}")
+    todo = [s for s in plan.seeds if s not in records]
+    if todo:
+        it = _local_iter(todo, plan, eid) if workers == 0 and scheduler is None else \
+            _engine_iter(todo, plan, eid, workers=workers, scheduler=scheduler, log=log)
+        try:
+            with tqdm(total=plan.n, initial=len(resumed), desc="evaluate", unit="scene", file=sys.stderr,
+                      disable=not progress, dynamic_ncols=True) as bar:
+                for seed, result in it:
+                    write_cell(out, ids[seed], keys[seed], result)
+                    records[seed] = {"key": keys[seed], "result": result}
+                    bar.update(1)
+        finally:
+            it.close()  # on Ctrl-C too: the engine's client and cluster are closed before the exception leaves
+    rows = [r for s in plan.seeds for r in records[s]["result"]["rows"]]
+    summary = summary_rows(rows)
+    timings = {"per_lighting": _timing_summary(records),
+               "scenes": {str(s): {**records[s]["result"]["timings"], "resumed": s in resumed} for s in plan.seeds}}
+    meta = {**run_info, "finished_utc": _now(), "code": code, "versions": versions, "n_resumed": len(resumed),
+            "failures": [line for s in plan.seeds for line in records[s]["result"].get("failures", [])],
+            "mitsuba_variants": sorted({str(records[s]["result"]["variant"]) for s in plan.seeds}),
+            "wall_s": time.perf_counter() - t0}
+    paths = write_results(out, rows, meta)
+    atomic_write_text(out / "summary.json", json.dumps(to_jsonable({**meta, "summary": summary}), indent=1,
+                                                       sort_keys=True) + "\n")
+    paths.append(out / "summary.json")
+    atomic_write_text(out / "timings.json", json.dumps(to_jsonable(timings), indent=1, sort_keys=True) + "\n")
+    paths.append(out / "timings.json")
+    return EvaluationRun(folder=out, rows=rows, summary=summary, timings=timings, n_resumed=len(resumed),
+                         wall_s=meta["wall_s"], paths=paths,
+                         failures={s: records[s]["result"].get("failures", []) for s in plan.seeds})
+
+
+def _ci(row) -> str:
+    if row["mean"] is None:
+        return "–"
+    if row["ci_low"] is None:
+        return f"{row['mean']:.3f}"
+    return f"{row['mean']:.3f} [{row['ci_low']:.3f}, {row['ci_high']:.3f}]"
+
+
+def format_summary(summary, *, metrics=("dense_textured_mae", "sparse_mae", "dense_all_mae")) -> str:
+    """Terminal table: per preset × aperture (× encoding × noise) the mean over scenes [95 % interval]."""
+    keys = list(dict.fromkeys((r["preset"], r["aperture"], r["encoding"], r["noise"]) for r in summary))
+    by = {(r["preset"], r["aperture"], r["encoding"], r["noise"], r["metric"]): r for r in summary}
+    head = ["preset", "f/N", "encoding", "noise", "scenes", *(f"{m} (px)" if "fraction" not in m else m for m in metrics)]
+    body = []
+    for k in keys:
+        cells = [by.get((*k, m)) for m in metrics]
+        n = next((c["n_scenes"] for c in cells if c), 0)
+        body.append([str(k[0]), f"{k[1]:g}", str(k[2]), str(k[3]), str(n), *(_ci(c) if c else "–" for c in cells)])
+    widths = [max(len(h), *(len(b[i]) for b in body)) if body else len(h) for i, h in enumerate(head)]
+    lines = ["mean over scenes [95 % bootstrap interval]", "  ".join(h.ljust(w) for h, w in zip(head, widths))]
+    return "\n".join(lines + ["  ".join(c.ljust(w) for c, w in zip(b, widths)) for b in body])
+
+
+def main_procedural(args) -> int:
+    """``--procedural``: plan, run (or resume) and write one evaluation; exit status."""
+    from repro._cli import require_extras
+
+    plan, root = validate(args)
+    require_extras("sweep", command="repro.evaluate --procedural")
+    if plan.split == "fresh" and args.scene_seed_start is None:
+        print(f"fresh seeds drawn: {plan.start}..{plan.start + plan.n - 1} (rerun or resume with "
+              f"--scene-seed-start {plan.start})", file=sys.stderr)
+    if args.variant:
+        from scenes.backend import select_variant
+
+        select_variant(args.variant)
+    run = run_evaluation(plan, root, workers=args.workers, scheduler=args.scheduler, force=args.force,
+                         progress=not args.quiet, command=list(sys.argv))
+    print(format_summary(run.summary))
+    kinds = "; ".join(f"{k}: {v['scenes']} scene(s), {v['mean_render_built_s_per_aperture']:.1f} s per render, "
+                      "scoring " + ", ".join(f"{p} {t:.1f} s" for p, t in v["mean_score_s_per_aperture"].items())
+                      for k, v in run.timings["per_lighting"].items())
+    print(f"scenes: {plan.n} ({run.n_resumed} read back); {kinds}; {run.wall_s:.1f} s")
+    failures = [line for s in plan.seeds for line in run.failures.get(s, [])]
+    if failures:
+        print(f"{PROG}: the method raised on {len(failures)} input(s) (recorded as pipeline_failed = 1):",
+              file=sys.stderr)
+        for line in failures:
+            print(f"  {line}", file=sys.stderr)
+    for p in run.paths:
+        print(f"  {p}")
+    return 0

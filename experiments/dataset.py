@@ -103,7 +103,15 @@ def ground_truth_arrays(render) -> dict:
             "textured": masks["textured"]}
 
 
-def export_image(root, name: str, render, *, camera_preset: str | None = None) -> dict:
+def noise_seed(name: str) -> int:
+    """The seed of an exported image's sensor noise: CRC-32 of its name (the same on any machine)."""
+    import zlib
+
+    return zlib.crc32(name.encode("utf-8"))
+
+
+def export_image(root, name: str, render, *, camera_preset: str | None = None, noise="none",
+                 jpeg_quality: int | None = None) -> dict:
     """Write one image's files atomically, the completion record ``done/NAME.json`` last.
 
     Parameters
@@ -115,17 +123,26 @@ def export_image(root, name: str, render, *, camera_preset: str | None = None) -
     render : scenes.Render
     camera_preset : str, optional, keyword-only
         The :data:`scenes.CAMERA_PRESETS` name the render used (None: the scene's own camera).
+    noise : str or (float, float), keyword-only
+        Sensor noise of the camera pipeline (:data:`scenes.display.NOISE_LEVELS`), drawn from
+        :func:`noise_seed` of the name, in the 8- and 16-bit images (the linear EXR stays the render).
+    jpeg_quality : int or None, keyword-only
+        JPEG quality of the 8-bit image (decoded and stored as PNG), None for none.
 
     Returns
     -------
     dict
-        The manifest entry (camera, shape, the render's spp, seed, variant and sampler, files).
+        The manifest entry (camera, shape, the render's spp, seed, variant and sampler, the camera
+        pipeline, files).
     """
+    from scenes.display import noise_parameters
+
     root = Path(root)
     for sub in ("images", "gt", "done"):
         (root / sub).mkdir(parents=True, exist_ok=True)
-    s8 = render.image(encoding="srgb", quantize_bits=8)
-    s16 = render.image(encoding="srgb", quantize_bits=16)
+    seed = noise_seed(name)
+    s8 = render.image(encoding="srgb", quantize_bits=8, noise=noise, jpeg_quality=jpeg_quality, rng=seed)
+    s16 = render.image(encoding="srgb", quantize_bits=16, noise=noise, rng=seed)
     _write_png(root / "images" / f"{name}.png", np.rint(s8 * 255), 8)
     _write_png(root / "images" / f"{name}_16bit.png", np.rint(s16 * 65535), 16)
     lin = np.asarray(render.rgb, dtype=np.float32)
@@ -139,6 +156,8 @@ def export_image(root, name: str, render, *, camera_preset: str | None = None) -
     entry = {"name": name, "shape": list(lin.shape[:2]), "camera": meta.get("camera"), "scene": meta.get("scene"),
              "camera_preset": camera_preset,
              "render": {k: meta.get(k) for k in ("spp", "seed", "variant", "sampler", "integrator", "pixel_filter")},
+             "camera_pipeline": {"noise": noise if isinstance(noise, str) else None, **noise_parameters(noise),
+                                 "noise_seed": seed, "tone_curve": "srgb", "jpeg_quality": jpeg_quality},
              "files": files}
     from defocus_cache import atomic_write_text
 

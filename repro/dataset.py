@@ -1,7 +1,7 @@
 """Export the rendered scenes as a versioned dataset (see :mod:`experiments.dataset` and docs/dataset.md).
 
 ``python -m repro.dataset export [--scenes NAME ...] [--fnumber N ...] [--scene-preset small|full]
-[--camera PRESET] --out DIR [-q]``
+[--camera PRESET] [--noise LEVEL] [--jpeg Q] --out DIR [-q]``
 """
 
 from __future__ import annotations
@@ -14,7 +14,8 @@ PROG = "python -m repro.dataset"
 
 
 def _parser():
-    from repro._cli import ArgumentParser, add_quiet_option, add_variant_option, float_type
+    from repro._cli import ArgumentParser, add_quiet_option, add_variant_option, float_type, int_type
+    from scenes.display import NOISE_LEVELS
 
     p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     p.add_argument("command", choices=("export",), help="export: write the renders and their ground truth to DIR")
@@ -27,6 +28,11 @@ def _parser():
     p.add_argument("--camera", default=None, metavar="PRESET",
                    help="camera preset of scenes.CAMERA_PRESETS (default: each scene's own camera); one per "
                         "dataset folder, recorded in the manifest")
+    p.add_argument("--noise", default="none", metavar="LEVEL",
+                   help=f"sensor noise of the camera pipeline in the 8/16-bit images ({', '.join(NOISE_LEVELS)}; "
+                        "default none; drawn from a seed of each image's name)")
+    p.add_argument("--jpeg", type=int_type("--jpeg", minimum=1), default=None, metavar="Q",
+                   help="JPEG quality 1-100 of the 8-bit image (default: none)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="dataset folder")
     add_quiet_option(p, what="no progress display")
     return p
@@ -48,6 +54,12 @@ def main(argv=None) -> int:
 
     scenes, f_numbers = scene_grid(args.scenes, args.fnumber, args.scene_preset, out=args.out)
     camera_name = None if args.camera is None else CAMERA_PRESETS.check(args.camera, what="--camera")
+    from scenes.display import check_jpeg_quality, check_noise_level
+
+    check_noise_level(args.noise)
+    if args.jpeg is not None:
+        check_jpeg_quality(args.jpeg)
+    pipeline = {"noise": args.noise, "jpeg_quality": args.jpeg}
     combos = [(s, n) for s in scenes for n in f_numbers]
     entries = []
     with tqdm(combos, desc="export", unit="image", file=sys.stderr, disable=args.quiet) as bar:
@@ -58,6 +70,10 @@ def main(argv=None) -> int:
                 if entry.get("camera_preset") != camera_name:
                     raise ValueError(f"{args.out}: {name} was exported with --camera {entry.get('camera_preset')}; "
                                      "allowed: the same --camera, or another --out folder")
+                done = entry.get("camera_pipeline", {})
+                if {"noise": done.get("noise", "none"), "jpeg_quality": done.get("jpeg_quality")} != pipeline:
+                    raise ValueError(f"{args.out}: {name} was exported with another --noise / --jpeg; allowed: the "
+                                     "same, or another --out folder")
                 entries.append(entry)
                 continue
             require_extras("render", command="repro.dataset export (renders not yet exported)")
@@ -65,9 +81,11 @@ def main(argv=None) -> int:
 
             camera = get_scene(s).camera(args.scene_preset, f_number=n, camera_name=camera_name)
             render = render_scene(s, camera, preset=args.scene_preset, variant=args.variant, progress=False)
-            entries.append(ds.export_image(args.out, name, render, camera_preset=camera_name))
+            entries.append(ds.export_image(args.out, name, render, camera_preset=camera_name, noise=args.noise,
+                                           jpeg_quality=args.jpeg))
     path = ds.write_manifest(args.out, entries,
-                             render_settings={"scene_preset": args.scene_preset, "camera_preset": camera_name},
+                             render_settings={"scene_preset": args.scene_preset, "camera_preset": camera_name,
+                                              **pipeline},
                              harness={"version": version_string(), "git_commit": ds.git_commit(),
                                       "code": code_fingerprint(), "libraries": library_versions()})
     print(f"  {path}")

@@ -24,7 +24,8 @@ from types import MappingProxyType
 
 import numpy as np
 
-__all__ = ["ENCODINGS", "NOISE_LEVELS", "camera_image", "check_noise_level", "jpeg_roundtrip", "linear_to_srgb",
+__all__ = ["ENCODINGS", "NOISE_LEVELS", "camera_image", "check_jpeg_quality", "check_noise_level", "jpeg_roundtrip",
+           "linear_to_srgb",
            "noise_parameters", "sensor_noise", "srgb_to_linear"]
 
 #: Tone curves of :func:`camera_image`: "srgb" (as a camera JPEG), "linear" (no curve).
@@ -153,7 +154,7 @@ def jpeg_roundtrip(image, quality: int):
     """
     from PIL import Image
 
-    q = _check_quality(quality)
+    q = check_jpeg_quality(quality)
     arr = np.asarray(image, dtype=np.float64)
     u8 = np.round(np.clip(arr, 0.0, 1.0) * 255.0).astype(np.uint8)
     buf = io.BytesIO()
@@ -164,7 +165,8 @@ def jpeg_roundtrip(image, quality: int):
     return out.reshape(arr.shape)
 
 
-def _check_quality(quality):
+def check_jpeg_quality(quality) -> int:
+    """``quality`` as an int if it is a JPEG quality 1–100, else ValueError naming the range."""
     if isinstance(quality, (bool, np.bool_)) or not isinstance(quality, (int, np.integer)) or not 1 <= quality <= 100:
         raise ValueError(f"jpeg_quality={quality!r} is invalid; allowed: an integer 1..100")
     return int(quality)
@@ -209,7 +211,7 @@ def camera_image(linear_rgb, *, exposure=1.0, quantize_bits=None, encoding="srgb
     if encoding not in ENCODINGS:
         raise ValueError(f"encoding={encoding!r} is invalid; allowed: {', '.join(ENCODINGS)}")
     if jpeg_quality is not None:
-        _check_quality(jpeg_quality)
+        check_jpeg_quality(jpeg_quality)
         if quantize_bits not in (None, 8):
             raise ValueError(f"quantize_bits={quantize_bits!r} is invalid with jpeg_quality; allowed: 8 or None")
         quantize_bits = 8

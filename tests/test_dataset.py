@@ -114,3 +114,36 @@ def test_export_camera_reaches_the_render_and_the_manifest(tmp_path, monkeypatch
     assert manifest["images"]["planes_f8_small"]["render"]["spp"] == real.metadata["spp"]
     status, _, err = run(["export", "--scenes", "planes", "--fnumber", "8", "--out", out, "-q"], capsys)
     assert_one_line_error(status, err, "was exported with --camera aps_c_22")
+
+
+@pytest.mark.render
+def test_export_applies_the_camera_pipeline(tmp_path, monkeypatch, capsys):
+    """--noise / --jpeg: the 8- and 16-bit images carry the camera's noise (seeded by the name), the EXR
+    stays the linear render; the manifest records the pipeline; a rerun with another pipeline is refused."""
+    import imagecodecs
+
+    import scenes
+    from repro.dataset import PROG, main
+    from scenes.display import NOISE_LEVELS
+    from tests.photo_cli import cli_runner
+
+    real = scenes.render_scene("planes", preset="small", f_number=8.0, progress=False)
+    monkeypatch.setattr(scenes, "render_scene", lambda *a, **k: real)
+    run, assert_one_line_error = cli_runner(main, PROG)
+    out = tmp_path / "data"
+    status, _, err = run(["export", "--scenes", "planes", "--fnumber", "8", "--noise", "iso800", "--jpeg", "90",
+                          "--out", out, "-q"], capsys)
+    assert status == 0, err
+    name = "planes_f8_small"
+    png = imagecodecs.png_decode((out / "images" / f"{name}.png").read_bytes()) / 255.0
+    clean = real.image(encoding="srgb", quantize_bits=8)
+    expected = real.image(encoding="srgb", quantize_bits=8, noise="iso800", jpeg_quality=90, rng=ds.noise_seed(name))
+    assert np.array_equal(png, expected) and np.abs(png - clean).mean() > 1.0 / 255
+    pipe = json.loads((out / "manifest.json").read_text())["images"][name]["camera_pipeline"]
+    assert pipe["noise"] == "iso800" and (pipe["a"], pipe["b"]) == NOISE_LEVELS["iso800"] and pipe["jpeg_quality"] == 90
+    status, _, err = run(["export", "--scenes", "planes", "--fnumber", "8", "--out", out, "-q"], capsys)
+    assert_one_line_error(status, err, "another --noise / --jpeg")
+    for bad, text in ((["--noise", "iso5"], "unknown noise level"), (["--jpeg", "101"], "1..100")):
+        status, _, err = run(["export", "--scenes", "planes", "--out", tmp_path / "other", *bad], capsys)
+        assert_one_line_error(status, err, text)
+        assert not (tmp_path / "other").exists()

@@ -62,6 +62,7 @@ __all__ = [
     "add_quiet_option",
     "add_variant_option",
     "check_output_path",
+    "check_scene_names",
     "console_main",
     "float_type",
     "int_type",
@@ -479,6 +480,28 @@ def check_output_path(path, *, suffixes: Sequence[str] = (".exr",), flag: str = 
     return p
 
 
+def check_scene_names(names, *, what: str = "scene") -> list[str]:
+    """``names`` as a list if each is a scene of :data:`scenes.SCENES` or ``procedural_<seed>[_<camera>]``.
+
+    Raises
+    ------
+    ValueError
+        Naming the unknown ones and the allowed names (the registry's message, plus the procedural form).
+    """
+    from method.registry import Registry
+    from scenes import SCENES
+    from scenes.library import is_procedural_name
+
+    names = list(names)
+    named = [n for n in names if not is_procedural_name(n)]
+    try:
+        if named or not names:  # (an empty list is refused by the registry, naming the scenes)
+            Registry("scene", SCENES).check_all(named, what=what)
+    except ValueError as exc:
+        raise ValueError(f"{exc}, or procedural_<seed>") from None
+    return names
+
+
 def scene_grid(scenes, f_numbers, scene_preset: str, *, out=None) -> tuple[list[str], list[float]]:
     """Validated scenes × f-numbers of a render grid, duplicates dropped, before anything is rendered.
 
@@ -497,11 +520,10 @@ def scene_grid(scenes, f_numbers, scene_preset: str, *, out=None) -> tuple[list[
     ValueError
         One line naming the unknown scene(s), the bad f-number, or the ``--out`` that is a file.
     """
-    from method.registry import Registry
     from scenes import SCENES
     from scenes.render import validate_render_options
 
-    names = Registry("scene", SCENES).check_all(dict.fromkeys(scenes or list(SCENES)), what="scene")
+    names = check_scene_names(dict.fromkeys(scenes or list(SCENES)))
     numbers = list(dict.fromkeys(float(n) for n in f_numbers))
     for s in names:
         for n in numbers:

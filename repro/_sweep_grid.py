@@ -179,10 +179,11 @@ def _check_names(scenes, cameras, presets, estimators, encodings, metric, varian
     from method import PRESETS
     from method.registry import Registry
     from repro.evaluate import METRIC_COLUMNS
-    from scenes import CAMERA_PRESETS, SCENES
+    from repro._cli import check_scene_names
+    from scenes import CAMERA_PRESETS
     from scenes.backend import VARIANT_CANDIDATES
 
-    scenes = Registry("scene", SCENES).check_all(_uniq(scenes))
+    scenes = check_scene_names(_uniq(scenes))
     cams = [None] if not cameras else Registry("camera", CAMERA_PRESETS).check_all(_uniq(cameras))
     try:
         presets = PRESETS.check_all(_uniq(presets))

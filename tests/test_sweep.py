@@ -391,3 +391,17 @@ def test_bench_sweep_flag_runs_the_sweep_benchmark(tmp_path, monkeypatch):
     monkeypatch.setattr(_sweep_bench, "run_sweep_bench", fake)
     assert bench.main(["--sweep", "--out", str(tmp_path)]) == 0
     assert calls == [tmp_path]
+
+
+def test_procedural_scene_names_are_accepted_by_every_scene_axis():
+    """procedural_<seed> names pass the scene check of the sweep grid and of the render CLIs;
+    an unknown name is still refused, naming the procedural form too."""
+    from repro._cli import check_scene_names
+
+    assert check_scene_names(["planes", "procedural_100003", "procedural_7_nikon_d50_180mm"]) == [
+        "planes", "procedural_100003", "procedural_7_nikon_d50_180mm"]
+    assert check_scene_names(["procedural_2"]) == ["procedural_2"]
+    with pytest.raises(ValueError, match=r"unknown scene.*'nope'.*or procedural_<seed>"):
+        check_scene_names(["nope", "procedural_2"])
+    with pytest.raises(ValueError, match="no scene"):
+        check_scene_names([])

@@ -178,7 +178,7 @@ def aperture_kernel(sigma: float, *, aperture: str = "disk") -> np.ndarray:
     return k * scale[0]
 
 
-def layer_index(sigma, *, in_front=None) -> tuple[np.ndarray, np.ndarray]:
+def layer_index(sigma, *, in_front=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Occlusion layer of every pixel and the layers' order, nearest first.
 
     Parameters
@@ -190,9 +190,10 @@ def layer_index(sigma, *, in_front=None) -> tuple[np.ndarray, np.ndarray]:
 
     Returns
     -------
-    (ndarray of int32, HxW; ndarray of int32)
-        Layer ids and the ids present, nearest first. Behind the focus plane (every pixel without
-        ``in_front``) layer b holds σ in [0, σ₀) for b = 0, else [σ₀·q^(b−1), σ₀·q^b), σ₀ =
+    (ndarray of int32, HxW; ndarray of int32; ndarray of float64)
+        Layer ids; the ids present, nearest first; and each of those layers' representative σ, px
+        (the geometric middle of its bin, σ₀/2 for the first). Behind the focus plane (every pixel
+        without ``in_front``) bin b holds σ in [0, σ₀) for b = 0, else [σ₀·q^(b−1), σ₀·q^b), σ₀ =
         :data:`FIRST_LAYER_SIGMA`, q = :data:`LAYER_RATIO`, and sharper is nearer; pixels of
         ``in_front`` get layers of their own, blurrier first, all nearer than the others.
     """
@@ -201,11 +202,17 @@ def layer_index(sigma, *, in_front=None) -> tuple[np.ndarray, np.ndarray]:
                  1 + np.floor(np.log(np.maximum(s, FIRST_LAYER_SIGMA) / FIRST_LAYER_SIGMA) / math.log(LAYER_RATIO)))
     b = b.astype(np.int32)
     if in_front is None or not in_front.any():
-        return b, np.unique(b).astype(np.int32)
-    top = int(b.max()) + 1
-    ids = np.where(in_front, top + b, b).astype(np.int32)
-    front = top + np.unique(b[in_front])[::-1]
-    return ids, np.concatenate([front, np.unique(b[~in_front])]).astype(np.int32)
+        ids, bins = b, np.unique(b)
+        order = bins
+    else:
+        top = int(b.max()) + 1
+        ids = np.where(in_front, top + b, b).astype(np.int32)
+        front = np.unique(b[in_front])[::-1]
+        behind = np.unique(b[~in_front])
+        order = np.concatenate([top + front, behind])
+        bins = np.concatenate([front, behind])
+    rep = np.where(bins == 0, 0.5 * FIRST_LAYER_SIGMA, FIRST_LAYER_SIGMA * LAYER_RATIO ** (bins - 0.5))
+    return ids, order.astype(np.int32), rep.astype(np.float64)
 
 
 @numba.njit(cache=True, inline="always")
@@ -301,8 +308,8 @@ class _HiddenCoverage:
     def __init__(self, shape, sigma_max, aperture):
         self.shape = shape
         self.aperture = aperture
-        margin = int(math.ceil(2.0 * sigma_max)) + 3
-        self.fft_shape = tuple(sfft.next_fast_len(n + margin, real=True) for n in shape)
+        k = aperture_kernel(sigma_max, aperture=aperture).shape  # the largest kernel: no wrap-around
+        self.fft_shape = tuple(sfft.next_fast_len(n + m, real=True) for n, m in zip(shape, k))
         self.spectrum = None
 
     def add(self, members):
@@ -366,7 +373,7 @@ def scatter_blur(image, sigma, *, aperture: str = "disk", in_front=None,
        parallel chunks; a prefix sum along each row gives the layer's scattered radiance N and
        weight W.
     4. Fraction f hidden by the nearer layers: their pixels' mask convolved with the kernel of the
-       layer's mean σ (FFT, float32; 0 for the first layer).
+       layer's representative σ (:func:`layer_index`; FFT, float32; 0 for the first layer).
     5. Composite front to back: α = min(W / max(1 − f, W), 1), acc += T·α·N/W, T ← T·(1 − α),
        T = 1 at the start.
     6. Normalise by the accumulated weight: acc / (1 − T) (> 0: every pixel covers itself).
@@ -390,20 +397,19 @@ def scatter_blur(image, sigma, *, aperture: str = "disk", in_front=None,
     lookup[present] = np.arange(len(present), dtype=np.int32)
     kidx = lookup[steps]
     half, nrows, scale = _row_table(present / RADIUS_STEPS_PER_PX, aperture)
-    layer_of, order = layer_index(sig, in_front=in_front)
+    layer_of, order, layer_sigma = layer_index(sig, in_front=in_front)
     reach = np.asarray(ndimage.maximum(nrows[kidx], labels=layer_of, index=order), dtype=np.int64) + 1
-    sigma_mean = np.asarray(ndimage.mean(sig, labels=layer_of, index=order), dtype=np.float64)
     pad = int(math.ceil(float(half.max(initial=0.5)))) + 2
     buf = np.zeros((h, w + 2 * pad + 1, c + 1))
     acc = np.zeros((h, w, c))
     trans = np.ones((h, w))
     chunk = _chunk_rows(h)
-    hidden = _HiddenCoverage((h, w), float(sig.max(initial=0.0)), aperture)
+    hidden = _HiddenCoverage((h, w), float(layer_sigma.max(initial=0.0)), aperture)
     for i, layer in enumerate(order):
         if progress is not None:
             progress(f"scatter layer {i + 1}/{len(order)}")
         _scatter_layer(buf, img, layer_of, np.int32(layer), kidx, half, nrows, scale, int(reach[i]), pad, chunk)
-        _composite_layer(buf, acc, trans, hidden.coverage(float(sigma_mean[i])), pad)
+        _composite_layer(buf, acc, trans, hidden.coverage(float(layer_sigma[i])), pad)
         if i + 1 < len(order):
             hidden.add(layer_of == layer)
     covered = 1.0 - trans

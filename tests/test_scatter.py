@@ -101,7 +101,7 @@ def test_sharp_square_before_blurry_background_gets_no_background_radiance():
     outside_band = ndimage.binary_dilation(square, iterations=3) & ~square
     out = magnify_defocus(img, sigma, factor=2.0, renderer="scatter", encoding="linear", preprocess=False)
     assert float(out[..., 0][square].max()) == 0.0 and float(out[..., 0][band].max()) == 0.0
-    np.testing.assert_allclose(out[square], img[square], rtol=0, atol=1e-15)  # prefix-sum round-off only
+    np.testing.assert_array_equal(out[square], img[square])  # sharp and in front: kept bit for bit
     assert float(out[..., 1][~square].max()) == 0.0  # no halo of the subject
     gather = magnify_defocus(img, sigma, factor=2.0, encoding="linear", preprocess=False)
     assert float(gather[..., 1][outside_band].mean()) > 0.05
@@ -121,7 +121,7 @@ def test_blurry_square_spreads_only_when_marked_in_front():
     assert float(front[..., 1][ring].mean()) > 0.15  # spreads over what is behind it
     assert float(front[..., 1][far].max()) == 0.0  # not farther than its disk (R ≈ 10.4 px + the rim)
     assert float(behind[..., 1][~square].max()) == 0.0
-    np.testing.assert_allclose(behind[~square], img[~square], rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(behind[~square], img[~square])
 
 
 def test_linear_light_keeps_a_highlight_brighter_than_srgb_blending():

@@ -439,8 +439,9 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel=None, clip_percent
        effective kernel is exactly σ_e²; v_ℓ are the measured variances of the discrete kernels).
        Level 0 enters with weight exactly 1 where σ_e = 0, so factor = 1 and a zero map return the
        input bit for bit. Scatter: :func:`method.magnify.scatter.scatter_blur` of σ_e.
-    5. Re-encode (``"srgb"``); clip to [0, 1] (``"display"``: kernels are non-negative, so only
-       round-off is clipped) or to ≥ 0 (``"linear"``).
+    5. Re-encode (``"srgb"``; a pixel the blur left unchanged is returned as given, bit for bit); clip
+       to [0, 1] (``"display"``: kernels are non-negative, so only round-off is clipped) or to ≥ 0
+       (``"linear"``).
     """
     kernel, aperture, in_front, encoding = _check_renderer_options(renderer, kernel, aperture, in_front, encoding,
                                                                    np.shape(image))
@@ -470,7 +471,7 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel=None, clip_percent
     work = transfer[0](img3) if transfer else img3
     out = MAGNIFICATION_RENDERERS[renderer].render(work, sigma_extra, kernel=kernel, aperture=aperture,
                                                    in_front=in_front, progress=progress)
-    if transfer:
-        out = transfer[1](out)
+    if transfer:  # pixels the blur left unchanged are returned as given, without the round trip's rounding
+        out = np.where(np.all(out == work, axis=-1, keepdims=True), img3, transfer[1](out))
     out = np.maximum(out, 0.0) if encoding == "linear" else np.clip(out, 0.0, 1.0)
     return out if image.ndim == 3 else out[..., 0]

@@ -253,8 +253,12 @@ def _splat(buf, img, sy, sx, half, n, scale, y0, y1, pad):
 
 
 @numba.njit(cache=True, parallel=True)
-def _scatter_layer(buf, img, layer_of, layer, kidx, half, nrows, scale, reach, pad, chunk):
-    """Difference rows of every pixel of ``layer``; row chunks in parallel, each writing only its own rows."""
+def _scatter_layer(buf, img, layer_of, layer, kidx, half, nrows, scale, reach, pad, chunk, point):
+    """Difference rows of every pixel of ``layer``; row chunks in parallel, each writing only its own rows.
+
+    Pixels of radius 0 (table index ``point``) are left to :func:`_composite_layer`, which adds them
+    where they are, exactly.
+    """
     h, w = layer_of.shape
     nchunks = (h + chunk - 1) // chunk
     for ci in numba.prange(nchunks):
@@ -265,15 +269,17 @@ def _scatter_layer(buf, img, layer_of, layer, kidx, half, nrows, scale, reach, p
                 if layer_of[sy, sx] != layer:
                     continue
                 k = kidx[sy, sx]
-                _splat(buf, img, sy, sx, half[k], nrows[k], scale[k], y0, y1, pad)
+                if k != point:
+                    _splat(buf, img, sy, sx, half[k], nrows[k], scale[k], y0, y1, pad)
 
 
 @numba.njit(cache=True, parallel=True)
-def _composite_layer(buf, acc, trans, hidden, pad):
+def _composite_layer(buf, acc, trans, hidden, pad, img, layer_of, layer, kidx, point):
     """Prefix-sum the difference rows (zeroing them) and composite the layer under what is in front.
 
-    Per pixel: colour N/W and opacity α = min(W / max(1 − f, W), 1), f = ``hidden``;
-    acc += T·α·N/W, T ← T·(1 − α).
+    Per pixel: N, W = the prefix sums plus, for a pixel of this layer with radius 0, its own value and
+    weight 1 (added exactly, so a sharp pixel nothing covers keeps its value bit for bit); colour N/W
+    and opacity α = min(W / max(1 − f, W), 1), f = ``hidden``; acc += T·α·N/W, T ← T·(1 − α).
     """
     h, wp, c1 = buf.shape
     w = acc.shape[1]
@@ -287,13 +293,14 @@ def _composite_layer(buf, acc, trans, hidden, pad):
             x = xp - pad
             if x < 0 or x >= w:
                 continue
-            wsum = run[c]
+            own = layer_of[y, x] == layer and kidx[y, x] == point
+            wsum = run[c] + 1.0 if own else run[c]
             if wsum <= 1e-12:
                 continue
             alpha = min(wsum / max(1.0 - hidden[y, x], wsum, 1e-12), 1.0)
             s = trans[y, x] * alpha / wsum
             for k in range(c):
-                acc[y, x, k] += s * run[k]
+                acc[y, x, k] += s * (run[k] + img[y, x, k] if own else run[k])
             trans[y, x] *= 1.0 - alpha
 
 
@@ -397,6 +404,7 @@ def scatter_blur(image, sigma, *, aperture: str = "disk", in_front=None,
     lookup[present] = np.arange(len(present), dtype=np.int32)
     kidx = lookup[steps]
     half, nrows, scale = _row_table(present / RADIUS_STEPS_PER_PX, aperture)
+    point = 0 if present[0] == 0 else -1  # table index of radius 0 (present is sorted)
     layer_of, order, layer_sigma = layer_index(sig, in_front=in_front)
     reach = np.asarray(ndimage.maximum(nrows[kidx], labels=layer_of, index=order), dtype=np.int64) + 1
     pad = int(math.ceil(float(half.max(initial=0.5)))) + 2
@@ -408,8 +416,10 @@ def scatter_blur(image, sigma, *, aperture: str = "disk", in_front=None,
     for i, layer in enumerate(order):
         if progress is not None:
             progress(f"scatter layer {i + 1}/{len(order)}")
-        _scatter_layer(buf, img, layer_of, np.int32(layer), kidx, half, nrows, scale, int(reach[i]), pad, chunk)
-        _composite_layer(buf, acc, trans, hidden.coverage(float(layer_sigma[i])), pad)
+        _scatter_layer(buf, img, layer_of, np.int32(layer), kidx, half, nrows, scale, int(reach[i]), pad, chunk,
+                       point)
+        _composite_layer(buf, acc, trans, hidden.coverage(float(layer_sigma[i])), pad, img, layer_of,
+                         np.int32(layer), kidx, point)
         if i + 1 < len(order):
             hidden.add(layer_of == layer)
     covered = 1.0 - trans

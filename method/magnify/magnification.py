@@ -294,10 +294,22 @@ def check_extra_blur(factor: float, defocus_map: np.ndarray, shape, *, name: str
     return extra
 
 
+#: Code values of the sRGB decoding table (16 bits: 8-bit samples k/255 are the codes 257·k).
+SRGB_TABLE_CODES = 65535
+_SRGB_TABLE: list = []
+
+
 def _srgb_decode(x):
+    """colour-science's sRGB decoding; looked up in a table of its values when every sample is a 16-bit code."""
     import colour
 
-    return colour.cctf_decoding(np.clip(x, 0.0, 1.0), function="sRGB")
+    x = np.clip(x, 0.0, 1.0)
+    codes = np.rint(x * SRGB_TABLE_CODES)
+    if np.array_equal(codes / SRGB_TABLE_CODES, x):  # 8/16-bit photos: same numbers, ~5× faster
+        if not _SRGB_TABLE:
+            _SRGB_TABLE.append(colour.cctf_decoding(np.arange(SRGB_TABLE_CODES + 1) / SRGB_TABLE_CODES, function="sRGB"))
+        return _SRGB_TABLE[0][codes.astype(np.int32)]
+    return colour.cctf_decoding(x, function="sRGB")
 
 
 def _srgb_encode(x):

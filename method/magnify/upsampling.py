@@ -396,16 +396,21 @@ def upsample_defocus_map(working_map, working_image, full_image, *, scale, remov
 DEFAULT_TILE_PIXELS = 4_000_000
 
 
+#: Tiles of the scatter renderer start on multiples of its coarsest block (method.magnify.scatter.MAX_LEVEL).
+_SCATTER_ALIGN = 8
+
+
 def _halo(sigma_extra_max: float, renderer: str = "gather") -> int:
     """Context (px) a tile needs on each side: the farthest reach of a pixel's blur, with margin.
 
     Gather: the stack's levels grow by √2 from 0.5 px and stop at the first ≥ max σ_e, so the
     largest level is ≤ max(√2·σ_e, 0.5); Gaussian kernels reach 4σ, disks 2σ. Scatter: a pixel's
     disk (or hexagon, ≤ 1.1 × the disk's radius) of radius ≈ 2σ_e, and the occlusion test looks no
-    farther.
+    farther, plus two of its coarsest blocks (their splat and upsampling reach one block each way),
+    rounded up to whole blocks so that every tile's blocks line up with the whole photo's.
     """
     if renderer == "scatter":
-        return int(math.ceil(2.5 * sigma_extra_max)) + 3
+        return _SCATTER_ALIGN * math.ceil((2.5 * sigma_extra_max + 2 * _SCATTER_ALIGN + 3) / _SCATTER_ALIGN)
     return int(math.ceil(4.0 * max(math.sqrt(2.0) * sigma_extra_max, 0.5))) + 2
 
 
@@ -474,6 +479,8 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel=None, clip_p
     check_extra_blur(f, m, image.shape)  # before sizing the halo (a huge factor would need huge tiles)
     halo = _halo(math.sqrt(f * f - 1.0) * float(m.max(initial=0.0)), renderer)
     core = max(256, int(math.isqrt(int(tile_pixels))) - 2 * halo)
+    if renderer == "scatter":
+        core -= core % _SCATTER_ALIGN
     ys, xs = range(0, H, core), range(0, W, core)
     n = len(ys) * len(xs)
     out = np.empty(image.shape, dtype=np.float64)

@@ -37,21 +37,21 @@ Notes
    gather blur spreads a sharp subject over the blurry background behind it and the background over
    the subject's edge, a lens does not. Regional SSIM is the mean of scikit-image's SSIM map
    (averaged over channels) over the region.
-5b. Renderers (``config.renderers``; :data:`method.magnify.magnification.MAGNIFICATION_RENDERERS`): the
+5. The same magnification with the other reading of Sec. 5's "clamp its minimum value to 0"
+   (``magnified_estimated_subtract``, ``floor="subtract"`` of :func:`method.magnify_defocus`): the
+   map's lower-percentile value p_lo (its in-focus floor, reported as ``map_floor_px``) is removed
+   in quadrature before smoothing, so pixels at the floor get no extra blur.
+6. Renderers (``config.renderers``; :data:`method.magnify.magnification.MAGNIFICATION_RENDERERS`): the
    first (``"gather"``, the paper preset's path, ``config.kernel``) gives the rows above; every
    further renderer R (``"scatter"``: per-pixel disks of ``config.aperture`` in linear light with
    occlusion layers) the same estimated-map (``floor="clamp"``) and oracle rows as
    ``magnified_estimated_R``, ``magnified_oracle_srgb_R`` (the 8-bit sRGB input, blended as R's
    default encoding says: linear light for the scatter) and ``magnified_oracle_linear_R`` (linear
    radiance in, encoded and quantised like the renders).
-5. The same magnification with the other reading of Sec. 5's "clamp its minimum value to 0"
-   (``magnified_estimated_subtract``, ``floor="subtract"`` of :func:`method.magnify_defocus`): the
-   map's lower-percentile value p_lo (its in-focus floor, reported as ``map_floor_px``) is removed
-   in quadrature before smoothing, so pixels at the floor get no extra blur.
-6. Method presets (``config.presets``; the first is always ``"paper"`` = ``DefocusParams()``, the
+7. Method presets (``config.presets``; the first is always ``"paper"`` = ``DefocusParams()``, the
    reproduction, whose metrics are the top-level ones): every further preset of
    :data:`method.PRESETS` (e.g. ``"robust"``, beyond the paper) estimates both maps with its
-   parameters (steps 2–3 and 5 with its maps; Sec. 5 preprocessing with its ``map_clip_percent`` /
+   parameters (steps 2–3, 5 and 6 with its maps; Sec. 5 preprocessing with its ``map_clip_percent`` /
    ``map_smoothing``) under ``metrics["presets"][name]["scenes"][scene]``, with the paper's structure.
    The preset-independent rows (naive / filter-aware doubled truth, unchanged f/8 render, oracle
    magnifications) are repeated there, so each preset's entry reads like the paper's.
@@ -396,7 +396,7 @@ def compute_set(config: Fig7Config) -> dict:
         ``scenes.<scene>.k_x_map_small_vs_map_large.{mae, bias, median_rel_error, …}`` (k × the f/8
         map against the f/4 map as reference),
         ``scenes.<scene>.image_vs_large.<image>.{psnr_db, ssim, psnr_<region>_db, ssim_<region>}``
-        (regions ``in_focus``, ``defocused``, ``occlusion``; images per renderer, module Notes 5b),
+        (regions ``in_focus``, ``defocused``, ``occlusion``; images per renderer, module Notes 6),
         the factor k, ``renderers``, timings — all for the ``"paper"`` preset. Every further preset P
         of ``config.presets``: ``<scene>__<P>__<array>`` for its estimated-map arrays (``map_small``,
         ``map_large``, ``magnified``, ``magnified_<R>``, ``magnified_subtract``, ``map_small_subtract``) and

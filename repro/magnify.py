@@ -257,7 +257,8 @@ def _check_map_flags(args) -> None:
         return
     used = [f"--{name.replace('_', '-')}" for name in ("estimator", "alpha", "force") if getattr(args, name)]
     if used:
-        raise ValueError(f"--map replaces the estimation; {', '.join(used)} do(es) not apply with it")
+        raise ValueError(f"--map replaces the estimation; {', '.join(used)} {'does' if len(used) == 1 else 'do'} "
+                         "not apply with it")
     if args.png_scale is not None and Path(args.map).suffix.lower() != ".png":
         raise ValueError(f"--png-scale applies to a .png --map only, not to {args.map}")
 

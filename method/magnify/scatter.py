@@ -10,8 +10,9 @@ depth layers) and the classical renderer of BokehMe (Peng et al., CVPR 2022: per
 a soft disk edge, normalised by the accumulated weight); the code is this project's own.
 
 Kernel (σ convention of the harness: a uniform disk of diameter c has per-axis std c/4). A pixel
-with blur σ px spreads over a disk of radius R = 2σ (diameter 4σ) or a regular hexagon of the same
-per-axis variance (circumradius a = √(6/5)·R; flat top and bottom), sampled row by row: row dy
+with blur σ px spreads over a disk of radius R ≈ 2σ (diameter ≈ 4σ; :func:`radius_for_sigma` makes the
+sampled kernel's variance exactly σ²) or a regular hexagon of the same per-axis variance
+(circumradius a = √(6/5)·R; flat top and bottom), sampled row by row: row dy
 receives a horizontal segment, centred on the pixel, whose length is the shape's exact area between
 dy − ½ and dy + ½, with area-weighted (anti-aliased) end pixels — a rim one pixel soft, and weights
 that sum to the shape's area exactly, so after division by that sum the pixel's energy is conserved.

@@ -83,9 +83,11 @@ def read_map(path, *, png_scale: float = PNG_SCALE) -> np.ndarray:
     Raises
     ------
     ValueError
-        One line naming the file: unreadable, an 8-bit PNG, or not HxW.
+        One line naming the file: unreadable, an 8-bit PNG (such as the colour preview the photo
+        tools write for a ``.png`` map, which holds no σ), or not HxW.
     """
     path = Path(path)
+    eight_bit = False
     try:
         if path.suffix == ".npy":
             arr = np.load(path, allow_pickle=False)
@@ -100,12 +102,17 @@ def read_map(path, *, png_scale: float = PNG_SCALE) -> np.ndarray:
             import imageio.v3 as iio
 
             raw = iio.imread(path)
+            eight_bit = raw.dtype == np.uint8
             if raw.dtype != np.uint16:
                 raise ValueError(f"dtype {raw.dtype}; allowed: 16-bit PNG (σ × {png_scale:g})")
             arr = raw / float(png_scale)
         else:
             raise ValueError(f"suffix {path.suffix!r}; allowed: {', '.join(MAP_SUFFIXES)}")
     except Exception as exc:  # any decoder failure is the file's fault: one line naming it
+        if eight_bit:
+            raise ValueError(f"{path}: an 8-bit PNG holds no σ values (e.g. the colour preview that repro.estimate "
+                             f"-o MAP.png / repro.magnify --save-map MAP.png write); allowed: a 16-bit PNG of "
+                             f"σ × {png_scale:g}, .npy, .npz or float .exr") from None
         raise ValueError(f"{path}: unreadable ({' '.join(str(exc).split())})") from None
     arr = np.asarray(arr, dtype=np.float64)
     if arr.ndim == 3 and arr.shape[-1] == 1:

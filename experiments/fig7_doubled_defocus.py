@@ -28,19 +28,30 @@ Notes
    √(4·σ_d(f/8)² + σ_f²) (filter-aware doubling of the truth; ≈ 0 error, a consistency check).
 4. Image metrics against the real f/4 render (PSNR dB, SSIM; :func:`experiments.metrics.image_quality`):
    the unchanged f/8 render (lower bound), the f/8 render magnified ×k with the estimated map (the
-   paper's result, Sec. 5 preprocessing on), and the oracle upper bounds above. PSNR also per
-   region: in focus (σ_d(f/4) ≤ ``in_focus_sigma_px``) and defocused, outside occlusion bands —
+   paper's result, Sec. 5 preprocessing on), and the oracle upper bounds above. PSNR and SSIM also
+   per region: in focus (σ_d(f/4) ≤ ``in_focus_sigma_px``) and defocused, outside occlusion bands —
    the estimated map's in-focus floor (edge blur of sharp texture is estimated ≈ 0.5–1 px, not
    σ_f) makes the magnification over-blur in-focus pixels, which a whole-image PSNR mixes with
-   the gain in the defocused regions.
+   the gain in the defocused regions — and in the occlusion band (the f/4 render's
+   ``occlusion_boundary``: within a CoC radius + 1 px of a depth jump), where renderers differ: a
+   gather blur spreads a sharp subject over the blurry background behind it and the background over
+   the subject's edge, a lens does not. Regional SSIM is the mean of scikit-image's SSIM map
+   (averaged over channels) over the region.
 5. The same magnification with the other reading of Sec. 5's "clamp its minimum value to 0"
    (``magnified_estimated_subtract``, ``floor="subtract"`` of :func:`method.magnify_defocus`): the
    map's lower-percentile value p_lo (its in-focus floor, reported as ``map_floor_px``) is removed
    in quadrature before smoothing, so pixels at the floor get no extra blur.
-6. Method presets (``config.presets``; the first is always ``"paper"`` = ``DefocusParams()``, the
+6. Renderers (``config.renderers``; :data:`method.magnify.magnification.MAGNIFICATION_RENDERERS`): the
+   first (``"gather"``, the paper preset's path, ``config.kernel``) gives the rows above; every
+   further renderer R (``"scatter"``: per-pixel disks of ``config.aperture`` in linear light with
+   occlusion layers) the same estimated-map (``floor="clamp"``) and oracle rows as
+   ``magnified_estimated_R``, ``magnified_oracle_srgb_R`` (the 8-bit sRGB input, blended as R's
+   default encoding says: linear light for the scatter) and ``magnified_oracle_linear_R`` (linear
+   radiance in, encoded and quantised like the renders).
+7. Method presets (``config.presets``; the first is always ``"paper"`` = ``DefocusParams()``, the
    reproduction, whose metrics are the top-level ones): every further preset of
    :data:`method.PRESETS` (e.g. ``"robust"``, beyond the paper) estimates both maps with its
-   parameters (steps 2–3 and 5 with its maps; Sec. 5 preprocessing with its ``map_clip_percent`` /
+   parameters (steps 2–3, 5 and 6 with its maps; Sec. 5 preprocessing with its ``map_clip_percent`` /
    ``map_smoothing``) under ``metrics["presets"][name]["scenes"][scene]``, with the paper's structure.
    The preset-independent rows (naive / filter-aware doubled truth, unchanged f/8 render, oracle
    magnifications) are repeated there, so each preset's entry reads like the paper's.
@@ -82,7 +93,12 @@ class Fig7Config:
     quantize_bits: int = 8
     # bits per channel of the images (8 = JPEG-like).
     kernel: str = "gaussian"
-    # magnification kernel (method.MAGNIFICATION_KERNELS).
+    # magnification kernel of the gather renderer (method.MAGNIFICATION_KERNELS).
+    renderers: tuple[str, ...] = ("gather", "scatter")
+    # magnification renderers (method.magnify.magnification.MAGNIFICATION_RENDERERS); the first gives the
+    # unsuffixed image rows (the paper's path), each further one R the rows "<row>_R".
+    aperture: str = "disk"
+    # aperture of the renderers that take one (method.magnify.scatter.APERTURES).
     in_focus_sigma_px: float = 0.5
     # pixels whose defocus-only σ at the large aperture is ≤ this are "in focus" for the per-region
     # PSNR, px (the rest outside occlusion bands is "defocused").
@@ -141,6 +157,8 @@ class _RenderedPair:
     mask, in_focus, defocused : ndarray of bool, shape (H, W)
         Evaluated pixels (finite σ_gt in both, off occlusion boundaries); of those, the pixels whose
         f/4 defocus-only σ is ≤ / > ``config.in_focus_sigma_px``.
+    occlusion : ndarray of bool, shape (H, W)
+        The f/4 render's occlusion band (within a CoC radius + 1 px of a depth discontinuity).
     """
 
     image_small: np.ndarray
@@ -152,6 +170,7 @@ class _RenderedPair:
     mask: np.ndarray
     in_focus: np.ndarray
     defocused: np.ndarray
+    occlusion: np.ndarray
 
     @property
     def regions(self) -> dict:
@@ -182,17 +201,46 @@ def _render_pair(name, config) -> _RenderedPair:
         mask=mask,
         in_focus=mask & (sigma_d_l <= config.in_focus_sigma_px),
         defocused=mask & (sigma_d_l > config.in_focus_sigma_px),
+        occlusion=np.asarray(r_l.occlusion_boundary, dtype=bool),
     )
 
 
+def _masked_ssim(ssim_map, mask):
+    """Mean of an SSIM map (HxW) over ``mask``; NaN if empty."""
+    return float(np.mean(ssim_map[mask])) if mask.any() else float("nan")
+
+
 def _score_image(im, pair: _RenderedPair) -> dict:
-    """:func:`experiments.metrics.image_quality` against the f/4 input, plus PSNR in and out of focus."""
+    """:func:`experiments.metrics.image_quality` against the f/4 input, plus PSNR and SSIM in focus,
+    defocused and in the occlusion band."""
+    from skimage.metrics import structural_similarity
+
     from .metrics import image_quality
 
     q = image_quality(im, pair.image_large)
-    q["psnr_in_focus_db"] = _masked_psnr(im, pair.image_large, pair.in_focus)
-    q["psnr_defocused_db"] = _masked_psnr(im, pair.image_large, pair.defocused)
+    _, smap = structural_similarity(np.asarray(pair.image_large, np.float64), np.asarray(im, np.float64),
+                                    data_range=1.0, channel_axis=-1, full=True)
+    smap = smap.mean(axis=-1)
+    for name, mask in (("in_focus", pair.in_focus), ("defocused", pair.defocused), ("occlusion", pair.occlusion)):
+        q[f"psnr_{name}_db"] = _masked_psnr(im, pair.image_large, mask)
+        q[f"ssim_{name}"] = _masked_ssim(smap, mask)
     return q
+
+
+def _magnify(image, defocus_map, config, renderer, **kwargs):
+    """:func:`method.magnify_defocus` ×k with ``renderer`` and the config's kernel / aperture where it takes one."""
+    from method import magnify_defocus
+    from method.magnify.magnification import MAGNIFICATION_RENDERERS
+
+    caps = MAGNIFICATION_RENDERERS.entry(renderer).capabilities
+    return magnify_defocus(image, defocus_map, factor=config.factor, renderer=renderer,
+                           kernel=config.kernel if "kernel" in caps else None,
+                           aperture=config.aperture if "aperture" in caps else None, **kwargs)
+
+
+def _suffix(renderer, config) -> str:
+    """"" for the first renderer of ``config`` (the paper's rows), else ``"_<renderer>"``."""
+    return "" if renderer == config.renderers[0] else f"_{renderer}"
 
 
 def _preset_independent(pair: _RenderedPair, config) -> tuple[dict, dict, dict]:
@@ -202,10 +250,10 @@ def _preset_independent(pair: _RenderedPair, config) -> tuple[dict, dict, dict]:
     -------
     (dict, dict, dict)
         ``truth_rows`` (dense metrics of k·σ_gt(f/8) and the filter-aware doubled truth against
-        σ_gt(f/4)), ``images`` (``unchanged_small``, ``magnified_oracle_srgb``,
-        ``magnified_oracle_linear``; HxWx3) and their ``quality`` (:func:`_score_image`).
+        σ_gt(f/4)), ``images`` (``unchanged_small``, and per renderer ``magnified_oracle_srgb<sx>``,
+        ``magnified_oracle_linear<sx>``, sx = :func:`_suffix`; HxWx3) and their ``quality``
+        (:func:`_score_image`).
     """
-    from method import magnify_defocus
     from scenes.render import FILTER_SIGMA_PX
 
     from .metrics import dense_metrics
@@ -215,11 +263,14 @@ def _preset_independent(pair: _RenderedPair, config) -> tuple[dict, dict, dict]:
                   "gt_small_doubled_filter_aware": np.sqrt(k * k * pair.defocus_small**2 + sf**2)}
     truth_rows = {n: dense_metrics(m, pair.gt_large, regions=pair.regions)["all"] for n, m in truth_maps.items()}
     oracle_map = np.where(np.isfinite(pair.defocus_small), pair.defocus_small, 0.0)
-    oracle_srgb = magnify_defocus(pair.image_small, oracle_map, factor=k, kernel=config.kernel, preprocess=False)
-    oracle_linear = _encode(magnify_defocus(pair.linear_small, oracle_map, factor=k, kernel=config.kernel,
-                                            preprocess=False), config)
-    images = {"unchanged_small": pair.image_small, "magnified_oracle_srgb": oracle_srgb,
-              "magnified_oracle_linear": oracle_linear}
+    images = {"unchanged_small": pair.image_small}
+    for renderer in config.renderers:
+        sx = _suffix(renderer, config)
+        linear = {} if renderer == config.renderers[0] else {"encoding": "linear"}
+        images[f"magnified_oracle_srgb{sx}"] = _magnify(pair.image_small, oracle_map, config, renderer,
+                                                        preprocess=False)
+        images[f"magnified_oracle_linear{sx}"] = _encode(_magnify(pair.linear_small, oracle_map, config, renderer,
+                                                                  preprocess=False, **linear), config)
     return truth_rows, images, {n: _score_image(im, pair) for n, im in images.items()}
 
 
@@ -229,10 +280,9 @@ def _estimated_case(pair: _RenderedPair, params, config, truth_rows: dict, fixed
     Returns
     -------
     (dict, dict)
-        Arrays ``map_small``, ``map_large``, ``magnified``, ``magnified_subtract``,
-        ``map_small_subtract`` and the preset's metrics (see :func:`scene_case`).
+        Arrays ``map_small``, ``map_large``, ``magnified<sx>`` (per renderer, :func:`_suffix`),
+        ``magnified_subtract``, ``map_small_subtract`` and the preset's metrics (see :func:`scene_case`).
     """
-    from method import magnify_defocus
     from method.magnify.magnification import preprocess_defocus_map
 
     from .metrics import dense_metrics
@@ -250,20 +300,26 @@ def _estimated_case(pair: _RenderedPair, params, config, truth_rows: dict, fixed
     # the doubling claim compared directly: k × map(f/8) with map(f/4) as the reference, px
     doubled_vs_map_large = dense_metrics(k * res_s.defocus_map, res_l.defocus_map, regions=regions)["all"]
     clip, smooth = params.map_clip_percent, params.map_smoothing  # paper: 5 %, 0.5 %
-    t0 = time.perf_counter()
-    mag = magnify_defocus(img_s, res_s.defocus_map, factor=k, kernel=config.kernel, clip_percent=clip,
-                          smoothing=smooth)
-    t_mag = time.perf_counter() - t0
-    mag_subtract = magnify_defocus(img_s, res_s.defocus_map, factor=k, kernel=config.kernel,
-                                   clip_percent=clip, smoothing=smooth, floor="subtract")
-    map_subtract = preprocess_defocus_map(res_s.defocus_map, clip_percent=clip, smoothing=smooth,
-                                          floor="subtract")
+    quality = {"unchanged_small": fixed_quality["unchanged_small"]}
+    arrays = {"map_small": res_s.defocus_map, "map_large": res_l.defocus_map}
+    seconds = {}
+    for renderer in config.renderers:
+        sx = _suffix(renderer, config)
+        t0 = time.perf_counter()
+        mag = _magnify(img_s, res_s.defocus_map, config, renderer, clip_percent=clip, smoothing=smooth)
+        seconds[f"magnify_seconds{sx}"] = time.perf_counter() - t0
+        quality[f"magnified_estimated{sx}"] = _score_image(mag, pair)
+        arrays[f"magnified{sx}"] = mag
+        if not sx:  # the other reading of Sec. 5's map floor, on the paper's path
+            mag_subtract = _magnify(img_s, res_s.defocus_map, config, renderer, clip_percent=clip,
+                                    smoothing=smooth, floor="subtract")
+            quality["magnified_estimated_subtract"] = _score_image(mag_subtract, pair)
+            arrays["magnified_subtract"] = mag_subtract
+        for row in ("magnified_oracle_srgb", "magnified_oracle_linear"):
+            quality[row + sx] = fixed_quality[row + sx]
+    arrays["map_small_subtract"] = preprocess_defocus_map(res_s.defocus_map, clip_percent=clip, smoothing=smooth,
+                                                          floor="subtract")
     map_floor_px = max(float(np.percentile(res_s.defocus_map, clip)), 0.0)  # p_lo, px
-    quality = {"unchanged_small": fixed_quality["unchanged_small"],
-               "magnified_estimated": _score_image(mag, pair),
-               "magnified_estimated_subtract": _score_image(mag_subtract, pair),
-               "magnified_oracle_srgb": fixed_quality["magnified_oracle_srgb"],
-               "magnified_oracle_linear": fixed_quality["magnified_oracle_linear"]}
     metrics = {
         "maps_vs_gt_large": maps,
         "maps_vs_gt_small": maps_vs_gt_small,
@@ -275,11 +331,10 @@ def _estimated_case(pair: _RenderedPair, params, config, truth_rows: dict, fixed
         "evaluated_pixels": int(pair.mask.sum()),
         "in_focus_pixels": int(pair.in_focus.sum()),
         "defocused_pixels": int(pair.defocused.sum()),
+        "occlusion_pixels": int(pair.occlusion.sum()),
         "estimate_seconds": t_est,
-        "magnify_seconds": t_mag,
+        **seconds,
     }
-    arrays = {"map_small": res_s.defocus_map, "map_large": res_l.defocus_map, "magnified": mag,
-              "magnified_subtract": mag_subtract, "map_small_subtract": map_subtract}
     return arrays, metrics
 
 
@@ -300,10 +355,12 @@ def scene_case(name, config) -> tuple[dict, dict, dict]:
         ``gt_large`` (σ_gt, px), ``mask`` (evaluated pixels), ``magnified`` (estimated map,
         ``floor="clamp"``), ``magnified_subtract`` (estimated map, ``floor="subtract"``),
         ``map_small_subtract`` (the f/8 map after Sec. 5 preprocessing with ``floor="subtract"``, σ
-        px), ``magnified_oracle_srgb``, ``magnified_oracle_linear``; its metrics as described in the
-        module Notes; and ``{preset: (arrays, metrics)}`` for every further preset of
-        ``config.presets`` (arrays: the estimated-map ones above, ``map_small`` … ``map_small_subtract``;
-        metrics: the paper's keys).
+        px), ``magnified_oracle_srgb``, ``magnified_oracle_linear``, ``occlusion`` (the f/4 render's
+        occlusion band), and per further renderer R ``magnified_R``, ``magnified_oracle_srgb_R``,
+        ``magnified_oracle_linear_R``; its metrics as described in the module Notes; and
+        ``{preset: (arrays, metrics)}`` for every further preset of ``config.presets`` (arrays: the
+        estimated-map ones above, ``map_small`` … ``map_small_subtract``, ``magnified_R``; metrics: the
+        paper's keys).
     """
     from .fig6_alpha_sweep import method_presets
 
@@ -313,9 +370,8 @@ def scene_case(name, config) -> tuple[dict, dict, dict]:
     names = list(presets)
     arrays, metrics = _estimated_case(pair, presets[names[0]], config, truth_rows, fixed_quality)
     arrays.update({"image_small": pair.image_small, "image_large": pair.image_large, "gt_small": pair.gt_small,
-                   "gt_large": pair.gt_large, "mask": pair.mask,
-                   "magnified_oracle_srgb": images["magnified_oracle_srgb"],
-                   "magnified_oracle_linear": images["magnified_oracle_linear"]})
+                   "gt_large": pair.gt_large, "mask": pair.mask, "occlusion": pair.occlusion})
+    arrays.update({k: v for k, v in images.items() if k != "unchanged_small"})
     others = {}
     for pname in names[1:]:
         t0 = time.perf_counter()
@@ -339,14 +395,18 @@ def compute_set(config: Fig7Config) -> dict:
         ``metrics``: ``scenes.<scene>.maps_vs_gt_large.<candidate>.{mae, bias, …}``,
         ``scenes.<scene>.k_x_map_small_vs_map_large.{mae, bias, median_rel_error, …}`` (k × the f/8
         map against the f/4 map as reference),
-        ``scenes.<scene>.image_vs_large.<image>.{psnr_db, ssim}``, the factor k, timings — all for
-        the ``"paper"`` preset. Every further preset P of ``config.presets``:
-        ``<scene>__<P>__<array>`` for its estimated-map arrays (``map_small``, ``map_large``,
-        ``magnified``, ``magnified_subtract``, ``map_small_subtract``) and
+        ``scenes.<scene>.image_vs_large.<image>.{psnr_db, ssim, psnr_<region>_db, ssim_<region>}``
+        (regions ``in_focus``, ``defocused``, ``occlusion``; images per renderer, module Notes 6),
+        the factor k, ``renderers``, timings — all for the ``"paper"`` preset. Every further preset P
+        of ``config.presets``: ``<scene>__<P>__<array>`` for its estimated-map arrays (``map_small``,
+        ``map_large``, ``magnified``, ``magnified_<R>``, ``magnified_subtract``, ``map_small_subtract``) and
         ``metrics.presets.<P>.scenes.<scene>`` with the paper's keys (plus ``compute_seconds``).
     """
+    from method.magnify.magnification import MAGNIFICATION_RENDERERS
+
     if config.factor < 1:
         raise ValueError(f"f_number_small_aperture/f_number_large_aperture = {config.factor:g} is invalid; allowed: >= 1")
+    MAGNIFICATION_RENDERERS.check_all(config.renderers, what="Fig7Config.renderers")
     t0 = time.perf_counter()
     data, per_scene = {}, {}
     extra = {p: {"scenes": {}, "compute_seconds": 0.0} for p in config.presets[1:]}
@@ -365,6 +425,7 @@ def compute_set(config: Fig7Config) -> dict:
         "scenes": per_scene,
         "presets": extra,
         "factor": config.factor,
+        "renderers": list(config.renderers),
         "upper_bound_note": "oracle map = defocus-only sigma c/4 = sqrt(sigma_gt^2 - sigma_filter^2) of the "
                             "small-aperture render, no Sec. 5 preprocessing; the box-filter sigma does not "
                             "double with the aperture",
@@ -374,7 +435,7 @@ def compute_set(config: Fig7Config) -> dict:
 
 
 FIGURE = scene_set_figure(
-    compute_set, name="fig7", quick=QUICK, full=FULL, version=4,
+    compute_set, name="fig7", quick=QUICK, full=FULL, version=5,
     title="Doubled defocus: f/8 render magnified x2 vs the real f/4 render (maps and images)",
 )
 #: :func:`compute_set` on the default scene set and on each of ``config.other_scene_sets``

@@ -13,8 +13,12 @@ Notes
 2. Per method preset of ``config.presets``: :func:`method.estimate_defocus_map` with
    ``DefocusParams.preset(name)``.
 3. :func:`experiments.photo_regions.score_defocus_map` of each map.
-4. :func:`method.magnify_defocus` of each map with ``factor`` (Sec. 5 preprocessing of the preset:
-   ``map_clip_percent``, ``map_smoothing``).
+4. :func:`method.magnify_defocus` of the ``magnify_preset`` map with ``factor`` (Sec. 5 preprocessing
+   of the preset: ``map_clip_percent``, ``map_smoothing``), once per renderer of ``renderers``.
+5. A crop of a sharp subject's border (:func:`border_crop`): a square of side
+   max(:data:`MIN_CROP_PX`, min(H, W) / 4) px centred on the pixel of the in-focus region's outline
+   where the magnified map changes most (largest gradient magnitude of the map, Gaussian-smoothed
+   by 2 px), moved inside the photo — where the renderers differ (halo, background bleed).
 """
 
 from __future__ import annotations
@@ -27,7 +31,10 @@ import numpy as np
 
 from .registry import Figure
 
-__all__ = ["FIGURE", "FULL", "QUICK", "PhotosConfig", "compute"]
+__all__ = ["FIGURE", "FULL", "MIN_CROP_PX", "QUICK", "PhotosConfig", "border_crop", "compute"]
+
+#: Smallest side of the border crop, px.
+MIN_CROP_PX = 48
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -41,7 +48,10 @@ class PhotosConfig:
     factor: float = 2.0
     # defocus magnification k (total blur k·B; 2 = doubling the aperture diameter).
     kernel: str = "gaussian"
-    # magnification kernel (method.MAGNIFICATION_KERNELS).
+    # magnification kernel of the gather renderer (method.MAGNIFICATION_KERNELS).
+    renderers: tuple[str, ...] = ("gather", "scatter")
+    # magnification renderers (method.magnify.magnification.MAGNIFICATION_RENDERERS), one magnified result
+    # and border crop each; the first is stored as <photo>__magnified, the others as <photo>__magnified_<R>.
     magnify_preset: str = "robust"
     # the preset whose map is magnified in the last column (must be in presets; else the first).
     regions_digest: str = dataclasses.field(default_factory=lambda: _regions_digest())
@@ -65,6 +75,37 @@ FULL = PhotosConfig()
 QUICK = PhotosConfig(photos=("coffee",))
 
 
+def border_crop(in_focus, defocus_map) -> tuple[int, int, int, int]:
+    """(y0, y1, x0, x1) of a square crop of a sharp subject's border (module Notes, step 5).
+
+    Parameters
+    ----------
+    in_focus : ndarray of bool, HxW
+        The hand-drawn in-focus region.
+    defocus_map : ndarray, HxW, float
+        The magnified map, σ px.
+
+    Returns
+    -------
+    tuple of int
+        Rows y0:y1 and columns x0:x1 of the crop (inside the photo).
+    """
+    from scipy import ndimage
+
+    h, w = in_focus.shape
+    side = min(max(MIN_CROP_PX, min(h, w) // 4), h, w)
+    outline = in_focus & ~ndimage.binary_erosion(in_focus)
+    smooth = ndimage.gaussian_filter(np.asarray(defocus_map, dtype=np.float64), 2.0)
+    grad = np.hypot(*np.gradient(smooth))
+    if outline.any():
+        cy, cx = np.unravel_index(int(np.argmax(np.where(outline, grad, -1.0))), grad.shape)
+    else:
+        cy, cx = h // 2, w // 2
+    y0 = int(min(max(cy - side // 2, 0), h - side))
+    x0 = int(min(max(cx - side // 2, 0), w - side))
+    return y0, y0 + side, x0, x0 + side
+
+
 def compute(config: PhotosConfig) -> dict:
     """Maps, scores and magnified results of every photo × preset.
 
@@ -78,17 +119,21 @@ def compute(config: PhotosConfig) -> dict:
         ``items`` (n,) photo names; per photo ``<photo>__input`` (H, W, 3) float32 in [0, 1],
         ``<photo>__in_focus`` / ``<photo>__defocused`` (H, W) bool region masks,
         ``<photo>__<preset>__map`` (H, W) float32 σ px, ``<photo>__magnified`` (H, W, 3) float32
-        (the map of ``magnify_preset`` magnified ×factor); ``metrics``: ``photos.<photo>.<preset>``
+        (the map of ``magnify_preset`` magnified ×factor with the first renderer) and
+        ``<photo>__magnified_<R>`` for every further renderer R; ``metrics``: ``photos.<photo>.<preset>``
         = the score dict (:func:`experiments.photo_regions.score_defocus_map`) plus ``seconds``,
-        ``photos.<photo>.shape``, ``summary.<preset>`` (min AUC, max share, photos meeting the
-        targets), ``targets``, ``magnify_preset``, ``factor``.
+        ``photos.<photo>.shape``, ``photos.<photo>.border_crop`` ([y0, y1, x0, x1], :func:`border_crop`),
+        ``photos.<photo>.magnify_seconds.<R>``, ``summary.<preset>`` (min AUC, max share, photos
+        meeting the targets), ``targets``, ``magnify_preset``, ``factor``, ``renderers``.
     """
     from method import DefocusParams, magnify_defocus
+    from method.magnify.magnification import MAGNIFICATION_RENDERERS
 
     from .photo_regions import (SCORE_PRESETS, TARGET_AUC, TARGET_SHARE, compute_photo_maps, score_defocus_map,
                                 validate_photo_names)
 
     names = validate_photo_names(config.photos)
+    renderers = MAGNIFICATION_RENDERERS.check_all(config.renderers, what="PhotosConfig.renderers")
     presets = tuple(dict.fromkeys(config.presets or SCORE_PRESETS))
     mag_preset = config.magnify_preset if config.magnify_preset in presets else presets[0]
     data, per_photo = {}, {}
@@ -105,12 +150,19 @@ def compute(config: PhotosConfig) -> dict:
             data[f"{name}__{p}__map"] = res.defocus_map.astype(np.float32)
             scores[p] = {**score_defocus_map(res.defocus_map, regions), "seconds": run["seconds"][p]}
         params = DefocusParams.preset(mag_preset)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            out = magnify_defocus(image, run["results"][mag_preset].defocus_map, factor=config.factor,
-                                  kernel=config.kernel, clip_percent=params.map_clip_percent,
-                                  smoothing=params.map_smoothing)
-        data[f"{name}__magnified"] = out.astype(np.float32)
+        dmap = run["results"][mag_preset].defocus_map
+        scores["magnify_seconds"] = {}
+        for i, renderer in enumerate(renderers):
+            caps = MAGNIFICATION_RENDERERS.entry(renderer).capabilities
+            t0 = time.perf_counter()
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                out = magnify_defocus(image, dmap, factor=config.factor, renderer=renderer,
+                                      kernel=config.kernel if "kernel" in caps else None,
+                                      clip_percent=params.map_clip_percent, smoothing=params.map_smoothing)
+            scores["magnify_seconds"][renderer] = time.perf_counter() - t0
+            data[f"{name}__magnified" + (f"_{renderer}" if i else "")] = out.astype(np.float32)
+        scores["border_crop"] = list(border_crop(masks["in_focus"], dmap))
         per_photo[name] = scores
     summary = {}
     for p in presets:
@@ -122,7 +174,7 @@ def compute(config: PhotosConfig) -> dict:
     data["items"] = np.asarray(names)
     data["metrics"] = {"photos": per_photo, "summary": summary, "presets_scored": list(presets),
                        "targets": {"auc_min": TARGET_AUC, "in_focus_above_defocused_median_max": TARGET_SHARE},
-                       "magnify_preset": mag_preset, "factor": config.factor,
+                       "magnify_preset": mag_preset, "factor": config.factor, "renderers": list(renderers),
                        "compute_seconds": time.perf_counter() - t_start}
     return data
 
@@ -134,7 +186,7 @@ FIGURE = Figure(
     compute=compute,
     plot="experiments.plotting.photos:plot",
     configs={"quick": QUICK, "full": FULL},
-    version=1,
+    version=2,
     sigma_convention="Gaussian sigma of the estimated blur, px of the photo (no ground truth)",
     renders=False,
 )

@@ -14,8 +14,8 @@ holds :class:`DefocusParams`, :mod:`method.presets` the named parameter sets (:d
 
 from .blur import BLUR_ESTIMATORS, REGION_ESTIMATORS, estimate_blur, estimate_region_blur
 from .edges import EdgeMap, detect_edges
-from .magnify import (DECONVOLUTION_METHODS, MAGNIFICATION_KERNELS, deconvolve_defocus, magnify_defocus,
-                      preprocess_defocus_map, refocus)
+from .magnify import (DECONVOLUTION_METHODS, MAGNIFICATION_KERNELS, MAGNIFICATION_RENDERERS, deconvolve_defocus,
+                      magnify_defocus, preprocess_defocus_map, refocus)
 from .params import DefocusParams
 from .presets import PRESETS
 from .pipeline import DefocusResult, NoEdgesWarning, estimate_defocus_map, luminance
@@ -28,6 +28,7 @@ __all__ = [
     "BLUR_ESTIMATORS",
     "DECONVOLUTION_METHODS",
     "MAGNIFICATION_KERNELS",
+    "MAGNIFICATION_RENDERERS",
     "PRESETS",
     "PROPAGATION_METHODS",
     "PROPAGATION_SOLVERS",

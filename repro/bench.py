@@ -8,7 +8,10 @@ with the 1-min load average before and after. Writes ``bench.json`` and ``bench.
 table; the run it replaces (the previous ``bench.json`` in ``--out``) is kept in the output as
 "before". Targets (:mod:`experiments.bench.speed`, this 2-core machine kind), for every preset: whole
 pipeline at 1 MP ≤ 2.0 s and ≤ 1.5 GiB, at 512² ≤ 1.0 s; 512² → 1024² cost growth ≤ 4.5×. The machine
-is shared, so each row says how loaded it was; the fastest of ``--repeat`` runs counts.
+is shared, so each row says how loaded it was; the fastest of ``--repeat`` runs counts. Then, for each
+renderer of ``--magnify-renderers`` (default ``scatter``; none to skip), the magnification step alone on
+a 12-MP photo (``skimage.data.coffee`` upscaled) with its map given, as ``repro.magnify --map`` runs it,
+in a fresh process (:func:`experiments.bench.speed.time_magnification`); target for the scatter ≤ 20 s.
 
 ``python -m repro.bench --accuracy [--out report/bench]`` instead records the targets of the
 dense-map issue (:func:`experiments.bench.accuracy.accuracy_report`, configuration
@@ -48,6 +51,15 @@ def _run_size(size: int, repeat: int, preset: str = "paper") -> dict:
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
+def _run_magnify(renderer: str) -> dict:
+    """The 12-MP magnification of ``renderer`` timed in a fresh process: ``--worker-magnify``'s JSON line."""
+    cmd = [sys.executable, "-m", "repro.bench", "--worker-magnify", renderer]
+    proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    if proc.returncode != 0:
+        raise RuntimeError(f"magnification benchmark of {renderer} failed:\n{proc.stderr[-2000:]}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
 def _previous_run(path: Path) -> dict | None:
     """The run a new ``bench.json`` replaces (date, rows, summary), or None."""
     try:
@@ -77,12 +89,18 @@ def _speed_bench(args) -> None:
     from defocus_cache import atomic_write_text
     from experiments.bench import speed_markdown, speed_report
     from method import PRESETS
+    from method.magnify.magnification import MAGNIFICATION_RENDERERS
 
     PRESETS.check_all(args.presets)
+    renderers = [] if args.magnify_renderers == ["none"] else args.magnify_renderers
+    for r in renderers:
+        MAGNIFICATION_RENDERERS.check(r, what="--magnify-renderers")
     before = _previous_run(args.out / "bench.json")
     jobs = [(p, s) for p in args.presets for s in args.sizes]
     rows = [_run_size(s, args.repeat, p) for p, s in tqdm(jobs, desc="bench runs", unit="run", disable=args.quiet)]
-    report = speed_report(rows, before=before)
+    magnify_rows = [_run_magnify(r) for r in tqdm(renderers, desc="12-MP magnification", unit="run",
+                                                   disable=args.quiet)]
+    report = speed_report(rows, before=before, magnify_rows=magnify_rows)
     md = speed_markdown(report, repeat=args.repeat)
     args.out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(args.out / "bench.json", json.dumps(report, indent=1))
@@ -92,6 +110,7 @@ def _speed_bench(args) -> None:
 
 def _parser():
     from experiments.bench import BENCH_PRESETS, LENS_CONFIG
+    from experiments.bench.speed import MAGNIFY_BENCH_RENDERERS
     from method import PRESETS
     from scenes.analytic.psfs import PSFS
     from repro._cli import ArgumentParser, add_quiet_option, int_type
@@ -117,7 +136,11 @@ def _parser():
                              "per cell; sweep.md / sweep.json)")
     parser.add_argument("--presets", nargs="+", default=list(BENCH_PRESETS),
                         help=f"presets to time ({PRESETS.describe()}; default: {' '.join(BENCH_PRESETS)})")
+    parser.add_argument("--magnify-renderers", nargs="+", default=list(MAGNIFY_BENCH_RENDERERS), metavar="NAME",
+                        help="renderers whose magnification step alone is timed on a 12-MP photo with its map "
+                             f"given (default: {' '.join(MAGNIFY_BENCH_RENDERERS)}; 'none' to skip)")
     parser.add_argument("--worker", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--worker-magnify", default=None, help=argparse.SUPPRESS)
     parser.add_argument("--worker-preset", default="paper", help=argparse.SUPPRESS)
     return parser
 
@@ -127,6 +150,11 @@ def main(argv=None) -> int:
     from repro._cli import require_extras
 
     args = _parser().parse_args(argv)
+    if args.worker_magnify is not None:
+        from experiments.bench.speed import time_magnification
+
+        print(json.dumps(time_magnification(args.worker_magnify)))
+        return 0
     if args.worker is not None:
         from experiments.bench import time_pipeline
 

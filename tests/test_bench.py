@@ -226,10 +226,42 @@ def test_sigma_bins_put_each_value_alone():
     assert bins == (0.0, 0.75, 2.5, np.inf)
 
 
+#: A made-up row of experiments.bench.speed.time_magnification.
+MAGNIFY_ROW = {"renderer": "scatter", "shape": [2828, 4243], "pixels": 11_999_204,
+               "sigma_px": {"median": 4.9, "p99": 15.3, "max": 20.6}, "magnify_s": 12.0, "peak_rss_gib": 2.0,
+               "load1": [1.0, 1.5]}
+
+
+def test_magnify_rows_judged_on_both_sides_and_tabled(tmp_path, monkeypatch):
+    s = speed.speed_summary([], [MAGNIFY_ROW, dict(MAGNIFY_ROW, renderer="gather", magnify_s=40.0)])
+    assert s["magnify scatter: seconds_12mp"] == 12.0 and s["magnify scatter: meets_time_target_12mp"]
+    assert "magnify gather: meets_time_target_12mp" not in s  # the target is the scatter's
+    monkeypatch.setattr(speed, "TARGET_MAGNIFY_SECONDS_12MP", 10.0)
+    assert not speed.speed_summary([], [MAGNIFY_ROW])["magnify scatter: meets_time_target_12mp"]
+    table = speed.magnify_table([MAGNIFY_ROW])
+    assert "| scatter | 4243×2828 | 4.90 / 15.30 / 20.60 | 12.0 | 2.00 | 1.0 → 1.5 |" in table
+    row = {"size": 16, "pixels": 256, "edge_pixels": 3, "timings_s": {"total": 0.5}, "peak_rss_gib": 0.1}
+    monkeypatch.setattr(bench, "_run_size", lambda size, repeat, preset="paper": dict(row, size=size, preset=preset))
+    calls = []
+    monkeypatch.setattr(bench, "_run_magnify", lambda renderer: calls.append(renderer) or dict(MAGNIFY_ROW,
+                                                                                                 renderer=renderer))
+    assert bench.main(["--sizes", "16", "--repeat", "1", "--out", str(tmp_path), "--magnify-renderers", "none"]) == 0
+    assert calls == [] and _strict_json(tmp_path / "bench.json")["magnify_rows"] == []
+    assert bench.main(["--sizes", "16", "--repeat", "1", "--out", str(tmp_path), "--magnify-renderers", "gather",
+                       "scatter"]) == 0
+    assert calls == ["gather", "scatter"]
+    assert "Magnification step alone" in (tmp_path / "bench.md").read_text(encoding="utf-8")
+    from repro._cli import run_cli
+
+    assert run_cli(bench.main, ["--sizes", "16", "--out", str(tmp_path), "--magnify-renderers", "splat"],
+                   prog=bench.PROG) == 2
+
+
 def test_plain_bench_unchanged_without_the_flag(tmp_path, monkeypatch):
     row = {"size": 16, "pixels": 256, "edge_pixels": 3, "timings_s": {"total": 0.5}, "peak_rss_gib": 0.1}
     monkeypatch.setattr(bench, "_run_size", lambda size, repeat, preset="paper": dict(row, size=size, preset=preset))
     monkeypatch.setattr(bench, "run_accuracy", lambda *a, **k: pytest.fail("--accuracy path taken"))
+    monkeypatch.setattr(bench, "_run_magnify", lambda renderer: dict(MAGNIFY_ROW, renderer=renderer))
     assert bench.main(["--sizes", "16", "--repeat", "1", "--out", str(tmp_path)]) == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bench.json", "bench.md"]
     first = _strict_json(tmp_path / "bench.json")

@@ -292,6 +292,20 @@ def test_magnified_close_sides_and_noop():
     assert _verdict(m, "magnified_close") == "not evaluated"
 
 
+def test_magnified_close_rejudged_per_renderer():
+    """A scatter row is judged by the same rule in the evidence and numbers; the verdict stays the gather's."""
+    for scatter, expected in (((31.0, 0.85), "reproduced"), ((29.0, 0.85), "not reproduced"),
+                              ((30.0, 0.85), "partly reproduced")):
+        m = fig7(_fig7_scene(base=(30.0, 0.80), mag=(31.0, 0.85)))
+        m["fig7"]["metrics"]["scenes"]["s0"]["image_vs_large"]["magnified_estimated_scatter"] = \
+            {"psnr_db": scatter[0], "ssim": scatter[1]}
+        v = _v(m, "magnified_close")
+        assert v.verdict == "reproduced"
+        assert v.numbers["renderers"]["scatter"]["verdict"] == expected
+        assert f"Re-judged with the scatter renderer (the verdict above is the paper's gather): {expected};" in v.evidence
+    assert "renderers" not in _v(fig7(), "magnified_close").numbers
+
+
 def test_sharp_stays_sharp_sides_and_noop():
     kept, soft = (99.0, C.SHARP_MIN_PSNR_DB + 1), (99.0, C.SHARP_MIN_PSNR_DB - 1)
     assert _verdict(fig7(_fig7_scene(in_focus=kept, defocused=(28.0, 29.0))), "sharp_stays_sharp") == "reproduced"

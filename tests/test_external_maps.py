@@ -118,7 +118,7 @@ def test_every_map_format_reads_the_same_sigma(tmp_path):
         assert np.allclose(em.load_map(tmp_path, name), sigma, atol=1e-6), name
     assert np.allclose(em.load_map(tmp_path, "e", png_scale=100), sigma)
     iio.imwrite(tmp_path / "f.png", np.zeros((2, 2), np.uint8))
-    with pytest.raises(ValueError, match="f.png: unreadable.*16-bit"):
+    with pytest.raises(ValueError, match="f.png: an 8-bit PNG holds no σ values.*preview.*allowed: a 16-bit PNG"):
         em.load_map(tmp_path, "f")
 
 

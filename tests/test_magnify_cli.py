@@ -75,11 +75,12 @@ def test_16bit_in_jpeg_out_is_8bit(tmp_path, capsys):
     assert read_photo(tmp_path / "out.jpg").bit_depth == 8
 
 
-def test_grey_jpeg_stays_grey_and_same_size(tmp_path, capsys):
+@pytest.mark.parametrize("shape", [["--renderer", "gather", "--kernel", "disk"], ["--aperture", "hexagon"]])
+def test_grey_jpeg_stays_grey_and_same_size(shape, tmp_path, capsys):
     from PIL import Image
 
     src = write_photo(tmp_path / "g.jpg", textured_photo(48, 64)[..., 1])
-    status, out, _ = run([src, "--factor", "3", "--kernel", "disk"], capsys)
+    status, out, _ = run([src, "--factor", "3", *shape], capsys)
     assert status == 0
     with Image.open(out.strip()) as im:
         assert im.mode == "L" and im.size == (64, 48) and im.format == "JPEG"

@@ -44,6 +44,12 @@ def test_photos_figure_quick_computes_scores_and_plots(tmp_path):
     data = res.as_data()
     assert list(data["items"]) == ["coffee"]
     assert data["coffee__input"].shape == (400, 600, 3) and data["coffee__magnified"].shape == (400, 600, 3)
+    assert data["coffee__magnified_scatter"].shape == (400, 600, 3)
+    assert not np.array_equal(data["coffee__magnified_scatter"], data["coffee__magnified"])
+    y0, y1, x0, x1 = res.metrics["photos"]["coffee"]["border_crop"]
+    assert 0 <= y0 < y1 <= 400 and 0 <= x0 < x1 <= 600 and y1 - y0 == x1 - x0 == 100
+    inside = data["coffee__in_focus"][y0:y1, x0:x1]
+    assert inside.any() and not inside.all()  # the crop holds the in-focus region's border
     assert data["coffee__in_focus"].dtype == bool and data["coffee__in_focus"].any()
     for p in config.presets:
         m = data[f"coffee__{p}__map"]
@@ -70,3 +76,18 @@ def test_an_edited_region_file_changes_the_cache_key(tmp_path, monkeypatch):
     doc = (tmp_path / "coffee.json").read_text().replace('"why": "the cup', '"why": "The cup')
     (tmp_path / "coffee.json").write_text(doc)
     assert cache_key(FIGURES["photos"], figS2_photos.PhotosConfig()) != before
+
+
+def test_border_crop_sits_on_the_sharp_subjects_outline_where_the_map_jumps():
+    """The crop is centred on the in-focus region's outline pixel with the steepest map, kept inside."""
+    from experiments.figS2_photos import MIN_CROP_PX, border_crop
+
+    in_focus = np.zeros((120, 200), bool)
+    in_focus[30:90, 40:100] = True
+    m = np.zeros((120, 200))
+    m[:, 100:] = 3.0  # the map jumps on the subject's right side only
+    y0, y1, x0, x1 = border_crop(in_focus, m)
+    assert y1 - y0 == x1 - x0 == MIN_CROP_PX  # min(120, 200) / 4 = 30 < 48
+    assert x0 <= 99 < x1 and 99 - x0 in (MIN_CROP_PX // 2, MIN_CROP_PX // 2 - 1)
+    y0, y1, x0, x1 = border_crop(np.zeros((120, 200), bool), m)  # no region: the centre
+    assert (y0 + y1) // 2 == 60 and (x0 + x1) // 2 == 100

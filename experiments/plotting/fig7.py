@@ -1,4 +1,4 @@
-"""Plot of Fig. 7: f/8 input, f/4 reference, magnified results; maps (per method preset); error bars."""
+"""Plot of Fig. 7: f/8 input, f/4 reference, magnified results (per renderer); maps (per method preset); bars."""
 
 from __future__ import annotations
 
@@ -16,12 +16,15 @@ _IMAGE_LABELS = {
     "unchanged_small": "f/8 unchanged",
     "magnified_estimated": "×2, estimated map",
     "magnified_estimated_subtract": "×2, estimated map, floor subtracted",
+    "magnified_estimated_scatter": "×2, estimated map, scatter",
     "magnified_oracle_srgb": "×2, oracle σ_d (sRGB)",
     "magnified_oracle_linear": "×2, oracle σ_d (linear)",
+    "magnified_oracle_srgb_scatter": "×2, oracle σ_d (sRGB), scatter",
+    "magnified_oracle_linear_scatter": "×2, oracle σ_d (linear), scatter",
 }
 #: Rows that depend on the method preset (one bar per preset); the others are the same for all.
 _PRESET_MAPS = ("map_small", "k_x_map_small", "map_large")
-_PRESET_IMAGES = ("magnified_estimated", "magnified_estimated_subtract")
+_PRESET_IMAGES = ("magnified_estimated", "magnified_estimated_subtract", "magnified_estimated_scatter")
 
 
 def _others(data, config):
@@ -35,10 +38,18 @@ def _scene_metrics(data, scene, pname):
     return data["metrics"]["presets"][pname]["scenes"][scene]
 
 
-def _categories(labels, preset_keys, presets):
+def _renderers(data, config):
+    """The further renderers (beyond the paper's first) the data has rows for."""
+    names = data["metrics"].get("renderers", list(getattr(config, "renderers", ("gather",))))
+    return [r for r in names[1:]]
+
+
+def _categories(labels, preset_keys, presets, present=None):
     """Bar categories [(preset, key, label)]: the rows before the first preset-dependent one, every
-    preset's copies of ``preset_keys`` (labelled with the preset's name), then the remaining rows."""
-    keys = list(labels)
+    preset's copies of ``preset_keys`` (labelled with the preset's name), then the remaining rows;
+    only the keys in ``present`` when given."""
+    keys = [k for k in labels if present is None or k in present]
+    preset_keys = [k for k in preset_keys if k in keys]
     first = min(keys.index(k) for k in preset_keys)
     lead = [k for k in keys[:first] if k not in preset_keys]
     tail = [k for k in keys[first:] if k not in preset_keys]
@@ -58,10 +69,13 @@ def plot_one_set(data, config, out_stem):
     """Draw Fig. 7 from :func:`experiments.fig7_doubled_defocus.compute`'s dict; returns the paths.
 
     Per scene: an image row and a map row of the ``paper`` preset (the reproduction; maps on one
-    colour scale, "σ (px)"), then one row per further preset of ``config.presets`` (e.g.
-    ``robust``): its two magnified results and its f/8, 2 × f/8 and f/4 maps. Then bar charts of the
-    map MAE against σ_gt(f/4) and of the PSNR / SSIM against the real f/4 render, every preset's
-    bars labelled with its name. The image rows show both readings of Sec. 5's map floor
+    colour scale, "σ (px)"), one row per further preset of ``config.presets`` (e.g. ``robust``):
+    its two magnified results and its f/8, 2 × f/8 and f/4 maps, and one row per further renderer
+    (e.g. ``scatter``): its estimated-map and oracle results, and the |error| against the f/4 render
+    of the gather's and its linear oracle result (colour bar "|error| (sRGB)") beside the f/4
+    render's occlusion band. Then bar charts of the map MAE against σ_gt(f/4) and of the PSNR /
+    SSIM against the real f/4 render, overall and in the occlusion band, every preset's bars
+    labelled with its name. The image rows show both readings of Sec. 5's map floor
     (``floor="clamp"``, the default, and ``floor="subtract"``); the paper's map row the f/8 map after
     the ``"subtract"`` preprocessing.
     """
@@ -69,10 +83,11 @@ def plot_one_set(data, config, out_stem):
     k = config.factor
     nl, ns = config.f_number_large_aperture, config.f_number_small_aperture
     others = _others(data, config)
-    rows = 2 + len(others)
+    rows = 2 + len(others) + len(_renderers(data, config))
     with plt.rc_context(_RC):
-        fig = plt.figure(figsize=(13.5, 2.3 * rows * len(scenes) + 3.2 + 0.3 * len(others)), layout="constrained")
-        subs = fig.subfigures(len(scenes) + 1, 1, height_ratios=[float(rows)] * len(scenes) + [1.4 + 0.15 * len(others)])
+        fig = plt.figure(figsize=(13.5, 2.3 * rows * len(scenes) + 6.0 + 0.6 * len(others)), layout="constrained")
+        subs = fig.subfigures(len(scenes) + 1, 1,
+                              height_ratios=[float(rows)] * len(scenes) + [2.6 + 0.3 * len(others)])
         for sub, scene in zip(subs, scenes):
             _scene_rows(sub, data, scene, config, k, ns, nl, others)
         _bars(subs[-1], data, config, others)
@@ -87,7 +102,7 @@ def _off(ax):
 
 def _scene_rows(sub, data, scene, config, k, ns, nl, others=()):
     m = data["metrics"]["scenes"][scene]
-    axes = sub.subplots(2 + len(others), 5)
+    axes = sub.subplots(2 + len(others) + len(_renderers(data, config)), 5)
     q = m["image_vs_large"]
     pp = "paper: " if others else ""
     imgs = [("image_small", f"{scene}: f/{ns:g} input", q["unchanged_small"]),
@@ -127,6 +142,30 @@ def _scene_rows(sub, data, scene, config, k, ns, nl, others=()):
         _map_panel(row[4], data[f"{scene}__{pname}__map_large"], f"{pname}: f/{nl:g} map", pmm["map_large"], vmax, nl)
         map_axes += list(row[2:])
     add_colorbar(sub, map_axes, im, "σ (px)")
+    for row, renderer in zip(axes[2 + len(others):], _renderers(data, config)):
+        _renderer_row(sub, row, data, scene, renderer, q, k, ns)
+
+
+def _renderer_row(sub, row, data, scene, renderer, q, k, ns):
+    """Estimated and oracle results of ``renderer``; |error| of the gather's and its oracle (linear) result."""
+    _image_panel(row[0], data[f"{scene}__magnified_{renderer}"], f"{renderer}: f/{ns:g} ×{k:g}, estimated map",
+                 q[f"magnified_estimated_{renderer}"])
+    _image_panel(row[1], data[f"{scene}__magnified_oracle_linear_{renderer}"],
+                 f"{renderer}: ×{k:g} with oracle σ_d (linear)", q[f"magnified_oracle_linear_{renderer}"])
+    ref = data[f"{scene}__image_large"].astype(np.float64)
+    err = {name: np.abs(data[f"{scene}__magnified_oracle_linear{sx}"] - ref).mean(axis=-1)
+           for name, sx in (("gather", ""), (renderer, f"_{renderer}"))}
+    vmax = max(float(np.percentile(np.concatenate([e.ravel() for e in err.values()]), 99.5)), 1e-3)
+    im = None
+    for ax, (name, e) in zip(row[2:4], err.items()):
+        key = "magnified_oracle_linear" + ("" if name == "gather" else f"_{renderer}")
+        im = ax.imshow(e, cmap="magma", vmin=0, vmax=vmax)
+        ax.set_title(f"|{name} oracle (linear) − f/4|\nocclusion band PSNR {float(q[key]['psnr_occlusion_db']):.1f} dB")
+        _off(ax)
+    add_colorbar(sub, list(row[2:4]), im, "|error| (sRGB)")
+    row[4].imshow(data[f"{scene}__occlusion"].astype(float), cmap="gray", vmin=0, vmax=1)
+    row[4].set_title("occlusion band of the f/4 render\n(white: within a CoC radius + 1 px\nof a depth jump)")
+    _off(row[4])
 
 
 def _image_panel(ax, img, title, qq):
@@ -149,11 +188,12 @@ def _map_panel(ax, arr, title, mt, vmax, nl):
 
 
 def _bars(sub, data, config, others=()):
-    ax_map, ax_psnr, ax_ssim = sub.subplots(1, 3)
+    ax_map, ax_psnr, ax_ssim, ax_occ = sub.subplots(1, 4)
     scenes = config.scenes
     presets = ["paper", *others]
+    present = set(data["metrics"]["scenes"][scenes[0]]["image_vs_large"])
     map_cats = _categories(_MAP_LABELS, _PRESET_MAPS, presets)
-    img_cats = _categories(_IMAGE_LABELS, _PRESET_IMAGES, presets)
+    img_cats = _categories(_IMAGE_LABELS, _PRESET_IMAGES, presets, present)
     width = 0.8 / len(scenes)
     for j, scene in enumerate(scenes):
         col = COLORS[j % len(COLORS)]
@@ -164,16 +204,23 @@ def _bars(sub, data, config, others=()):
         q = [_scene_metrics(data, scene, p)["image_vs_large"][key] for p, key, _ in img_cats]
         ax_psnr.bar(x, [float(v["psnr_db"]) for v in q], width, color=col, label=scene)
         ax_ssim.bar(x, [v["ssim"] for v in q], width, color=col, label=scene)
+        ax_occ.bar(x, [float(v.get("psnr_occlusion_db", float("nan"))) for v in q], width, color=col, label=scene)
     off = 0.4 - width / 2
     ax_map.set_xticks(np.arange(len(map_cats)) + off, [c[2] for c in map_cats], rotation=25, ha="right")
     ax_map.set_ylabel(f"MAE vs σ_gt(f/{config.f_number_large_aperture:g}) (px)")
     ax_map.set_title("maps (occlusion bands excluded)")
-    for ax, lab in ((ax_psnr, "PSNR vs real f/4 (dB)"), (ax_ssim, "SSIM vs real f/4")):
-        ax.set_xticks(np.arange(len(img_cats)) + off, [c[2] for c in img_cats], rotation=25, ha="right")
+    for ax, lab in ((ax_psnr, "PSNR vs real f/4 (dB)"), (ax_ssim, "SSIM vs real f/4"),
+                    (ax_occ, "PSNR in the occlusion band (dB)")):
+        ax.set_xticks(np.arange(len(img_cats)) + off, [c[2] for c in img_cats], rotation=35, ha="right",
+                      fontsize=6)
         ax.set_ylabel(lab)
     qs = [_scene_metrics(data, s, p)["image_vs_large"][key] for s in scenes for p, key, _ in img_cats]
     ax_psnr.set_ylim(bottom=max(0.0, min(float(v["psnr_db"]) for v in qs) - 3.0))
     ax_ssim.set_ylim(bottom=max(0.0, min(v["ssim"] for v in qs) - 0.05), top=1.0)
+    occ = [float(v["psnr_occlusion_db"]) for v in qs if np.isfinite(float(v.get("psnr_occlusion_db", np.nan)))]
+    if occ:
+        ax_occ.set_ylim(bottom=max(0.0, min(occ) - 3.0))
     ax_psnr.set_title("images vs the real f/4 render")
     ax_ssim.set_title("images vs the real f/4 render")
+    ax_occ.set_title("occlusion band (f/4 render)")
     ax_map.legend()

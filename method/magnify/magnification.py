@@ -4,7 +4,23 @@ The paper renders with Photoshop's lens blur; this module does its own spatially
 that every pixel's total blur becomes ``factor × B(p)``. For Gaussian blur, σ's add in quadrature,
 so the extra blur is σ_e(p) = √(factor² − 1)·B(p).
 
-Kernels (:data:`MAGNIFICATION_KERNELS`):
+Renderers (:data:`MAGNIFICATION_RENDERERS`), both adding the extra blur σ_e(p):
+
+* ``"gather"`` (default; the paper preset's path): every output pixel interpolates, per pixel, a
+  stack of uniformly blurred copies of the image (no occlusion: a blurry background bleeds over a
+  sharp subject and the subject leaks into it). Kernel shape: ``kernel``.
+* ``"scatter"``: every pixel spreads its linear radiance over its own disk (or hexagon) of σ_e,
+  composited in occlusion layers (sharper = nearer), normalised by the accumulated weight
+  (:mod:`method.magnify.scatter`). Aperture shape: ``aperture``.
+
+Encodings (:data:`MAGNIFICATION_ENCODINGS`): what the image's values are, hence in which space the
+renderer blends them — ``"display"`` (values in [0, 1] blended as given, the paper's path and the
+gather's default), ``"srgb"`` (decoded to linear light by the sRGB transfer function of
+colour-science, blurred, re-encoded; the scatter's default: a lens adds light, not sRGB values) or
+``"linear"`` (linear radiance ≥ 0 that may exceed 1, e.g. a render's highlights; blurred as given
+and returned unclipped).
+
+Kernels of the gather (:data:`MAGNIFICATION_KERNELS`):
 
 * ``"gaussian"`` (default): sampled, normalised Gaussian of std σ_e.
 * ``"disk"``: uniform disk (anti-aliased, normalised) of radius R = 2σ_e — a disk of radius R has
@@ -28,14 +44,19 @@ of the defocus map and clamping its minimum value to 0". Two readings:
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Callable
+
 import numpy as np
 from scipy import fft as sfft
 from scipy import ndimage
 
 from ..validation import validate_image, validate_map
 from ..registry import Entry, Registry
+from .scatter import APERTURES, scatter_blur
 
-__all__ = ["MAGNIFICATION_KERNELS", "MAP_FLOOR_MODES", "check_extra_blur", "magnify_defocus", "preprocess_defocus_map"]
+__all__ = ["MAGNIFICATION_ENCODINGS", "MAGNIFICATION_KERNELS", "MAGNIFICATION_RENDERERS", "MAP_FLOOR_MODES",
+           "check_extra_blur", "magnify_defocus", "preprocess_defocus_map"]
 
 #: Ratio between the σ of consecutive blur-stack levels (levels 0, 0.5 px, 0.5·√2 px, ...).
 LEVEL_RATIO = 2.0**0.5
@@ -273,21 +294,114 @@ def check_extra_blur(factor: float, defocus_map: np.ndarray, shape, *, name: str
     return extra
 
 
-def magnify_defocus(image, defocus_map, *, factor=2.0, kernel="gaussian", clip_percent=5.0,
-                    smoothing=0.005, floor="clamp", preprocess=True) -> np.ndarray:
+#: Code values of the sRGB decoding table (16 bits: 8-bit samples k/255 are the codes 257·k).
+SRGB_TABLE_CODES = 65535
+_SRGB_TABLE: list = []
+
+
+def _srgb_decode(x):
+    """colour-science's sRGB decoding; looked up in a table of its values when every sample is a 16-bit code."""
+    import colour
+
+    x = np.clip(x, 0.0, 1.0)
+    codes = np.rint(x * SRGB_TABLE_CODES)
+    if np.array_equal(codes / SRGB_TABLE_CODES, x):  # 8/16-bit photos: same numbers, ~5× faster
+        if not _SRGB_TABLE:
+            _SRGB_TABLE.append(colour.cctf_decoding(np.arange(SRGB_TABLE_CODES + 1) / SRGB_TABLE_CODES, function="sRGB"))
+        return _SRGB_TABLE[0][codes.astype(np.int32)]
+    return colour.cctf_decoding(x, function="sRGB")
+
+
+def _srgb_encode(x):
+    import colour
+
+    return np.clip(colour.cctf_encoding(np.clip(x, 0.0, 1.0), function="sRGB"), 0.0, 1.0)
+
+
+#: What the image's values are, by name: value = (to the blending space, back), None for as given.
+MAGNIFICATION_ENCODINGS = Registry("encoding", {
+    "display": Entry(None, "values in [0, 1] blended as given (the paper's path)"),
+    "srgb": Entry((_srgb_decode, _srgb_encode), "sRGB values: blended in linear light, re-encoded"),
+    "linear": Entry(None, "linear radiance >= 0, may exceed 1: blended as given, not clipped"),
+})
+
+
+@dataclasses.dataclass(frozen=True)
+class Renderer:
+    """A magnification renderer: ``render(image HxWxC, sigma_extra HxW px, **options) -> HxWxC``.
+
+    Attributes
+    ----------
+    render : callable
+        Keyword options: ``kernel``, ``aperture``, ``in_front``, ``progress`` (each renderer reads
+        the ones its entry's capabilities name).
+    default_encoding : str
+        Key of :data:`MAGNIFICATION_ENCODINGS` used when ``encoding=None``.
+    """
+
+    render: Callable
+    default_encoding: str
+
+
+def _render_gather(image, sigma_extra, *, kernel, aperture, in_front, progress):
+    out = blur_stack_apply(image, sigma_extra, kernel)
+    return np.where((sigma_extra == 0)[..., None], image, out)
+
+
+def _render_scatter(image, sigma_extra, *, kernel, aperture, in_front, progress):
+    return scatter_blur(image, sigma_extra, aperture=aperture, in_front=in_front, progress=progress)
+
+
+#: Magnification renderers, by name (module docstring). Capabilities: the options each one reads.
+MAGNIFICATION_RENDERERS = Registry("magnification renderer", {
+    "gather": Entry(Renderer(_render_gather, "display"),
+                    "per-pixel interpolation of a blur stack, no occlusion (the paper preset's path)",
+                    capabilities={"kernel"}),
+    "scatter": Entry(Renderer(_render_scatter, "srgb"),
+                     "each pixel spreads its linear radiance over its disk/hexagon, occlusion by σ layers",
+                     capabilities={"aperture", "occlusion"}),
+})
+
+
+def _check_renderer_options(renderer, kernel, aperture, in_front, encoding, shape):
+    """(renderer, kernel, aperture, in_front, encoding) validated, defaults filled in; ValueError otherwise."""
+    MAGNIFICATION_RENDERERS.check(renderer, what="renderer")
+    caps = MAGNIFICATION_RENDERERS.entry(renderer).capabilities
+    for name, value, cap in (("kernel", kernel, "kernel"), ("aperture", aperture, "aperture"),
+                             ("in_front", in_front, "occlusion")):
+        if value is not None and cap not in caps:
+            users = ", ".join(repr(n) for n in sorted(MAGNIFICATION_RENDERERS.having(cap)))
+            raise ValueError(f"{name} applies to the {users} renderer, not to renderer={renderer!r}")
+    kernel = MAGNIFICATION_KERNELS.check(kernel or "gaussian", what="kernel")
+    aperture = APERTURES.check(aperture or "disk", what="aperture")
+    encoding = MAGNIFICATION_ENCODINGS.check(encoding or MAGNIFICATION_RENDERERS[renderer].default_encoding,
+                                             what="encoding")
+    if in_front is not None:
+        in_front = np.asarray(in_front)
+        if in_front.shape != tuple(shape[:2]) or in_front.dtype != bool:
+            raise ValueError(f"in_front must be a bool array of shape {tuple(shape[:2])}, got {in_front.dtype} "
+                             f"{in_front.shape}")
+    return kernel, aperture, in_front, encoding
+
+
+def magnify_defocus(image, defocus_map, *, factor=2.0, kernel=None, clip_percent=5.0, smoothing=0.005,
+                    floor="clamp", preprocess=True, renderer="gather", aperture=None, encoding=None, in_front=None,
+                    progress: Callable[[str], None] | None = None) -> np.ndarray:
     """Magnify the defocus of a photo: blur each pixel so its total blur is factor·B(p) (Sec. 5).
 
     Parameters
     ----------
-    image : ndarray, HxW or HxWx3, float in [0, 1]
-        The photo.
+    image : ndarray, HxW or HxWx3, float
+        The photo: values in [0, 1] (``encoding`` ``"display"`` or ``"srgb"``) or linear radiance
+        ≥ 0 (``"linear"``).
     defocus_map : ndarray, HxW, float
         Dense blur σ B(p), px (the propagated map). With ``preprocess=False`` it must be ≥ 0.
     factor : float, keyword-only
         Magnification k ≥ 1 (2 doubles the aperture diameter). k < 1 would need deblurring and is
         rejected; k = 1 returns the image unchanged.
-    kernel : str, keyword-only
-        Key of :data:`MAGNIFICATION_KERNELS`: ``"gaussian"`` (default) or ``"disk"`` (radius 2σ_e).
+    kernel : str or None, keyword-only
+        Gather only: key of :data:`MAGNIFICATION_KERNELS`, ``"gaussian"`` (None: the default) or
+        ``"disk"`` (radius 2σ_e).
     clip_percent, smoothing : float, keyword-only
         Map preprocessing, see :func:`preprocess_defocus_map` (paper: 5 %, 0.5 %).
     floor : str, keyword-only
@@ -298,31 +412,54 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel="gaussian", clip_p
         ``"shift"`` (B − p_lo). Checked even when ``preprocess=False``, where it is not used.
     preprocess : bool, keyword-only
         Apply :func:`preprocess_defocus_map` first (paper: yes).
+    renderer : str, keyword-only
+        Key of :data:`MAGNIFICATION_RENDERERS`: ``"gather"`` (default, the paper preset's path) or
+        ``"scatter"`` (:mod:`method.magnify.scatter`).
+    aperture : str or None, keyword-only
+        Scatter only: key of :data:`method.magnify.scatter.APERTURES`, ``"disk"`` (None: the
+        default) or ``"hexagon"``.
+    encoding : str or None, keyword-only
+        Key of :data:`MAGNIFICATION_ENCODINGS` (None: the renderer's default, ``"display"`` for the
+        gather, ``"srgb"`` for the scatter).
+    in_front : ndarray of bool, HxW, optional, keyword-only
+        Scatter only: pixels in front of the focus plane (:func:`method.magnify.scatter.layer_index`).
+    progress : callable, optional, keyword-only
+        Scatter: called with ``"scatter layer i/n"`` before each occlusion layer.
 
     Returns
     -------
-    ndarray, same shape as ``image``, float64 in [0, 1]
+    ndarray, same shape as ``image``, float64
+        In [0, 1], except with ``encoding="linear"`` (≥ 0, not clipped).
 
     Raises
     ------
     ValueError
         Bad image, map shape mismatch, NaN/Inf, negative map without preprocessing, factor < 1,
-        unknown kernel, unknown floor, an extra blur σ_e above the image size (:func:`check_extra_blur`).
+        unknown renderer, kernel, aperture, encoding or floor, an option the renderer does not take,
+        an extra blur σ_e above the image size (:func:`check_extra_blur`).
 
     Notes
     -----
     1. Optionally preprocess the map (clip percentiles, remove the floor as ``floor`` says,
        Gaussian blur).
-    2. Extra blur per pixel σ_e = √(factor² − 1)·B (Gaussians add in quadrature).
-    3. Blur stack: level 0 = the image, levels ℓ ≥ 1 = image ⊛ kernel(σ_ℓ), σ_ℓ = 0.5·√2^(ℓ−1) px,
-       up to max σ_e, computed by FFT with symmetric padding.
-    4. Per pixel, linear interpolation between the two levels whose kernel variances v_ℓ bracket
-       σ_e²; interpolating in variance makes the second moment of the effective kernel exactly σ_e²
-       (v_ℓ are the measured variances of the discrete kernels). Level 0 enters with weight exactly
-       1 where σ_e = 0, so factor = 1 and a zero map return the input bit for bit.
-    5. Clip to [0, 1] (kernels are non-negative, so only round-off is clipped).
+    2. Extra blur per pixel σ_e = √(factor² − 1)·B (Gaussians add in quadrature; for the scatter's
+       disks, the per-axis variances add the same way).
+    3. ``encoding="srgb"``: decode to linear light.
+    4. Gather: blur stack, level 0 = the image, levels ℓ ≥ 1 = image ⊛ kernel(σ_ℓ), σ_ℓ = 0.5·√2^(ℓ−1)
+       px, up to max σ_e, computed by FFT with symmetric padding; per pixel, linear interpolation
+       between the two levels whose kernel variances v_ℓ bracket σ_e² (the second moment of the
+       effective kernel is exactly σ_e²; v_ℓ are the measured variances of the discrete kernels).
+       Level 0 enters with weight exactly 1 where σ_e = 0, so factor = 1 and a zero map return the
+       input bit for bit. Scatter: :func:`method.magnify.scatter.scatter_blur` of σ_e.
+    5. Re-encode (``"srgb"``; a pixel the blur left unchanged is returned as given, bit for bit); clip
+       to [0, 1] (``"display"``: kernels are non-negative, so only round-off is clipped) or to ≥ 0
+       (``"linear"``).
     """
-    image = validate_image(image, min_side=1)
+    kernel, aperture, in_front, encoding = _check_renderer_options(renderer, kernel, aperture, in_front, encoding,
+                                                                   np.shape(image))
+    image = validate_image(image, min_side=1, check_range=encoding != "linear")
+    if encoding == "linear" and image.size and float(image.min()) < 0:
+        raise ValueError(f"image (linear radiance) must be >= 0, got min {float(image.min()):.6g}")
     m = _check_map(defocus_map, image.shape)
     try:
         factor = float(factor)
@@ -331,7 +468,6 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel="gaussian", clip_p
     if not (np.isfinite(factor) and factor >= 1.0):
         raise ValueError(f"factor={factor!r} is invalid; allowed: finite and >= 1 "
                          "(factor < 1 would need deblurring, which this module does not do)")
-    MAGNIFICATION_KERNELS.check(kernel, what="kernel")
     floor = _check_floor(floor)
     if preprocess:
         m = preprocess_defocus_map(m, clip_percent=clip_percent, smoothing=smoothing, floor=floor)
@@ -343,7 +479,11 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel="gaussian", clip_p
     if factor == 1.0 or not np.any(sigma_extra > 0):
         return image64.copy()
     img3 = image64 if image64.ndim == 3 else image64[..., None]
-    out = blur_stack_apply(img3, sigma_extra, kernel)
-    out = np.where((sigma_extra == 0)[..., None], img3, out)
-    out = np.clip(out, 0.0, 1.0)
+    transfer = MAGNIFICATION_ENCODINGS[encoding]
+    work = transfer[0](img3) if transfer else img3
+    out = MAGNIFICATION_RENDERERS[renderer].render(work, sigma_extra, kernel=kernel, aperture=aperture,
+                                                   in_front=in_front, progress=progress)
+    if transfer:  # pixels the blur left unchanged are returned as given, without the round trip's rounding
+        out = np.where(np.all(out == work, axis=-1, keepdims=True), img3, transfer[1](out))
+    out = np.maximum(out, 0.0) if encoding == "linear" else np.clip(out, 0.0, 1.0)
     return out if image.ndim == 3 else out[..., 0]

@@ -396,17 +396,27 @@ def upsample_defocus_map(working_map, working_image, full_image, *, scale, remov
 DEFAULT_TILE_PIXELS = 4_000_000
 
 
-def _halo(sigma_extra_max: float) -> int:
-    """Context (px) a tile needs on each side: the largest blur-stack kernel's radius, with margin.
+#: Tiles of the scatter renderer start on multiples of its coarsest block (method.magnify.scatter.MAX_LEVEL).
+_SCATTER_ALIGN = 8
 
-    The stack's levels grow by √2 from 0.5 px and stop at the first ≥ max σ_e, so the largest level
-    is ≤ max(√2·σ_e, 0.5); Gaussian kernels reach 4σ, disks 2σ.
+
+def _halo(sigma_extra_max: float, renderer: str = "gather") -> int:
+    """Context (px) a tile needs on each side: the farthest reach of a pixel's blur, with margin.
+
+    Gather: the stack's levels grow by √2 from 0.5 px and stop at the first ≥ max σ_e, so the
+    largest level is ≤ max(√2·σ_e, 0.5); Gaussian kernels reach 4σ, disks 2σ. Scatter: a pixel's
+    disk (or hexagon, ≤ 1.1 × the disk's radius) of radius ≈ 2σ_e, and the occlusion test looks no
+    farther, plus two of its coarsest blocks (their splat and upsampling reach one block each way),
+    rounded up to whole blocks so that every tile's blocks line up with the whole photo's.
     """
+    if renderer == "scatter":
+        return _SCATTER_ALIGN * math.ceil((2.5 * sigma_extra_max + 2 * _SCATTER_ALIGN + 3) / _SCATTER_ALIGN)
     return int(math.ceil(4.0 * max(math.sqrt(2.0) * sigma_extra_max, 0.5))) + 2
 
 
-def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel="gaussian", clip_percent=5.0,
+def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel=None, clip_percent=5.0,
                           smoothing=0.005, preprocess=True, tile_pixels=DEFAULT_TILE_PIXELS,
+                          renderer="gather", aperture=None, encoding=None,
                           progress: Callable[[str], None] | None = None) -> np.ndarray:
     """:func:`method.magnify.magnification.magnify_defocus` for large photos, in overlapping tiles.
 
@@ -416,13 +426,14 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel="gaussian", 
         The full-resolution photo.
     defocus_map : ndarray, HxW, float
         Dense blur σ, px of ``image``.
-    factor, kernel, clip_percent, smoothing, preprocess : keyword-only
+    factor, kernel, clip_percent, smoothing, preprocess, renderer, aperture, encoding : keyword-only
         As :func:`method.magnify.magnification.magnify_defocus` (factor ≥ 1).
     tile_pixels : int, keyword-only
         Pixels of one tile, halo included; bounds the working memory (≈ 290 B/px). A photo that fits
         is magnified in one call, exactly as :func:`~method.magnify.magnification.magnify_defocus` does.
     progress : callable, optional, keyword-only
-        Called with ``"magnify i/n"`` before each tile.
+        Called with ``"magnify i/n"`` before each tile (``"magnify i/n: scatter layer j/m"`` within
+        a tile of the scatter renderer).
 
     Returns
     -------
@@ -432,13 +443,14 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel="gaussian", 
     -----
     1. Preprocess the whole map once (Sec. 5: percentile clip, clamp ≥ 0, Gaussian blur with
        σ = smoothing·max(H, W)) — global operations, so never per tile.
-    2. Halo = radius of the largest blur-stack kernel the map needs (4·√2·max σ_e + 2 px).
+    2. Halo = the farthest reach of the blur the map needs (:func:`_halo`: gather 4·√2·max σ_e + 2 px,
+       scatter 2.5·max σ_e + 3 px).
     3. Square cores of side √tile_pixels − 2·halo (≥ 256 px); each core is magnified with its halo
        of real neighbouring pixels (``preprocess=False``) and the halo is dropped. Inside the photo a
        core pixel sees exactly the data the whole-image call would; at the photo's borders the
-       magnifier's symmetric padding is the same. Results agree with the whole-image call up to
-       FFT round-off (and, rarely, a blur-stack level a tile does not build: ≲ 1e-3 of a level
-       difference).
+       magnifier's padding (gather) or renormalisation (scatter) is the same. Results agree with the
+       whole-image call up to FFT round-off (and, for the gather, rarely, a blur-stack level a tile
+       does not build: ≲ 1e-3 of a level difference).
     """
     from .magnification import check_extra_blur, magnify_defocus, preprocess_defocus_map
 
@@ -448,23 +460,27 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel="gaussian", 
     if not (isinstance(tile_pixels, (int, np.integer)) and tile_pixels >= 256 * 256):
         raise ValueError(f"tile_pixels={tile_pixels!r} invalid; allowed: integer >= {256 * 256}")
 
-    def call(img, mp):
-        return magnify_defocus(img, mp, factor=factor, kernel=kernel, preprocess=False)
+    def call(img, mp, label):
+        inner = None if progress is None else (lambda stage: progress(f"{label}: {stage}"))
+        return magnify_defocus(img, mp, factor=factor, kernel=kernel, preprocess=False, renderer=renderer,
+                               aperture=aperture, encoding=encoding, progress=inner)
 
     H, W = image.shape[:2]
     if H * W <= tile_pixels or m.shape != (H, W):
         if progress is not None:
             progress("magnify 1/1")
-        return call(image, m)  # validates everything (shape mismatch included)
+        return call(image, m, "magnify 1/1")  # validates everything (shape mismatch included)
     try:
         f = float(factor)
     except (TypeError, ValueError):
-        return call(image, m)  # let the magnifier word the error
+        return call(image, m, "magnify")  # let the magnifier word the error
     if not (np.isfinite(f) and f >= 1.0) or not np.all(np.isfinite(m)):
-        return call(image, m)
+        return call(image, m, "magnify")
     check_extra_blur(f, m, image.shape)  # before sizing the halo (a huge factor would need huge tiles)
-    halo = _halo(math.sqrt(f * f - 1.0) * float(m.max(initial=0.0)))
+    halo = _halo(math.sqrt(f * f - 1.0) * float(m.max(initial=0.0)), renderer)
     core = max(256, int(math.isqrt(int(tile_pixels))) - 2 * halo)
+    if renderer == "scatter":
+        core -= core % _SCATTER_ALIGN
     ys, xs = range(0, H, core), range(0, W, core)
     n = len(ys) * len(xs)
     out = np.empty(image.shape, dtype=np.float64)
@@ -477,6 +493,7 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel="gaussian", 
             y1, x1 = min(H, y0 + core), min(W, x0 + core)
             a0, a1 = max(0, y0 - halo), min(H, y1 + halo)
             b0, b1 = max(0, x0 - halo), min(W, x1 + halo)
-            tile = call(np.ascontiguousarray(image[a0:a1, b0:b1]), np.ascontiguousarray(m[a0:a1, b0:b1]))
+            tile = call(np.ascontiguousarray(image[a0:a1, b0:b1]), np.ascontiguousarray(m[a0:a1, b0:b1]),
+                        f"magnify {i}/{n}")
             out[y0:y1, x0:x1] = tile[y0 - a0:y1 - a0, x0 - b0:x1 - b0]
     return out

@@ -3,6 +3,7 @@ checks the rules across stages and keeps the flat interface every caller uses (`
 ``params.alpha``, ``replace``, ``changes_from``, ``dataclasses.fields`` / ``asdict`` / ``replace``, cache keys).
 """
 
+import copy
 import dataclasses
 import json
 import pickle
@@ -207,6 +208,7 @@ def test_value_semantics():
         p.interpolation = PropagationParams()
     for name in PRESETS:
         assert pickle.loads(pickle.dumps(PRESETS[name])) == PRESETS[name]
+        assert copy.deepcopy(PRESETS[name]) == PRESETS[name]
     assert "interpolation=PropagationParams(" in repr(p)
 
 
@@ -219,6 +221,14 @@ def test_dataclass_protocol_is_flat():
     assert dataclasses.replace(p, alpha=0.3) == p.replace(alpha=0.3)
     assert {f.name for f in dataclasses.fields(p)} == set(PAPER_BEFORE_THE_SPLIT)
     assert {f.name: f.default for f in dataclasses.fields(DefocusParams)} == _flat(DefocusParams())
+
+
+def test_dask_tokenizes_by_value():
+    """Dask's tokenize reads the dataclass protocol (fields and __dataclass_params__): equal parameters,
+    equal tokens; a changed field, another token."""
+    tokenize = pytest.importorskip("dask.base").tokenize
+    p = DefocusParams.preset("robust")
+    assert tokenize(p) == tokenize(DefocusParams(**_flat(p))) != tokenize(p.replace(alpha=0.3))
 
 
 def test_json_cache_key_is_deterministic_and_holds_every_field():

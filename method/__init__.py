@@ -7,8 +7,9 @@
 Subpackages, in the order of the paper's pipeline (:func:`estimate_defocus_map` runs them):
 :mod:`method.edges` (Sec. 3.1, Eq. 7–9), :mod:`method.blur` (Sec. 3.2: σ at edges and over textured
 regions), :mod:`method.refine` (Eq. 3), :mod:`method.propagation` (Eq. 4 and the cue fusion),
-:mod:`method.magnify` (Sec. 5: magnification, refocusing, working resolution). :mod:`method.params`
-holds :class:`DefocusParams`, :mod:`method.presets` the named parameter sets (:data:`PRESETS`), and
+:mod:`method.magnify` (Sec. 5: magnification, refocusing, working resolution); each stage's parameters
+are a frozen dataclass in its subpackage (``params.py``). :mod:`method.params` holds :class:`DefocusParams`,
+which composes them, :mod:`method.presets` the named parameter sets (:data:`PRESETS`), and
 :mod:`method.registry` the :class:`~method.registry.Registry` type every choice by name is a key of.
 """
 

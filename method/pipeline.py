@@ -287,7 +287,7 @@ def isolation_stage(gray, edge_map, sparse_sigma, *, params, confidence=None) ->
         The detector's output (edges and gradient direction θ).
     sparse_sigma : ndarray, shape (H, W), float
         Blur measures, px, NaN off edges (:func:`blur_stage`).
-    params : DefocusParams, keyword-only
+    params : EdgeParams or DefocusParams, keyword-only
         ``edge_isolation`` (not None), ``isolation_radius``, ``isolation_floor``.
     confidence : ndarray, shape (H, W), float in (0, 1], or None, keyword-only
         The estimator's confidence (None: 1).
@@ -310,7 +310,7 @@ def region_stage(gray, *, params, edge_psf=None):
     ----------
     gray : ndarray, shape (H, W), float
         Luminance in [0, 1] (:func:`luminance` of the sRGB input, as the edge fit sees it).
-    params : DefocusParams, keyword-only
+    params : RegionParams or DefocusParams, keyword-only
         ``region_estimator`` (None: no measures) and its options.
     edge_psf : {"gaussian", "disk"} or None, keyword-only
         The PSF family most edge measures were fitted with (``params.region_psf == "edges"``).
@@ -339,7 +339,7 @@ def refine_stage(sparse_sigma, rgb, *, params, confidence=None) -> np.ndarray:
         Blur σ, px, at edge pixels; NaN elsewhere (the estimator's output, or an oracle's).
     rgb : ndarray, HxWx3, float in [0, 1]
         Guide image.
-    params : DefocusParams, keyword-only
+    params : RefineParams or DefocusParams, keyword-only
         ``refine`` (False: the measures pass unchanged), ``bilateral_*``, ``sharpness_bias``,
         ``bias_scale`` with ``bias_reference`` (px, or a fraction of max(H, W)), ``refinement_robust_*``.
     confidence : ndarray, HxW, float in (0, 1], or None, keyword-only

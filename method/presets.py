@@ -1,16 +1,18 @@
 """Named parameter sets of the pipeline: ``paper`` (the reproduction) and measured variants beyond it.
 
 Each preset is a :class:`~method.params.DefocusParams`; a preset beyond the paper is written as its
-changes from the paper's defaults, one named field each, so each change is an ablation row of
-``experiments.stage_attribution``. The measurements behind every value: docs/presets.md.
+changes from the paper's defaults, one named field each (flat field names, whatever stage holds them),
+so each change is an ablation row of ``experiments.stage_attribution``. The measurements behind every
+value: docs/presets.md. This module fills :data:`method.params.PRESETS` (the registry
+:meth:`DefocusParams.preset` reads) and re-exports it.
 """
 
 from __future__ import annotations
 
 import math
 
-from .params import DefocusParams
-from .registry import Entry, Registry
+from .params import PRESETS, DefocusParams
+from .registry import Entry
 
 __all__ = ["PRESETS", "REGION_CUE_CHANGES", "ROBUST_CHANGES", "ZHUO_SIM_CHANGES"]
 
@@ -65,7 +67,7 @@ ZHUO_SIM_CHANGES: dict = {
 }
 
 #: name -> DefocusParams. ``"paper"`` is the literal reproduction and equals ``DefocusParams()``.
-PRESETS = Registry("preset", {
+PRESETS.update({
     "paper": Entry(DefocusParams(), "the paper's method and defaults (Bae & Durand 2007)"),
     "robust": Entry(DefocusParams(**ROBUST_CHANGES), "beyond the paper: checked fit in linear light, disk PSF"),
     "zhuo_sim": Entry(DefocusParams(**ZHUO_SIM_CHANGES), "Zhuo & Sim 2011 as their public code measures"),

@@ -56,7 +56,7 @@ def _as_entry(value) -> Entry:
         return value
     if isinstance(value, str):
         return Entry(summary=value)
-    doc = getattr(value, "__doc__", None) if callable(value) else None
+    doc = value.__doc__ if callable(value) else None
     return Entry(value, (doc or "").strip().split("\n", 1)[0])
 
 

@@ -6,8 +6,12 @@ import numpy as np
 
 __all__ = [
     "MIN_IMAGE_SIDE",
+    "check_field_choice",
     "check_odd",
     "check_positive",
+    "invalid_field",
+    "is_integer",
+    "require_field",
     "validate_guide",
     "validate_image",
     "validate_map",
@@ -217,3 +221,32 @@ def check_odd(name, value, minimum) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum or value % 2 == 0:
         raise ValueError(f"{name}={value!r} is invalid; allowed: odd integer >= {minimum}")
     return int(value)
+
+
+# --- parameter fields (the stage dataclasses of method.edges.params, method.blur.params, …) ---------------
+
+def invalid_field(name: str, value, allowed: str) -> ValueError:
+    """The error for a bad parameter field: ``DefocusParams.<name>=<value!r> is invalid; allowed: <allowed>``.
+
+    Every stage's parameters (:class:`method.edges.params.EdgeParams`, …) name their fields as
+    :class:`method.params.DefocusParams` spells them (one flat namespace), so the message is the same
+    whether the field was set on the stage or on the whole parameter set.
+    """
+    return ValueError(f"DefocusParams.{name}={value!r} is invalid; allowed: {allowed}")
+
+
+def require_field(params, name: str, ok: bool, allowed: str) -> None:
+    """Raise :func:`invalid_field` for field ``name`` of ``params`` unless ``ok``."""
+    if not ok:
+        raise invalid_field(name, getattr(params, name), allowed)
+
+
+def check_field_choice(params, name: str, registry, *, optional: bool = False) -> None:
+    """Field ``name`` of ``params`` must be a key of ``registry`` (or None with ``optional``); the
+    message comes from :meth:`method.registry.Registry.check`."""
+    registry.check(getattr(params, name), what=f"DefocusParams.{name}", optional=optional)
+
+
+def is_integer(value, minimum: int) -> bool:
+    """True for an int (not a bool) ≥ ``minimum``."""
+    return isinstance(value, int) and not isinstance(value, bool) and value >= minimum

@@ -146,7 +146,7 @@ def parse_params(specs) -> list[tuple[str, list]]:
     """
     from method import DefocusParams
 
-    fields = {f.name: f.type for f in dataclasses.fields(DefocusParams)}
+    fields = DefocusParams.field_types()
     out: dict[str, list] = {}
     for spec in specs or []:
         name, sep, values = str(spec).partition("=")

@@ -222,3 +222,52 @@ def test_function_length_checker_counts_code_only():
     assert _too_long_functions(over) == {"f:1": MAX_FUNCTION_CODE_LINES + 1}
     nested = "def outer():\n    def inner():\n        return 1\n    return inner\n"
     assert _function_code_lines(nested) == {"outer:1": 4, "inner:2": 2}
+
+
+def _getattr_defaults(source: str) -> list[int]:
+    """Lines of ``getattr(obj, name, default)`` calls in ``source``: a fallback that hides a missing
+    attribute (and drifts from the real default) where the attribute should simply be read."""
+    return sorted(node.lineno for node in ast.walk(ast.parse(source))
+                  if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "getattr"
+                  and (len(node.args) > 2 or node.keywords))
+
+
+def test_method_reads_attributes_without_getattr_fallbacks():
+    """Stage functions take their stage's parameters (or DefocusParams) and read real attributes."""
+    bad = {str(p.relative_to(ROOT)): lines for p in sorted((ROOT / "method").rglob("*.py"))
+           if (lines := _getattr_defaults(p.read_text(encoding="utf-8")))}
+    assert not bad, f"getattr with a default in method/: {bad}"
+
+
+def test_getattr_fallback_checker_sees_defaults_only():
+    source = "a = getattr(p, 'x', 16)\nb = getattr(p, name)\nc = obj.getattr(p, 'y', 1)\nd = getattr(p, 'z', None)\n"
+    assert _getattr_defaults(source) == [1, 4]
+
+
+def _relative_imports(path: Path) -> set[str]:
+    """Modules of ``method`` that ``path`` imports by a relative import (``from .x import y`` → ``x``)."""
+    return {node.module or "" for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+            if isinstance(node, ast.ImportFrom) and node.level == 1}
+
+
+def test_params_and_presets_do_not_import_each_other():
+    """Presets are instances of DefocusParams (presets imports params); params never imports presets
+    (it reads the registry presets fills), and no stage's parameters import the composition."""
+    assert "params" in _relative_imports(ROOT / "method" / "presets.py")
+    assert "presets" not in _relative_imports(ROOT / "method" / "params.py")
+    assert "method.presets" not in _imports_full(ROOT / "method" / "params.py")
+    for stage in sorted((ROOT / "method").glob("*/params.py")):
+        text = stage.read_text(encoding="utf-8")
+        assert "from ..params" not in text and "from ..presets" not in text and "method.params" not in \
+            _imports_full(stage), stage
+
+
+def _imports_full(path: Path) -> set[str]:
+    """Absolute module names imported by ``path`` (``import a.b`` / ``from a.b import c`` → ``a.b``)."""
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            out.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            out.add(node.module)
+    return out

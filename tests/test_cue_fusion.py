@@ -26,6 +26,9 @@ REFERENCE = Path(__file__).parent / "references" / "cue_fusion_off.npz"
 #: Cross-CPU tolerance of stored σ maps, px: the paper golden's (tests/golden/paper_astronaut_tolerance.json,
 #: 10 × the largest deviation over numba/OpenBLAS/numpy-SIMD/thread configurations).
 ATOL_PX = 1.6e-7
+#: The region estimator's grid these unit tests place measures on: stride 16 px (the blocks of the
+#: 16×16 example below), windows clip(12·σ, 16, 96) px.
+GRID = {"stride": 16, "window": (12.0, 16, 96)}
 _FIELDS = ("edges", "sparse_sigma", "refined_sigma", "defocus_map", "measure_confidence")
 
 
@@ -55,7 +58,8 @@ def test_no_term_stays_nan_and_edge_only_pixels_are_unchanged():
 def test_region_weight_is_relative_inverse_variance():
     sig = np.array([[2.0, 4.0]])
     info = np.array([[1.0 / 0.04, np.inf]])  # variance 0.04 px², then exact
-    s, w = region_data_term(sig, info, edge_error_rel=0.5, region_error_rel=0.25, region_weight=2.0, placement="blocks")
+    s, w = region_data_term(sig, info, edge_error_rel=0.5, region_error_rel=0.25, region_weight=2.0,
+                            placement="blocks", **GRID)
     d2 = ERROR_FLOOR_PX ** 2
     v_r = np.array([0.04 + (0.25 * 2) ** 2 + d2, (0.25 * 4) ** 2 + d2])
     v_e = (0.5 * sig[0] + ERROR_FLOOR_PX) ** 2
@@ -63,9 +67,9 @@ def test_region_weight_is_relative_inverse_variance():
     np.testing.assert_array_equal(s, sig)
     # more information → more weight; no information → no term
     _, w_lo = region_data_term(sig, info / 100, edge_error_rel=0.5, region_error_rel=0.25, region_weight=2.0,
-                               placement="blocks")
+                               placement="blocks", **GRID)
     assert w_lo[0, 0] < w[0, 0] / 2.0 and w_lo[0, 1] == w[0, 1]
-    s0, w0 = region_data_term(sig, np.zeros_like(sig), placement="blocks")
+    s0, w0 = region_data_term(sig, np.zeros_like(sig), placement="blocks", **GRID)
     assert np.all(np.isnan(s0)) and np.all(w0 == 0)
 
 
@@ -74,8 +78,8 @@ def test_block_placement_spreads_a_measure_and_shares_its_weight():
     info = np.zeros((16, 16))
     sig[4::8, 4::8] = [[1.0, 2.0], [3.0, 4.0]]
     info[4::8, 4::8] = 1e6
-    s_c, w_c = region_data_term(sig, info, placement="centres")  # sparse input: as given
-    s_b, w_b = region_data_term(sig, info, placement="blocks")
+    s_c, w_c = region_data_term(sig, info, placement="centres", **GRID)  # sparse input: as given
+    s_b, w_b = region_data_term(sig, info, placement="blocks", **GRID)
     assert np.isfinite(s_c).sum() == 4 and np.all(np.isfinite(s_b))
     assert s_b[0, 0] == 1.0 and s_b[15, 15] == 4.0 and s_b[2, 13] == 2.0
     for v in (1.0, 2.0, 3.0, 4.0):  # each measure's total weight is kept
@@ -85,9 +89,9 @@ def test_block_placement_spreads_a_measure_and_shares_its_weight():
 def test_bad_options_are_refused_naming_the_allowed_values():
     sig, info = np.ones((4, 4)), np.ones((4, 4))
     with pytest.raises(ValueError, match="allowed"):
-        region_data_term(sig, info, placement="everywhere")
+        region_data_term(sig, info, placement="everywhere", **GRID)
     with pytest.raises(ValueError, match="allowed"):
-        region_data_term(sig, info, island_weight=-0.1)
+        region_data_term(sig, info, island_weight=-0.1, **GRID)
     with pytest.raises(ValueError, match="allowed"):
         DefocusParams(fusion_region_weight=0.0)
     with pytest.raises(ValueError, match="allowed"):

@@ -266,7 +266,7 @@ DENSE_HURTS = ("bilateral_range_kernel", "bilateral_sigma_spatial", "sharpness_b
 GAUSSIAN_IDENTICAL = ("fit_psf",)
 #: * identical on this σ ≤ 4 mosaic (no edge of it needs σ1 > 16 or σ2 > 8), and a faster detector
 #:   (no 64-px FFT padding level): the coarse-scale caps sigma1_scales ≤ 16, sigma2_scales ≤ 8
-#:   (their accuracy on σ 5–8 tiles and renders: method/params.py, the accuracy bench).
+#:   (their accuracy on σ 5–8 tiles and renders: docs/presets.md, the accuracy bench).
 SCALE_CAPS_IDENTICAL = ("sigma1_scales", "sigma2_scales")
 #: * the light of the edge stage: linear (a lens blurs linear radiance): judged on steps blurred in each
 #:   light (below) and on the lens bench, the renders and the photos (docs/presets.md).

@@ -41,7 +41,7 @@ def estimate_blur_gradient_ratio(gray, edge_map, *, params):
         Only ``edge_map.edges`` is used (the edge set: the Elder–Zucker edges of Sec. 3.1 by
         default, so that all estimators are compared on the same pixels; Zhuo & Sim's Canny edges
         with ``params.edge_detector="canny"``, :func:`method.edges.canny.detect_edges_canny`).
-    params : DefocusParams, keyword-only
+    params : BlurParams or DefocusParams, keyword-only
         Uses ``ratio_gradient_sigma`` σg (px), ``ratio_reblur_sigma`` σ0 (px), ``ratio_max_sigma``
         (px; None: ``max_sigma``) and ``ratio_zero_is_measure``.
 

@@ -25,7 +25,7 @@ def estimate_blur_gsm(gray, *, params, edge_psf=None):
     ----------
     gray : ndarray, HxW, float in [0, 1]
         Luminance of the sRGB input.
-    params : DefocusParams, keyword-only
+    params : RegionParams or DefocusParams, keyword-only
         The ``region_*`` fields (as :func:`method.blur.local_spectrum.estimate_blur_local_spectrum`).
     edge_psf : {"gaussian", "disk"} or None, keyword-only
         The edge fit's PSF family, used with ``params.region_psf == "edges"``.

@@ -432,7 +432,7 @@ def estimate_blur_local_spectrum(gray, *, params, edge_psf=None):
     ----------
     gray : ndarray, HxW, float in [0, 1]
         Luminance of the sRGB input (``method.luma.luminance``).
-    params : DefocusParams, keyword-only
+    params : RegionParams or DefocusParams, keyword-only
         Uses ``region_psf``, ``region_noise_model``, ``region_gate``, ``region_sigma_min`` / ``region_sigma_max``,
         ``region_window_min`` / ``region_window_max`` / ``region_window_scale`` and ``region_stride``.
     edge_psf : {"gaussian", "disk"} or None, keyword-only

@@ -139,10 +139,8 @@ def estimate_blur_model_fit_psf(gray, edge_map, *, params):
 
 def paper_rules(params) -> bool:
     """True when every beyond-the-paper model-fit switch of ``params`` is off."""
-    return (getattr(params, "fit_max_scale", None) is None and getattr(params, "fit_min_samples", 3) <= 3
-            and getattr(params, "fit_scale_ratio", 1.0) == 1.0
-            and not np.isfinite(getattr(params, "fit_max_width_ratio", np.inf))
-            and getattr(params, "fit_below_scale", "zero") == "zero")
+    return (params.fit_max_scale is None and params.fit_min_samples <= 3 and params.fit_scale_ratio == 1.0
+            and not np.isfinite(params.fit_max_width_ratio) and params.fit_below_scale == "zero")
 
 
 def apply_fit_rules(diagnostics, *, params) -> np.ndarray:
@@ -202,8 +200,8 @@ def fit_scales(edge_map, *, params):
         ``edge_map`` itself when both rules are off (the paper: fit at σ2(p)); else a copy whose
         σ2 is min(σ2(p), max(fit_scale_ratio · σ2(p), min(sigma2_scales)), fit_max_scale).
     """
-    ratio = float(getattr(params, "fit_scale_ratio", 1.0))
-    max_scale = getattr(params, "fit_max_scale", None)
+    ratio = float(params.fit_scale_ratio)
+    max_scale = params.fit_max_scale
     if ratio == 1.0 and max_scale is None:
         return edge_map
     s2 = np.asarray(edge_map.sigma2)
@@ -259,7 +257,7 @@ def model_fit_diagnostics(gray, edge_map, *, params):
     energy = np.full(img.shape, np.nan)
     diag = {"sigma_b": out, "residual": res, "window": win, "width": width, "sigma2": s2_map,
             "energy": energy, "disk": np.zeros(img.shape, dtype=bool)}
-    psf = getattr(params, "fit_psf", "gaussian")
+    psf = params.fit_psf
     FIT_PSF_MODELS.check(psf, what="fit_psf")
     disk_table = response_table() if psf != "gaussian" else EMPTY_DISK_TABLE
     disk_width = np.full(img.shape, np.nan) if psf != "gaussian" else None

@@ -89,8 +89,7 @@ def noise_residual_share(diagnostics, *, noise_std):
 def relaxed_confidence_used(params) -> bool:
     """Whether ``params`` give relaxed measures a confidence below 1: ``fit_residual_noise`` > 0 and
     ``relaxed_fit_weight`` < 1 (else every measure of this estimator weighs 1)."""
-    return (float(getattr(params, "fit_residual_noise", 0.0)) > 0
-            and float(getattr(params, "relaxed_fit_weight", 1.0)) < 1.0)
+    return float(params.fit_residual_noise) > 0 and float(params.relaxed_fit_weight) < 1.0
 
 
 def estimate_blur_model_fit_checked(gray, edge_map, *, params):
@@ -200,14 +199,14 @@ def _checked(diagnostics, params):
         sigma_b = apply_fit_rules(diagnostics, params=params)
     strict_limit = float(params.fit_max_residual)
     limit = strict_limit
-    k = float(getattr(params, "fit_residual_noise", 0.0))
+    k = float(params.fit_residual_noise)
     if k > 0:  # beyond the paper: allow the residual that the sensor noise alone leaves (Notes, 4)
         limit = limit + k * noise_residual_share(diagnostics, noise_std=params.noise_std)
     with np.errstate(invalid="ignore"):
         good = residual <= limit  # False where residual is NaN
         strict = residual <= strict_limit
     sigma_b = np.where(good, sigma_b, np.nan)
-    c_relaxed = float(getattr(params, "relaxed_fit_weight", 1.0))
+    c_relaxed = float(params.relaxed_fit_weight)
     confidence = np.where(strict, 1.0, c_relaxed)
     confidence[~np.isfinite(sigma_b)] = np.nan
     return sigma_b, confidence

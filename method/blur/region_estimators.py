@@ -37,7 +37,7 @@ def estimate_region_blur(gray, *, params, edge_psf=None):
     ----------
     gray : ndarray, HxW (or HxWx3: its ``method.luma.luminance`` is used), float in [0, 1]
         Luminance of the sRGB input, as the edge fit sees it.
-    params : DefocusParams, keyword-only
+    params : RegionParams or DefocusParams, keyword-only
         ``region_estimator`` must be a key of :data:`REGION_ESTIMATORS` (not None).
     edge_psf : {"gaussian", "disk"} or None, keyword-only
         The PSF family the edge fit chose (used with ``params.region_psf == "edges"``).

@@ -69,7 +69,7 @@ def estimate_blur_zero_crossing(gray, edge_map, *, params):
         Luminance in [0, 1] (the image given to ``detect_edges``).
     edge_map : EdgeMap
         Edges, θ and minimum reliable σ2 from ``detect_edges``.
-    params : DefocusParams, keyword-only
+    params : BlurParams or DefocusParams, keyword-only
         Uses ``fit_window_max`` (search reaches (fit_window_max − 1)/2 px on each side) and
         ``max_sigma``.
 

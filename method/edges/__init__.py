@@ -2,7 +2,8 @@
 Elder–Zucker multi-scale detector the paper uses, Canny (Zhuo & Sim's detector) and the isolation gate.
 
 Modules: :mod:`.gaussian_derivatives` (sampled derivative kernels, steering), :mod:`.noise_thresholds`
-(Eq. 7–9), :mod:`.elder_zucker` (the paper's detector), :mod:`.canny`, :mod:`.isolation`.
+(Eq. 7–9), :mod:`.elder_zucker` (the paper's detector), :mod:`.canny`, :mod:`.isolation`; the stage's
+parameters :class:`.params.EdgeParams`.
 """
 
 from .canny import detect_edges_canny
@@ -10,8 +11,9 @@ from .elder_zucker import MIN_IMAGE_SIZE, EdgeMap, check_edge_inputs, detect_edg
 from .gaussian_derivatives import GaussianDerivativeBank, gaussian_derivative, sampled_kernel
 from .isolation import EDGE_ISOLATION_METHODS, isolation_weights
 from .noise_thresholds import first_derivative_threshold, per_pixel_false_positive_rate, second_derivative_threshold
+from .params import EDGE_DETECTORS, EdgeParams
 
-__all__ = ["EDGE_ISOLATION_METHODS", "MIN_IMAGE_SIZE", "EdgeMap", "GaussianDerivativeBank", "check_edge_inputs",
+__all__ = ["EDGE_DETECTORS", "EDGE_ISOLATION_METHODS", "MIN_IMAGE_SIZE", "EdgeMap", "EdgeParams", "GaussianDerivativeBank", "check_edge_inputs",
            "detect_edges", "detect_edges_canny", "edge_pixels_by_scale", "first_derivative_threshold",
            "gaussian_derivative", "isolation_weights", "per_pixel_false_positive_rate", "sampled_kernel",
            "second_derivative_threshold"]

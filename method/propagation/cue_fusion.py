@@ -140,8 +140,7 @@ def _band_noise_gain(s: float) -> float:
     return float(np.sum(k * k))
 
 
-def straddled_windows(isolated_edges, sigma, *, window_scale=9.0, window_min=16, window_max=96,
-                      min_fraction=0.5) -> np.ndarray:
+def straddled_windows(isolated_edges, sigma, *, window_scale, window_min, window_max, min_fraction=0.5) -> np.ndarray:
     """Region measures whose window holds an isolated edge: the edge fit measures it better.
 
     Parameters
@@ -151,9 +150,9 @@ def straddled_windows(isolated_edges, sigma, *, window_scale=9.0, window_min=16,
         (:func:`method.edges.isolation.isolation_weights` = 1).
     sigma : ndarray, shape (H, W), float
         Region σ_r, px (NaN: not tested).
-    window_scale, window_min, window_max : keyword-only
+    window_scale, window_min, window_max : float, int, int, keyword-only
         The region estimator's window side: clip(window_scale·σ_r, window_min, window_max) px
-        (``DefocusParams.region_window_*``).
+        (``RegionParams.region_window_*``; no defaults, so they cannot drift from the estimator's).
     min_fraction : float, keyword-only
         A window is straddled when it holds ≥ min_fraction × its side of isolated edge pixels (a
         straight edge across it has ≈ one per row).
@@ -227,8 +226,8 @@ REGION_PLACEMENTS = Registry("region placement", {
 
 def region_data_term(region_sigma, region_information, *, gray=None, edge_error_rel=0.5,
                      region_error_rel=0.3, region_weight=1.0, placement="centres", island_weight=1.0,
-                     island_radius=24.0, noise_std=2.5 / 255, stride=16, isolated_edges=None,
-                     straddle_weight=1.0, window=(9.0, 16, 96)):
+                     island_radius=24.0, noise_std=2.5 / 255, stride, isolated_edges=None,
+                     straddle_weight=1.0, window):
     """Values and relative weights w_r of the region measures as data terms of Eq. (4).
 
     Parameters
@@ -253,13 +252,15 @@ def region_data_term(region_sigma, region_information, *, gray=None, edge_error_
     noise_std : float, keyword-only
         Image noise std of the island test, image units.
     stride : int, keyword-only
-        Spacing of the region estimator's window centres, px (``DefocusParams.region_stride``).
+        Spacing of the region estimator's window centres, px (``RegionParams.region_stride``; required,
+        as ``window``: they describe the estimator's grid and must match it).
     isolated_edges : ndarray, shape (H, W), bool, or None, keyword-only
         Isolated edge measures (:func:`straddled_windows`); None: no straddle test.
     straddle_weight : float, keyword-only
         Factor in [0, 1] on the weight of a region measure whose window holds an isolated edge.
     window : (float, int, int), keyword-only
-        (scale, min, max) of the region estimator's window side, px.
+        (scale, min, max) of the region estimator's window side (``RegionParams.region_window_scale``,
+        ``region_window_min``, ``region_window_max``; dimensionless, px, px).
 
     Returns
     -------
@@ -395,8 +396,7 @@ def fuse_cues(edge_sigma, edge_weight, region_sigma, region_information, *, gray
         region_error_rel=params.fusion_region_error_rel, region_weight=params.fusion_region_weight,
         placement=params.fusion_region_placement, island_weight=params.fusion_island_weight,
         island_radius=params.fusion_island_radius, noise_std=params.noise_std,
-        stride=getattr(params, "region_stride", 16), isolated_edges=isolated_edges,
+        stride=params.region_stride, isolated_edges=isolated_edges,
         straddle_weight=params.fusion_straddle_weight,
-        window=(getattr(params, "region_window_scale", 9.0), getattr(params, "region_window_min", 16),
-                getattr(params, "region_window_max", 96)))
+        window=(params.region_window_scale, params.region_window_min, params.region_window_max))
     return fuse_measures(edge_sigma, edge_weight, rs, rw)

@@ -10,7 +10,13 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["edge_confidence", "propagation_confidence"]
+from ..registry import Registry
+
+__all__ = ["ALPHA_CONFIDENCES", "edge_confidence", "propagation_confidence"]
+
+#: ``DefocusParams.alpha_confidence``: what scales α_p of Eq. (4) beyond the measure confidence.
+ALPHA_CONFIDENCES = Registry("alpha confidence", {"none": "α_p = α (the paper)",
+                                                  "agreement": "agreement of BM with bCBF (beyond the paper)"})
 
 
 def edge_confidence(sparse_sigma, refined_sigma) -> np.ndarray:
@@ -38,7 +44,7 @@ def propagation_confidence(refined_sigma, *, params, sparse_sigma=None, confiden
     ----------
     refined_sigma : ndarray, HxW, float
         Blur σ, px, at edge pixels (after Eq. 3); NaN elsewhere.
-    params : DefocusParams, keyword-only
+    params : PropagationParams or DefocusParams, keyword-only
         Reads ``alpha_confidence``.
     sparse_sigma : ndarray, HxW, float, or None, keyword-only
         The raw measures (``alpha_confidence="agreement"``; None: refined used as raw).

@@ -63,7 +63,7 @@ def propagate_blur_measures(sparse_sigma, reference, *, params, confidence=None,
         Blur σ, px, at edge pixels (e.g. after Eq. 3); NaN elsewhere.
     reference : ndarray, HxWx3, float in [0, 1]
         Guide image (the RGB photo).
-    params : DefocusParams, keyword-only
+    params : PropagationParams or DefocusParams, keyword-only
     confidence : ndarray, HxW, float in [0, 1], or None, keyword-only
         Per-edge confidence (α_p = α·c_p); None: the paper's constant α_p.
     max_confidence : float, keyword-only

@@ -36,7 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
-from repro._cli import ArgumentParser, add_force_option, add_quiet_option, check_output_path, run_cli
+from repro._cli import (ArgumentParser, CLIError, add_force_option, add_preset_option, add_quiet_option,
+                        check_output_path, run_cli, user_input)
 
 PROG = "python -m repro.estimate"
 
@@ -111,10 +112,8 @@ def add_estimation_arguments(p: argparse.ArgumentParser) -> None:
     from method.magnify.upsampling import DEFAULT_MAX_WORKING_PIXELS
     from repro.photo_io import DEFAULT_MAX_PIXELS
 
-    presets = "; ".join(f"{name} ({_preset_blurb(name)})" for name in _presets())
-    p.add_argument("--preset", default=DEFAULT_PRESET, metavar="NAME",
-                   help=f"named parameter set (method.PRESETS): {presets}. Default {DEFAULT_PRESET}; "
-                        "--estimator and --alpha override the preset's value")
+    add_preset_option(p, default=DEFAULT_PRESET, blurbs={name: _preset_blurb(name) for name in _presets()},
+                      extra="--estimator and --alpha override the preset's value")
     p.add_argument("--estimator", default=None, metavar="NAME",
                    help=f"blur estimator at edges: {BLUR_ESTIMATORS.describe()}. Default: the preset's, "
                         f"{by_preset('estimator')}")
@@ -137,11 +136,12 @@ def add_estimation_arguments(p: argparse.ArgumentParser) -> None:
     add_quiet_option(p)
 
 
+@user_input()
 def defocus_params(args):
     """DefocusParams of --preset changed by --estimator / --alpha, validated.
 
-    Raises ``ValueError`` naming the bad value and the allowed ones (an unknown preset lists the
-    registry ``method.PRESETS``).
+    Raises :class:`repro._cli.CLIError` (a ``ValueError``) naming the bad value and the allowed ones
+    (an unknown preset lists the registry ``method.PRESETS``).
     """
     from method.blur.estimators import BLUR_ESTIMATORS
     from method.params import DefocusParams
@@ -154,9 +154,9 @@ def defocus_params(args):
         try:
             alpha = float(args.alpha)
         except ValueError:
-            raise ValueError(f"--alpha {args.alpha!r} is not a number; allowed: a number > 0") from None
+            raise CLIError(f"--alpha {args.alpha!r} is not a number; allowed: a number > 0") from None
         if not (math.isfinite(alpha) and alpha > 0):
-            raise ValueError(f"--alpha {args.alpha} is invalid; allowed: a finite number > 0")
+            raise CLIError(f"--alpha {args.alpha} is invalid; allowed: a finite number > 0")
         changes["alpha"] = alpha
     return DefocusParams.preset(args.preset, **changes)
 
@@ -198,14 +198,19 @@ def note(prog, message, *, quiet=False) -> None:
         print(f"{prog}: {message}", file=sys.stderr)
 
 
+@user_input()
 def load_photo(args, *, prog):
-    """Probe (size limits before decoding) and read the photo named by ``args.photo``."""
+    """Probe (size limits before decoding) and read the photo named by ``args.photo``.
+
+    Raises :class:`repro._cli.CLIError` for a file the decoders refuse (missing, not an image,
+    corrupt, too large or too small, NaN/Inf).
+    """
     from method.validation import MIN_IMAGE_SIDE
     from repro.photo_io import probe_photo, read_photo
 
     header = probe_photo(args.photo)
     if min(header.width, header.height) < MIN_IMAGE_SIDE:
-        raise ValueError(f"{header.path}: {header.width}x{header.height} px is too small; "
+        raise CLIError(f"{header.path}: {header.width}x{header.height} px is too small; "
                          f"the smallest supported side is {MIN_IMAGE_SIDE} px")
     return read_photo(header.path, max_pixels=args.max_pixels, repair_nonfinite=args.repair_nonfinite)
 
@@ -502,7 +507,8 @@ def main(argv=None) -> int:
     out = Path(args.output) if args.output else default_map_path(photo_path)
     from repro.photo_io import probe_photo
 
-    probe_photo(photo_path)  # a missing/bad photo is reported before anything about the output
+    with user_input():
+        probe_photo(photo_path)  # a missing/bad photo is reported before anything about the output
     check_output_path(out, photo=photo_path, overwrite=args.overwrite, suffixes=MAP_OUTPUT_SUFFIXES,
                       flag="output map")
     photo = load_photo(args, prog=PROG)

@@ -279,3 +279,24 @@ def test_installed_script_and_python_m_both_work():
     for cmd in ([sys.executable, "-m", "repro.estimate", "--version"], [sys.executable, "-m", "repro", "--version"]):
         got = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT)
         assert got.returncode == 0 and got.stdout.strip() == version_string(), cmd
+
+
+def test_old_flag_names_still_work_hidden():
+    """``--scene-size`` is the render size everywhere; the earlier names parse the same and are not shown."""
+    from repro import dataset, render, sweep
+
+    for argv in (["planes", "--scene-size", "full"], ["planes", "--preset", "full"], ["planes", "--scene-preset", "full"]):
+        assert render._parser().parse_args(argv).scene_size == "full"
+    assert render._parser().parse_args(["planes"]).scene_size is None  # the size follows --resolution, else small
+    with pytest.raises(CLIError, match="not allowed with"):
+        render._parser().parse_args(["planes", "--scene-size", "full", "--resolution", "64x48"])
+    for module, base in ((sweep, ["--out", "x"]), (dataset, ["export", "--out", "x"])):
+        assert module._parser().parse_args(base).scene_size == "small"
+        for flag in ("--scene-size", "--scene-preset"):
+            assert module._parser().parse_args([*base, flag, "full"]).scene_size == "full"
+        with pytest.raises(CLIError, match="invalid choice"):
+            module._parser().parse_args([*base, "--scene-size", "huge"])
+    assert sweep._parser().parse_args(["--out", "x"]).quiet is False
+    assert sweep._parser().parse_args(["--out", "x", "--no-progress"]).quiet is True
+    assert sweep._parser().parse_args(["--out", "x", "-q"]).quiet is True
+    assert sweep._parser().parse_args(["--out", "x"]).preset == ["paper"]

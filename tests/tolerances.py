@@ -96,7 +96,7 @@ MAGNIFY_IDENTITY_ATOL = 0.0
 GUIDED_EDGE_POSITION_PX = 1
 
 # --- Sec. 3.1/3.2: Gaussian derivatives, edges, blur estimators (method/edges/gaussian_derivatives.py,
-#     method/edges/noise_thresholds.py, method/edges/elder_zucker.py, method/blur_*.py, scenes/analytic.py)
+#     method/edges/noise_thresholds.py, method/edges/elder_zucker.py, method/blur/*.py, scenes/analytic/)
 #: FFT (analytic transfer) vs direct convolution with the sampled Eq. (7)/(8) kernels, relative to
 #: the response's max, σ >= 1.5 px on a smooth image (sampled-kernel aliasing exp(−2π²σ²)·(2π)^k
 #: and truncation, measured ≤ 4e-5).

@@ -72,7 +72,7 @@ SCENE_EMISSION_ATOL = 2e-2
 #: by at least this much (orientation test).
 SCENE_ORIENTATION_MARGIN = 0.2
 
-# --- photo I/O, working resolution, photo CLIs (repro/photo_io.py, method/magnify/upsampling.py,
+# --- photo I/O, working resolution, photo CLIs (repro/photo_io/, method/magnify/upsampling.py,
 #     repro/estimate.py, repro/magnify.py) ------------------------------------------------------
 #: JPEG written at quality 95, 4:4:4, then read back, smooth saturated ramp: max and mean |difference|
 #: (measured 5.4/255 and < 1/255; quantisation of DCT coefficients, worst at saturated corners).

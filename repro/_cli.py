@@ -1,29 +1,48 @@
-"""Shared command-line plumbing: user errors become one line on stderr and exit status 2.
+"""Shared command-line plumbing: a user error is one line on stderr and exit status 2, a bug shows its traceback.
 
 Usage in a ``python -m repro.X`` module::
 
-    from repro._cli import ArgumentParser, add_variant_option, run_cli
+    from repro._cli import ArgumentParser, CLIError, add_quiet_option, run_cli, user_input
 
     def main(argv=None) -> int:
         parser = ArgumentParser(prog="python -m repro.X", description="...")
-        add_variant_option(parser)
-        args = parser.parse_args(argv)
-        ...          # raise ValueError("x=3 is invalid; allowed: ...") on bad input
+        add_quiet_option(parser)
+        args = parser.parse_args(argv)          # usage errors: CLIError
+        with user_input():                      # the API's ValueError on what the user gave: CLIError
+            params = DefocusParams.preset(args.preset)
+        if args.out.is_file():
+            raise CLIError(f"--out {args.out} is a file; allowed: a folder")
+        compute(params)                         # a ValueError here is a bug: traceback
         return 0
 
     if __name__ == "__main__":
         sys.exit(run_cli(main, prog="python -m repro.X"))
 
-Every :class:`ArgumentParser` has ``--version``; :func:`add_quiet_option` and :func:`add_force_option`
-give the flags shared by the tools one name each (``-q/--quiet``, ``--force``). :func:`console_main` is
-the ``defocus-repro`` console script (``defocus-repro figures|render|evaluate|...``): it imports the
-sub-command's module ``repro.<name>`` only when asked for it and runs its ``main``.
+Errors. :func:`run_cli` prints ``PROG: error: MESSAGE`` as a single line and returns exit status 2 for
+:data:`USER_ERRORS` (:class:`CLIError`, which :class:`ArgumentParser` raises for usage errors and
+:func:`user_input` for the ``ValueError`` of a validator it wraps; a missing extra; a
+:class:`scenes.backend.BackendError`) and for the failures of the machine a user can cause (``OSError``:
+unwritable folder, disk full; ``MemoryError``). Every other exception, a plain ``ValueError``
+included, is a bug and propagates with its traceback. ``--debug`` (every :class:`ArgumentParser` has
+it) prints the traceback of a user error too, before its line.
 
-``run_cli`` catches :data:`USER_ERRORS` (``ValueError``, :class:`CLIError`, the argparse errors of
-:class:`ArgumentParser`, :class:`scenes.backend.BackendError`) and the failures of the machine a user
-can cause (``OSError``: unwritable folder, disk full; ``MemoryError``) and prints
-``PROG: error: MESSAGE`` as a single line, with no traceback; any other exception is a bug and
-propagates.
+Validating input: raise :class:`CLIError` in CLI code; call the API's validators (registry ``check``,
+``DefocusParams``, ``validate_render_options``, photo readers, ...) inside ``with user_input():`` (or
+decorate a CLI helper that only validates with ``@user_input()``). Wrap only validation, never the
+computation that follows. Ready-made validators: :func:`int_type` / :func:`float_type` (argparse
+``type=``), :func:`parse_resolution`, :func:`check_output_path`, :func:`check_scene_names`,
+:func:`scene_grid` (:mod:`repro._cli_checks`).
+
+Flags with one name in every tool: ``--version`` and ``--debug`` (every :class:`ArgumentParser`),
+:func:`add_quiet_option` (``-q/--quiet``), :func:`add_force_option` (``--force``),
+:func:`add_variant_option` (``--variant``), :func:`add_scene_size_option` (``--scene-size small|full``,
+the render size; ``--scene-preset`` kept as a hidden alias) and :func:`add_preset_option` (``--preset``,
+a method parameter set of ``method.PRESETS`` only, with the tool's default stated in its help).
+:func:`hidden_alias` adds an old flag name that still works but is not shown.
+
+:func:`console_main` is the ``defocus-repro`` console script (``defocus-repro COMMAND``, one per
+``repro.X`` tool, :data:`COMMANDS`): it imports the sub-command's module ``repro.<name>`` only when
+asked for it and runs its ``main``.
 
 Optional dependencies: the core install (``pip install -e .``) runs ``method`` and the photo tools
 (``repro.estimate``, ``repro.magnify``); the renderer and the sweep engine are the pip extras of
@@ -40,37 +59,47 @@ from __future__ import annotations
 import _thread
 import argparse
 import contextlib
-import os
 import signal
 import sys
-import tempfile
 import threading
+import traceback
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from scenes.backend import VARIANT_ENV, BackendError
+from scenes.backend import VARIANT_ENV
+
+from repro._cli_checks import (check_output_path, check_scene_names, float_type, int_type, parse_resolution,
+                               scene_grid)
+from repro._cli_errors import (COMMAND_EXTRAS, EXTRAS, INSTALL_HINT, USER_ERRORS, CLIError, MissingExtraError,
+                               extra_message, missing_extra, require_extras, user_input)
+from repro._cli_errors import _installed  # noqa: F401 - read by the tests of the extras
 
 __all__ = [
     "COMMANDS",
     "COMMAND_EXTRAS",
     "EXTRAS",
+    "INSTALL_HINT",
     "USER_ERRORS",
     "ArgumentParser",
     "CLIError",
     "MissingExtraError",
     "add_force_option",
+    "add_preset_option",
     "add_quiet_option",
+    "add_scene_size_option",
     "add_variant_option",
     "check_output_path",
     "check_scene_names",
     "console_main",
     "float_type",
+    "hidden_alias",
     "int_type",
     "missing_extra",
     "parse_resolution",
     "require_extras",
     "run_cli",
     "scene_grid",
+    "user_input",
     "version_string",
 ]
 
@@ -78,7 +107,8 @@ __all__ = [
 SCRIPT = "defocus-repro"
 
 #: Sub-commands of ``defocus-repro``: name -> one-line description. Each is the module ``repro.<name>``
-#: with a ``main(argv) -> int``, imported only when it runs.
+#: with a ``main(argv) -> int``, imported only when it runs (every ``repro.X`` with a ``main``;
+#: ``tests/test_cli.py`` checks the list).
 COMMANDS: dict[str, str] = {
     "figures": "compute the paper's figures and their metrics (report/figures)",
     "render": "render a scene with its ground truth (Mitsuba 3, cached)",
@@ -88,6 +118,7 @@ COMMANDS: dict[str, str] = {
     "report": "write the report (claims and figures) from the figures' metrics",
     "bench": "time each stage and the whole pipeline, with peak memory",
     "sweep": "run a parameter sweep over scenes, cameras and presets",
+    "dataset": "export the rendered scenes and their ground truth as a dataset",
 }
 
 
@@ -106,106 +137,29 @@ def version_string() -> str:
     return f"{SCRIPT} {v}"
 
 
-class CLIError(ValueError):
-    """A user error detected by a command-line tool (bad flag, unwritable output, ...)."""
-
-
-class MissingExtraError(CLIError):
-    """A command needs a pip extra (:data:`EXTRAS`) that is not installed."""
-
-
-#: Exceptions reported as one line + exit status 2.
-USER_ERRORS: tuple[type[BaseException], ...] = (ValueError, CLIError, BackendError)
-
-
-#: The pip extras of pyproject.toml's ``[project.optional-dependencies]`` (``all`` = every one, ``test``
-#: aside): name -> the top-level modules it installs. The core dependencies install none of them.
-EXTRAS: dict[str, tuple[str, ...]] = {
-    "render": ("mitsuba", "drjit"),                 # Mitsuba 3 renders (scenes.render_scene)
-    "sweep": ("dask", "distributed", "pyarrow"),    # the sweep engine and its Parquet tables
-}
-
-#: Extras a command needs whatever its flags: its module -> extra names (checked by :func:`run_cli`).
-#: ``repro.estimate``, ``repro.magnify``, ``repro.report`` and ``repro.bench`` (without ``--accuracy``
-#: or ``--sweep``) need none; ``repro.evaluate`` checks the render extra itself (``--maps --dataset``
-#: needs none).
-COMMAND_EXTRAS: dict[str, tuple[str, ...]] = {
-    "repro.render": ("render",),
-    "repro.figures": ("render",),
-    "repro.sweep": ("sweep", "render"),
-}
-
-#: How to install an extra, from the checkout (editable, as the README installs the project).
-INSTALL_HINT = "pip install -e '.[{extra}]'"
-
-
-def _installed(module: str) -> bool:
-    """True when the top-level ``module`` can be imported (found on the path; not imported here)."""
-    import importlib.util
-
-    if module in sys.modules:
-        return sys.modules[module] is not None
-    try:
-        return importlib.util.find_spec(module) is not None
-    except (ImportError, ValueError):
-        return False
-
-
-def missing_extra(module: str | None) -> str | None:
-    """The extra of :data:`EXTRAS` that installs the (dotted) ``module``, or None if no extra does."""
-    top = (module or "").split(".")[0]
-    return next((extra for extra, modules in EXTRAS.items() if top in modules), None)
-
-
-def require_extras(*extras: str, command: str) -> None:
-    """Raise :class:`MissingExtraError` (one line naming the extra) unless every module of ``extras`` imports.
-
-    Parameters
-    ----------
-    *extras : str
-        Keys of :data:`EXTRAS`.
-    command : str, keyword-only
-        What needs them, for the message (``"repro.bench --sweep"``).
-
-    Raises
-    ------
-    ValueError
-        For an extra that is not a key of :data:`EXTRAS`.
-    MissingExtraError
-        ``"COMMAND needs the 'EXTRA' extra (MODULE is not installed): pip install -e '.[EXTRA]'"``.
-    """
-    for extra in extras:
-        if extra not in EXTRAS:
-            raise ValueError(f"unknown extra {extra!r}; allowed: {', '.join(EXTRAS)}")
-        for module in EXTRAS[extra]:
-            if not _installed(module):
-                raise MissingExtraError(_extra_message(command, extra, module))
-
-
-def _command_of(main) -> str | None:
-    """The module name of a command's ``main`` (``repro.render``; also when run as ``python -m``)."""
-    module = getattr(main, "__module__", None)
-    if module == "__main__":
-        spec = getattr(sys.modules.get("__main__"), "__spec__", None)
-        module = getattr(spec, "name", None)
-    return module
-
-
-def _extra_message(command: str, extra: str, module: str) -> str:
-    return f"{command} needs the {extra!r} extra ({module} is not installed): {INSTALL_HINT.format(extra=extra)}"
-
-
 class ArgumentParser(argparse.ArgumentParser):
-    """``argparse.ArgumentParser`` whose usage errors raise :class:`CLIError` (one line, exit 2)
-    instead of printing the usage block."""
+    """``argparse.ArgumentParser`` with ``--version`` and ``--debug``, whose usage errors raise
+    :class:`CLIError` (one line, exit 2) instead of printing the usage block."""
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.add_argument("--version", action="version", version=version_string(),
                           help="print the version and exit")
+        self.add_argument("--debug", action="store_true",
+                          help="on any error print the Python traceback (user errors are one line without it)")
+
+    def parse_known_args(self, args=None, namespace=None):  # noqa: D102 - records --debug for run_cli
+        namespace, extras = super().parse_known_args(args, namespace)
+        if getattr(namespace, "debug", False):
+            _DEBUG["on"] = True
+        return namespace, extras
 
     def error(self, message):  # noqa: D102 - argparse hook
         raise CLIError(message)
+
+
+#: ``--debug`` seen by an :class:`ArgumentParser` during the current :func:`run_cli` (abbreviations too).
+_DEBUG = {"on": False}
 
 
 def _one_line(text: str) -> str:
@@ -229,12 +183,35 @@ def run_cli(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[s
     -------
     int
         ``main``'s status, 2 on a user error or a missing extra (:data:`COMMAND_EXTRAS`), 130 on Ctrl-C.
+
+    Raises
+    ------
+    Exception
+        Any other exception of ``main`` (a bug), unchanged, with its traceback.
+
+    Notes
+    -----
+    With ``--debug`` in ``argv`` (or parsed by an :class:`ArgumentParser` of ``main``), the traceback of
+    a user error, a machine error or a Ctrl-C is printed before its line.
     """
     prog = prog or Path(sys.argv[0]).name or "repro"
     command = _command_of(main) or prog
     args = sys.argv[1:] if argv is None else list(argv)
-    with _ctrl_c_redelivered():
-        return _run_main(main, argv, args, prog=prog, command=command)
+    saved, _DEBUG["on"] = _DEBUG["on"], False
+    try:
+        with _ctrl_c_redelivered():
+            return _run_main(main, argv, args, prog=prog, command=command)
+    finally:
+        _DEBUG["on"] = saved
+
+
+def _command_of(main) -> str | None:
+    """The module name of a command's ``main`` (``repro.render``; also when run as ``python -m``)."""
+    module = getattr(main, "__module__", None)
+    if module == "__main__":
+        spec = getattr(sys.modules.get("__main__"), "__spec__", None)
+        module = getattr(spec, "name", None)
+    return module
 
 
 #: s after a Ctrl-C swallowed by a callback until it is pressed again (the callback has returned by then).
@@ -275,6 +252,14 @@ def _ctrl_c_redelivered():
             timer.cancel()
 
 
+def _fail(prog: str, message: str, exc: BaseException, args, *, status: int = 2, label: str = "error: ") -> int:
+    """Print ``PROG: error: MESSAGE`` (after the traceback with ``--debug``); return ``status``."""
+    if _DEBUG["on"] or "--debug" in args[:args.index("--") if "--" in args else len(args)]:
+        traceback.print_exception(exc, file=sys.stderr)
+    print(f"{prog}: {label}{message}", file=sys.stderr)
+    return status
+
+
 def _run_main(main, argv, args, *, prog, command) -> int:
     """:func:`run_cli`'s body: ``main(argv)`` with every user error turned into one line."""
     try:
@@ -285,21 +270,16 @@ def _run_main(main, argv, args, *, prog, command) -> int:
         extra = missing_extra(exc.name)
         if extra is None:
             raise
-        print(f"{prog}: error: {_extra_message(command, extra, exc.name.split('.')[0])}", file=sys.stderr)
-        return 2
+        return _fail(prog, extra_message(command, extra, exc.name.split(".")[0]), exc, args)
     except USER_ERRORS as exc:
-        print(f"{prog}: error: {_one_line(exc)}", file=sys.stderr)
-        return 2
-    except MemoryError:
-        print(f"{prog}: error: out of memory (try a smaller image or working resolution)", file=sys.stderr)
-        return 2
+        return _fail(prog, _one_line(exc), exc, args)
+    except MemoryError as exc:
+        return _fail(prog, "out of memory (try a smaller image or working resolution)", exc, args)
     except OSError as exc:
         where = f" ({exc.filename})" if getattr(exc, "filename", None) else ""
-        print(f"{prog}: error: {_one_line(exc.strerror or exc)}{where}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted", file=sys.stderr)
-        return 130
+        return _fail(prog, f"{_one_line(exc.strerror or exc)}{where}", exc, args)
+    except KeyboardInterrupt as exc:
+        return _fail(prog, "interrupted", exc, args, status=130, label="")
     return 0 if status is None else int(status)
 
 
@@ -316,6 +296,65 @@ def add_force_option(parser: argparse.ArgumentParser, *,
     """
     parser.add_argument("--force", action="store_true", help=what)
     parser.add_argument("--no-cache", dest="force", action="store_true", help=argparse.SUPPRESS)
+
+
+def hidden_alias(parser, *flags: str, dest: str, **kwargs) -> None:
+    """Add old flag names that still work but are not shown in ``--help`` (``argparse.SUPPRESS``).
+
+    ``kwargs`` are those of the current flag (``choices``, ``type``, ``action``, ...); the alias has no
+    default of its own, so the current flag's default stands.
+    """
+    parser.add_argument(*flags, dest=dest, default=argparse.SUPPRESS, help=argparse.SUPPRESS, **kwargs)
+
+
+def add_scene_size_option(parser, *, default: str | None = "small", aliases: Sequence[str] = ("--scene-preset",),
+                          what: str = "render size") -> None:
+    """Add ``--scene-size SIZE`` (dest ``scene_size``): the render size, a key of :data:`scenes.library.PRESETS`.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser or argument group
+    default : str or None, keyword-only
+        Stated in the help (None: the tool says what it does without the flag, in ``what``).
+    aliases : sequence of str, keyword-only
+        Earlier names of the flag, accepted and hidden (:func:`hidden_alias`).
+    what : str, keyword-only
+        The help's first words.
+    """
+    from scenes.library import PRESETS
+
+    sizes = ", ".join(f"{name} {w}x{h}" for name, (w, h) in PRESETS.items())
+    shown = f"; default {default}" if default is not None else ""
+    parser.add_argument("--scene-size", dest="scene_size", default=default, choices=tuple(PRESETS),
+                        help=f"{what}: {sizes}{shown}")
+    if aliases:
+        hidden_alias(parser, *aliases, dest="scene_size", choices=tuple(PRESETS))
+
+
+def add_preset_option(parser, *, default, many: bool = False, blurbs: dict | None = None, extra: str = "") -> None:
+    """Add ``--preset NAME`` (dest ``preset``): a method parameter set of ``method.PRESETS``, default stated.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser or argument group
+    default : str or tuple of str, keyword-only
+        The tool's default preset (``many``: presets), named in the help.
+    many : bool, keyword-only
+        ``--preset NAME [NAME ...]`` (a list) instead of one name.
+    blurbs : dict, optional, keyword-only
+        One phrase per preset name for the help (default: the registry's summaries).
+    extra : str, keyword-only
+        Appended to the help.
+    """
+    from method.presets import PRESETS
+
+    listing = ("; ".join(f"{name} ({blurbs[name]})" if name in blurbs else name for name in PRESETS)
+               if blurbs else PRESETS.describe())
+    shown = " ".join(default) if many else default
+    parser.add_argument("--preset", nargs="+" if many else None, default=list(default) if many else default,
+                        metavar="NAME",
+                        help=f"method parameter set{'s' if many else ''} (method.PRESETS): {listing}. "
+                             f"Default: {shown}{'. ' + extra if extra else ''}")
 
 
 def console_main(argv: Sequence[str] | None = None) -> int:
@@ -376,158 +415,3 @@ def add_variant_option(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def int_type(name: str, *, minimum: int = 1) -> Callable[[str], int]:
-    """argparse ``type=`` for an integer ≥ ``minimum`` (argparse prefixes the flag ``name`` to errors)."""
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is invalid; allowed: integer >= {minimum}") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"{text!r} is invalid; allowed: integer >= {minimum}")
-        return value
-
-    return parse
-
-
-def float_type(name: str, *, positive: bool = True) -> Callable[[str], float]:
-    """argparse ``type=`` for a finite (positive) float (argparse prefixes the flag ``name`` to errors)."""
-    import math
-
-    allowed = "finite number > 0" if positive else "finite number"
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is invalid; allowed: {allowed}") from None
-        if not math.isfinite(value) or (positive and value <= 0):
-            raise argparse.ArgumentTypeError(f"{text!r} is invalid; allowed: {allowed}")
-        return value
-
-    return parse
-
-
-def parse_resolution(text: str) -> tuple[int, int]:
-    """``"640x480"`` → (640, 480); raises :class:`CLIError` naming the value and the format."""
-    parts = str(text).lower().split("x")
-    allowed = "WxH with positive integers, e.g. 640x480"
-    if len(parts) != 2:
-        raise CLIError(f"--resolution {text!r} is invalid; allowed: {allowed}")
-    try:
-        w, h = int(parts[0]), int(parts[1])
-    except ValueError:
-        raise CLIError(f"--resolution {text!r} is invalid; allowed: {allowed}") from None
-    if w <= 0 or h <= 0:
-        raise CLIError(f"--resolution {text!r} is invalid; allowed: {allowed}")
-    return w, h
-
-
-def check_output_path(path, *, suffixes: Sequence[str] = (".exr",), flag: str = "--out", photo=None,
-                      overwrite: bool = False) -> Path:
-    """Refuse an output path before any work; nothing is left behind.
-
-    Parameters
-    ----------
-    path : str or Path
-        Where the output will be written (``~`` expanded).
-    suffixes : sequence of str, keyword-only
-        Allowed extensions (case-insensitive), e.g. ``(".exr", ".png", ".npy")``.
-    flag : str, keyword-only
-        How the output is named in messages (``"--out"``, ``"output map"``, ``"--save-map"``).
-    photo : str or Path, optional, keyword-only
-        The input photo: an output may replace it only with ``overwrite``.
-    overwrite : bool, keyword-only
-        Allow ``path`` to be ``photo``.
-
-    Returns
-    -------
-    Path
-        ``path`` with ``~`` expanded.
-
-    Raises
-    ------
-    CLIError
-        Naming the path and what is allowed: bad extension, a folder, a missing or unwritable folder
-        (a real probe file, so read-only mounts and ACLs that ``os.access`` misses are caught too),
-        the input photo without ``overwrite``.
-    """
-    p = Path(path).expanduser()
-    shown = f"{flag} {str(path)!r}"
-    writable = "allowed: a file path in an existing writable folder"
-    if p.suffix.lower() not in tuple(s.lower() for s in suffixes):
-        raise CLIError(f"{shown}: extension {p.suffix or '(none)'!r} is not supported; "
-                       f"allowed: a file name ending in {', '.join(suffixes)}")
-    folder = p.parent if str(p.parent) else Path(".")
-    if not folder.exists():
-        raise CLIError(f"{shown} is not writable: folder {str(folder)!r} does not exist; {writable}")
-    if not folder.is_dir():
-        raise CLIError(f"{shown} is not writable: {str(folder)!r} is not a folder; {writable}")
-    if p.is_dir():
-        raise CLIError(f"{shown} is a directory; allowed: a file path in a writable folder")
-    if not os.access(folder, os.W_OK | os.X_OK) or (p.exists() and not os.access(p, os.W_OK)):
-        raise CLIError(f"{shown} is not writable; {writable}")
-    if photo is not None and p.exists() and Path(photo).exists() and os.path.samefile(p, photo) and not overwrite:
-        raise CLIError(f"{shown} is the input photo; allowed: another path, or --overwrite to replace the photo")
-    try:  # a real probe: read-only mounts and ACLs that os.access does not see
-        fd, probe = tempfile.mkstemp(prefix=f".{p.name}.probe.", dir=folder)
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as exc:
-        raise CLIError(f"{shown} is not writable: cannot write in {str(folder)!r} ({exc.strerror or exc}); "
-                       f"{writable}") from None
-    return p
-
-
-def check_scene_names(names, *, what: str = "scene") -> list[str]:
-    """``names`` as a list if each is a scene of :data:`scenes.SCENES` or ``procedural_<seed>[_<camera>]``.
-
-    Raises
-    ------
-    ValueError
-        Naming the unknown ones and the allowed names (the registry's message, plus the procedural form).
-    """
-    from method.registry import Registry
-    from scenes import SCENES
-    from scenes.library import is_procedural_name
-
-    names = list(names)
-    named = [n for n in names if not is_procedural_name(n)]
-    try:
-        if named or not names:  # (an empty list is refused by the registry, naming the scenes)
-            Registry("scene", SCENES).check_all(named, what=what)
-    except ValueError as exc:
-        raise ValueError(f"{exc}, or procedural_<seed>") from None
-    return names
-
-
-def scene_grid(scenes, f_numbers, scene_preset: str, *, out=None) -> tuple[list[str], list[float]]:
-    """Validated scenes × f-numbers of a render grid, duplicates dropped, before anything is rendered.
-
-    Parameters
-    ----------
-    scenes : sequence of str or None
-        Keys of :data:`scenes.SCENES` (None: all).
-    f_numbers : sequence of float
-    scene_preset : str
-        Render resolution preset.
-    out : path, optional, keyword-only
-        An output folder, refused when it is a file.
-
-    Raises
-    ------
-    ValueError
-        One line naming the unknown scene(s), the bad f-number, or the ``--out`` that is a file.
-    """
-    from scenes import SCENES
-    from scenes.render import validate_render_options
-
-    names = check_scene_names(dict.fromkeys(scenes or list(SCENES)))
-    numbers = list(dict.fromkeys(float(n) for n in f_numbers))
-    for s in names:
-        for n in numbers:
-            validate_render_options(s, preset=scene_preset, f_number=n)  # ValueError on a bad N
-    if out is not None and Path(out).exists() and not Path(out).is_dir():
-        raise ValueError(f"--out {str(out)!r} is a file; allowed: a folder")
-    return names, numbers

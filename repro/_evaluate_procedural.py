@@ -294,9 +294,10 @@ def format_summary(summary, *, metrics=("dense_textured_mae", "sparse_mae", "den
 
 def main_procedural(args) -> int:
     """``--procedural``: plan, run (or resume) and write one evaluation; exit status."""
-    from repro._cli import require_extras
+    from repro._cli import require_extras, user_input
 
-    plan, root = validate(args)
+    with user_input():
+        plan, root = validate(args)
     require_extras("sweep", command="repro.evaluate --procedural")
     if plan.split == "fresh" and args.scene_seed_start is None:
         print(f"fresh seeds drawn: {plan.start}..{plan.start + plan.n - 1} (rerun or resume with "

@@ -105,13 +105,15 @@ def _start_client(*, workers: int | None, scheduler: str | None):
 
     from dask.distributed import Client, LocalCluster
 
+    from repro._cli_errors import CLIError
+
     if scheduler:
         client = Client(scheduler, timeout="20s")
         try:
             client.wait_for_workers(1, timeout=60)
         except (TimeoutError, OSError):
             client.close()
-            raise ValueError(f"--scheduler {scheduler}: no worker connected within 60 s; "
+            raise CLIError(f"--scheduler {scheduler}: no worker connected within 60 s; "
                              "allowed: a scheduler with workers (dask worker ADDRESS)") from None
         return client, None
     n = workers or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)

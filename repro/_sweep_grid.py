@@ -188,7 +188,7 @@ def _check_names(scenes, cameras, presets, estimators, encodings, metric, varian
     try:
         presets = PRESETS.check_all(_uniq(presets))
     except ValueError as exc:
-        hint = " (the render resolution is --scene-preset small|full)" if set(presets) & {"small", "full"} else ""
+        hint = " (the render size is --scene-size small|full)" if set(presets) & {"small", "full"} else ""
         raise ValueError(f"{exc}{hint}") from None
     ests = [None] if not estimators else list(validate_estimators(_uniq(estimators)))
     encodings = Registry("encoding", ENCODINGS).check_all(_uniq(encodings))

@@ -91,10 +91,13 @@ def _speed_bench(args) -> None:
     from method import PRESETS
     from method.magnify.magnification import MAGNIFICATION_RENDERERS
 
-    PRESETS.check_all(args.presets)
-    renderers = [] if args.magnify_renderers == ["none"] else args.magnify_renderers
-    for r in renderers:
-        MAGNIFICATION_RENDERERS.check(r, what="--magnify-renderers")
+    from repro._cli import user_input
+
+    with user_input():  # --presets, --magnify-renderers
+        PRESETS.check_all(args.presets)
+        renderers = [] if args.magnify_renderers == ["none"] else args.magnify_renderers
+        for r in renderers:
+            MAGNIFICATION_RENDERERS.check(r, what="--magnify-renderers")
     before = _previous_run(args.out / "bench.json")
     jobs = [(p, s) for p in args.presets for s in args.sizes]
     rows = [_run_size(s, args.repeat, p) for p, s in tqdm(jobs, desc="bench runs", unit="run", disable=args.quiet)]
@@ -147,7 +150,7 @@ def _parser():
 
 def main(argv=None) -> int:
     """Entry point; returns the exit status."""
-    from repro._cli import require_extras
+    from repro._cli import require_extras, user_input
 
     args = _parser().parse_args(argv)
     if args.worker_magnify is not None:
@@ -161,15 +164,18 @@ def main(argv=None) -> int:
         print(json.dumps(time_pipeline(args.worker, args.repeat, args.worker_preset)))
         return 0
     if (args.psf or args.full) and not args.accuracy:
-        raise ValueError("--psf and --full go with --accuracy")
+        with user_input():
+            raise ValueError("--psf and --full go with --accuracy")
     if args.accuracy:
         require_extras("render", command="repro.bench --accuracy")
         from experiments.bench import accuracy, lens_config
 
         config = dict(accuracy.ACCURACY_CONFIG)
         if config.get("lens") is not None and (args.psf or args.full):
-            config["lens"] = {**lens_config(psfs=args.psf, full=args.full), "variants": config["lens"]["variants"]}
-        run_accuracy(config, out=args.out, progress=not args.quiet)  # a ValueError is one line + exit 2
+            with user_input():  # --psf names
+                config["lens"] = {**lens_config(psfs=args.psf, full=args.full), "variants": config["lens"]["variants"]}
+        with user_input():  # the config's presets are checked before anything runs (too broad: the whole run)
+            run_accuracy(config, out=args.out, progress=not args.quiet)
         print((args.out / "accuracy.md").read_text(encoding="utf-8"))
         return 0
     if args.ablation:

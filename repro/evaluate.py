@@ -201,7 +201,10 @@ def main_photos(args) -> int:
     from experiments.photo_regions import TARGET_AUC, TARGET_SHARE
     from experiments.registry import FIGURES, code_fingerprint, compute_cached, library_versions, to_jsonable
 
-    names, presets = _validate_photos(args)
+    from repro._cli import user_input
+
+    with user_input():
+        names, presets = _validate_photos(args)
     fig = FIGURES["photos"]
     config = dataclasses.replace(fig.config("full"), photos=tuple(names), presets=tuple(presets))
     if not args.quiet:
@@ -423,7 +426,10 @@ def main_maps(args) -> int:
     """``--maps``: score external maps; exit status 0 when at least one map was scored, else 2."""
     from experiments.external_maps import MAP_SUFFIXES, score_folder, summarize
 
-    truth, protocols = _validate_maps(args)
+    from repro._cli import user_input
+
+    with user_input():
+        truth, protocols = _validate_maps(args)
     result = score_folder(args.maps, truth, protocols=protocols, threshold_px=args.detection_threshold,
                           png_scale=args.png_scale)
     for line in result.problems:
@@ -456,22 +462,27 @@ def main(argv=None) -> int:
 
         require_extras("render", command="repro.evaluate --procedural")
         return _procedural.main_procedural(args)
+    from repro._cli import user_input
+
     used = _used(args, _procedural.PROCEDURAL_ONLY)
     if used:
-        raise ValueError(f"{', '.join(used)} is invalid without --procedural; allowed: with --procedural N")
+        with user_input():
+            raise ValueError(f"{', '.join(used)} is invalid without --procedural; allowed: with --procedural N")
     if args.out is None:
         args.out = DEFAULT_OUT
     if args.maps is not None:
         return main_maps(args)
     used = _used(args, _MAPS_ONLY)
     if used:
-        raise ValueError(f"{', '.join(used)} is invalid without --maps; allowed: with --maps MAPDIR")
+        with user_input():
+            raise ValueError(f"{', '.join(used)} is invalid without --maps; allowed: with --maps MAPDIR")
     from repro._cli import require_extras
 
     require_extras("render", command="repro.evaluate")
     if args.photos is not None:
         return main_photos(args)
-    presets, estimators, scenes, f_numbers, encodings, noises = _validate(args)
+    with user_input():
+        presets, estimators, scenes, f_numbers, encodings, noises = _validate(args)
     if args.variant:
         from scenes.backend import select_variant
 

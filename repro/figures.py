@@ -136,12 +136,15 @@ def main(argv=None) -> int:
         for name, fig in FIGURES.items():
             print(f"{name:<8} {fig.title}")
         return 0
-    names = list(dict.fromkeys(args.names)) or list(FIGURES)
-    unknown = [n for n in names if n not in FIGURES]
-    if unknown:
-        raise ValueError(f"unknown figure(s) {', '.join(map(repr, unknown))}; choose from {', '.join(FIGURES)}")
-    mode = "quick" if args.quick else "full"
-    presets = preset_names(args.preset) if args.preset is not None else None
+    from repro._cli import user_input
+
+    with user_input():  # the figure and preset names
+        names = list(dict.fromkeys(args.names)) or list(FIGURES)
+        unknown = [n for n in names if n not in FIGURES]
+        if unknown:
+            raise ValueError(f"unknown figure(s) {', '.join(map(repr, unknown))}; choose from {', '.join(FIGURES)}")
+        mode = "quick" if args.quick else "full"
+        presets = preset_names(args.preset) if args.preset is not None else None
     if args.variant:
         import os
 

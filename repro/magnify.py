@@ -53,7 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
-from repro._cli import ArgumentParser, check_output_path, run_cli
+from repro._cli import ArgumentParser, CLIError, check_output_path, run_cli, user_input
 from repro.estimate import (
     MAP_OUTPUT_SUFFIXES,
     add_estimation_arguments,
@@ -139,10 +139,11 @@ def _parser() -> ArgumentParser:
     return p
 
 
+@user_input()
 def renderer_options(args) -> tuple[str, str | None, str | None]:
     """(renderer, kernel, aperture) of the command line, checked against the registries.
 
-    Raises ``ValueError`` (one line) for an unknown name, ``--kernel`` with the scatter or
+    Raises :class:`repro._cli.CLIError` (one line) for an unknown name, ``--kernel`` with the scatter or
     ``--aperture`` with the gather.
     """
     from method.magnify.magnification import MAGNIFICATION_KERNELS, MAGNIFICATION_RENDERERS
@@ -156,14 +157,15 @@ def renderer_options(args) -> tuple[str, str | None, str | None]:
         APERTURES.check(args.aperture, what="--aperture")
     caps = MAGNIFICATION_RENDERERS.entry(renderer).capabilities
     if args.kernel is not None and "kernel" not in caps:
-        raise ValueError(f"--kernel applies to the gather renderer, not to --renderer {renderer}; "
+        raise CLIError(f"--kernel applies to the gather renderer, not to --renderer {renderer}; "
                          "allowed: --renderer gather --kernel NAME, or --aperture SHAPE with the scatter")
     if args.aperture is not None and "aperture" not in caps:
-        raise ValueError(f"--aperture applies to the scatter renderer, not to --renderer {renderer}; "
+        raise CLIError(f"--aperture applies to the scatter renderer, not to --renderer {renderer}; "
                          "allowed: --renderer scatter --aperture SHAPE, or --kernel NAME with the gather")
     return renderer, args.kernel, args.aperture
 
 
+@user_input()
 def read_given_map(path, shape, *, png_scale: float = DEFAULT_PNG_SCALE):
     """The ``--map`` file as an HxW float64 σ map (px of the photo) and a note when it was resized.
 
@@ -183,7 +185,7 @@ def read_given_map(path, shape, *, png_scale: float = DEFAULT_PNG_SCALE):
 
     Raises
     ------
-    ValueError
+    CLIError
         One line: missing or unreadable file, an 8-bit PNG, NaN/Inf or negative σ, a size that is
         neither the photo's nor its aspect ratio.
 
@@ -198,24 +200,24 @@ def read_given_map(path, shape, *, png_scale: float = DEFAULT_PNG_SCALE):
 
     path = Path(path)
     if not path.is_file():
-        raise ValueError(f"--map {path}: no such file")
+        raise CLIError(f"--map {path}: no such file")
     try:
         sigma = read_map(path, png_scale=png_scale)
     except ValueError as exc:
-        raise ValueError(f"--map {exc}") from None
+        raise CLIError(f"--map {exc}") from exc
     bad = int(np.count_nonzero(~np.isfinite(sigma)))
     if bad:
-        raise ValueError(f"--map {path}: {bad} non-finite σ values (NaN or Inf); allowed: a finite σ >= 0 px "
+        raise CLIError(f"--map {path}: {bad} non-finite σ values (NaN or Inf); allowed: a finite σ >= 0 px "
                          "at every pixel")
     if sigma.size and float(sigma.min()) < 0:
-        raise ValueError(f"--map {path}: negative σ (min {float(sigma.min()):.4g} px); allowed: σ >= 0 px")
+        raise CLIError(f"--map {path}: negative σ (min {float(sigma.min()):.4g} px); allowed: σ >= 0 px")
     (H, W), (h, w) = shape[:2], sigma.shape
     if (h, w) == (H, W):
         return sigma, None
     if h < 1 or w < 1 or not (h == round(w * H / W) or w == round(h * W / H)):
         hint = (" (the photo is read upright, EXIF orientation applied: transpose the map?)"
                 if (h, w) == (W, H) else "")
-        raise ValueError(f"--map {path}: {w}x{h} px does not fit the photo's {W}x{H} px{hint}; allowed: the "
+        raise CLIError(f"--map {path}: {w}x{h} px does not fit the photo's {W}x{H} px{hint}; allowed: the "
                          "photo's size or its aspect ratio (resized, σ scaled)")
     from skimage.transform import resize
 
@@ -225,17 +227,17 @@ def read_given_map(path, shape, *, png_scale: float = DEFAULT_PNG_SCALE):
 
 
 def parse_factor(text) -> float:
-    """--factor as a float ≥ 1 (ValueError naming the value and the allowed range otherwise)."""
+    """--factor as a float ≥ 1 (CLIError naming the value and the allowed range otherwise)."""
     try:
         k = float(text)
     except (TypeError, ValueError):
-        raise ValueError(f"--factor {text!r} is not a number; allowed: a number >= 1") from None
+        raise CLIError(f"--factor {text!r} is not a number; allowed: a number >= 1") from None
     if not math.isfinite(k):
-        raise ValueError(f"--factor {text} is invalid; allowed: a finite number >= 1")
+        raise CLIError(f"--factor {text} is invalid; allowed: a finite number >= 1")
     if k <= 0:
-        raise ValueError(f"--factor {text} is invalid; allowed: a number >= 1 (a blur cannot be scaled by {text})")
+        raise CLIError(f"--factor {text} is invalid; allowed: a number >= 1 (a blur cannot be scaled by {text})")
     if k < 1:
-        raise ValueError(f"--factor {text} is invalid; allowed: a number >= 1 (factors below 1 would "
+        raise CLIError(f"--factor {text} is invalid; allowed: a number >= 1 (factors below 1 would "
                          "need deblurring, which the magnifier does not do)")
     return k
 
@@ -250,17 +252,17 @@ def default_output_path(photo: Path, factor: float) -> Path:
 
 
 def _check_map_flags(args) -> None:
-    """With --map: no estimation option; --png-scale only with a .png map (ValueError otherwise)."""
+    """With --map: no estimation option; --png-scale only with a .png map (CLIError otherwise)."""
     if args.map is None:
         if args.png_scale is not None:
-            raise ValueError("--png-scale applies to a .png --map only")
+            raise CLIError("--png-scale applies to a .png --map only")
         return
     used = [f"--{name.replace('_', '-')}" for name in ("estimator", "alpha", "force") if getattr(args, name)]
     if used:
-        raise ValueError(f"--map replaces the estimation; {', '.join(used)} {'does' if len(used) == 1 else 'do'} "
+        raise CLIError(f"--map replaces the estimation; {', '.join(used)} {'does' if len(used) == 1 else 'do'} "
                          "not apply with it")
     if args.png_scale is not None and Path(args.map).suffix.lower() != ".png":
-        raise ValueError(f"--png-scale applies to a .png --map only, not to {args.map}")
+        raise CLIError(f"--png-scale applies to a .png --map only, not to {args.map}")
 
 
 def main(argv=None) -> int:
@@ -272,25 +274,28 @@ def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     factor = parse_factor(args.factor)
     renderer, kernel, aperture = renderer_options(args)
-    MAP_FLOOR_MODES.check(args.floor, what="--floor", optional=True)
+    with user_input():
+        MAP_FLOOR_MODES.check(args.floor, what="--floor", optional=True)
     params = defocus_params(args)
     _check_map_flags(args)
     floor = args.floor or params.map_floor
     photo_path = Path(args.photo)
-    probe_photo(photo_path)  # a missing/bad photo is reported before anything about the output
+    with user_input():
+        probe_photo(photo_path)  # a missing/bad photo is reported before anything about the output
     out = Path(args.output) if args.output else default_output_path(photo_path, factor)
     check_output_path(out, photo=photo_path, overwrite=args.overwrite, suffixes=OUTPUT_SUFFIXES, flag="output")
     if args.save_map:
         map_path = check_output_path(args.save_map, photo=photo_path, overwrite=args.overwrite,
                                      suffixes=MAP_OUTPUT_SUFFIXES, flag="--save-map")
         if map_path.resolve() == out.resolve():
-            raise ValueError(f"--save-map {map_path} is the output photo's path; choose another name")
+            raise CLIError(f"--save-map {map_path} is the output photo's path; choose another name")
     photo = load_photo(args, prog=PROG)
     given = None
     if args.map is not None:  # read and checked before any output is written
         given, resized = read_given_map(args.map, photo.image.shape,
                                         png_scale=args.png_scale or DEFAULT_PNG_SCALE)
-    bits = args.bit_depth or output_bit_depth(out.suffix, photo.bit_depth)
+    with user_input():
+        bits = args.bit_depth or output_bit_depth(out.suffix, photo.bit_depth)
     progress = announce(args, photo, prog=PROG)
     try:
         if given is None:
@@ -305,7 +310,8 @@ def main(argv=None) -> int:
         # Sec. 5 preprocessing on the whole map (a global operation), then tiled magnification
         processed = preprocess_defocus_map(sigma, clip_percent=params.map_clip_percent,
                                            smoothing=params.map_smoothing, floor=floor)
-        check_extra_blur(factor, processed, photo.image.shape, name="--factor")  # before any big allocation
+        with user_input():  # --factor too large for this photo: before any big allocation
+            check_extra_blur(factor, processed, photo.image.shape, name="--factor")
         result = magnify_defocus_tiled(
             photo.image, processed, factor=factor, kernel=kernel, preprocess=False, renderer=renderer,
             aperture=aperture, tile_pixels=args.tile_pixels, progress=progress,

@@ -3,7 +3,7 @@
 Examples
 --------
 python -m repro.render --list
-python -m repro.render planes --preset small --fnumber 4
+python -m repro.render planes --scene-size small --fnumber 4
 python -m repro.render portrait --resolution 320x240 --spp 64 --out portrait.exr
 
 Bad input (unknown scene or camera, f-number <= 0, focus distance <= focal length, bad sensor size
@@ -17,14 +17,17 @@ import sys
 
 from repro._cli import (
     ArgumentParser,
+    CLIError,
     add_force_option,
     add_quiet_option,
+    add_scene_size_option,
     add_variant_option,
     check_output_path,
     float_type,
     int_type,
     parse_resolution,
     run_cli,
+    user_input,
 )
 
 PROG = "python -m repro.render"
@@ -32,13 +35,13 @@ PROG = "python -m repro.render"
 
 def _parser() -> ArgumentParser:
     from scenes.camera import CAMERA_PRESETS
-    from scenes.library import PRESETS, SCENES
+    from scenes.library import SCENES
     from scenes.thin_lens import SIGMA_CONVENTIONS
 
     p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     p.add_argument("scene", nargs="?", metavar="SCENE", help=f"scene name: {', '.join(SCENES)} (details: --list)")
     p.add_argument("--list", action="store_true",
-                   help="list the scenes (set, camera, description, sigma_gt range per preset and f-number "
+                   help="list the scenes (set, camera, description, sigma_gt range per render size and f-number "
                         "measured from the ground truth, cached) and exit")
     p.add_argument("--camera", default=None, metavar="PRESET",
                    help=f"camera preset, one of {', '.join(CAMERA_PRESETS)} (default: the scene's own camera; the "
@@ -54,11 +57,12 @@ def _parser() -> ArgumentParser:
     p.add_argument("--sensor-height", type=float_type("--sensor-height"), default=None,
                    metavar="MM", help="sensor height in mm (default: the camera preset's)")
     size = p.add_mutually_exclusive_group()
-    size.add_argument("--resolution", default=None, metavar="WxH", help="image size in pixels, e.g. 640x480")
-    size.add_argument("--preset", default=None, choices=sorted(PRESETS),
-                      help="resolution preset: " + ", ".join(f"{k} {w}x{h}" for k, (w, h) in PRESETS.items()))
+    size.add_argument("--resolution", default=None, metavar="WxH",
+                      help="image size in pixels, e.g. 640x480 (instead of --scene-size)")
+    add_scene_size_option(size, default=None, aliases=("--preset", "--scene-preset"),
+                          what="render size (default small; with --resolution, the size whose spp is the default)")
     p.add_argument("--spp", type=int_type("--spp"), default=None, metavar="K",
-                   help="samples per pixel, >= 1 (default: the scene's for the preset)")
+                   help="samples per pixel, >= 1 (default: the scene's for the render size)")
     p.add_argument("--seed", type=int_type("--seed", minimum=0), default=0, metavar="S", help="sampler seed (default 0)")
     add_variant_option(p)
     p.add_argument("--sigma-convention", default="line_spread", choices=sorted(SIGMA_CONVENTIONS),
@@ -70,7 +74,7 @@ def _parser() -> ArgumentParser:
 
 
 def _list_scenes(scenes, *, variant=None, progress=True) -> int:
-    """Print every scene: its set, camera, focus and σ_gt range per preset and f-number (measured)."""
+    """Print every scene: its set, camera, focus and σ_gt range per render size and f-number (measured)."""
     from tqdm.auto import tqdm
 
     from scenes.library import DEFAULT_F_NUMBERS, PRESETS, SCENE_SETS
@@ -78,7 +82,7 @@ def _list_scenes(scenes, *, variant=None, progress=True) -> int:
 
     set_of = {n: s for s, names in SCENE_SETS.items() for n in names}
     lines = []
-    for name, sdef in tqdm(list(scenes.items()), desc="sigma_gt ranges (ground-truth depth per preset)",
+    for name, sdef in tqdm(list(scenes.items()), desc="sigma_gt ranges (ground-truth depth per render size)",
                            unit="scene", disable=not progress, leave=False):
         cam = sdef.camera("full")
         ranges = sigma_gt_ranges(sdef, variant=variant)
@@ -101,34 +105,17 @@ def _list_scenes(scenes, *, variant=None, progress=True) -> int:
 
 
 def main(argv=None) -> int:
-    """Entry point; returns the exit status (user errors raise ValueError, see repro._cli)."""
+    """Entry point; returns the exit status (user errors raise CLIError, see repro._cli)."""
     args = _parser().parse_args(argv)
-    from scenes.library import SCENES, get_scene
+    from scenes.library import SCENES
 
     if args.list:
         return _list_scenes(SCENES, variant=args.variant, progress=not args.quiet)
     if args.scene is None:
-        raise ValueError(f"SCENE is missing; allowed: one of {sorted(SCENES)} (or --list)")
-    sdef = get_scene(args.scene)
+        raise CLIError(f"SCENE is missing; allowed: one of {sorted(SCENES)} (or --list)")
+    sdef, camera, preset, out = _validated(args)
+    from scenes.render import render_scene
 
-    # --- validate everything before rendering or writing anything ---------------------------
-    preset = args.preset or "small"
-    resolution = parse_resolution(args.resolution) if args.resolution else None
-    if resolution is not None and args.preset is None:
-        preset = "full" if resolution[0] > 320 else "small"  # default spp only
-    changes = {}
-    for flag, field in (("focus_distance", "focus_distance_m"), ("focal_length", "focal_length_mm"),
-                        ("sensor_width", "sensor_width_mm"), ("sensor_height", "sensor_height_mm")):
-        value = getattr(args, flag)
-        if value is not None:
-            changes[field] = value
-    camera = sdef.camera(preset, f_number=args.fnumber, camera_name=args.camera, resolution=resolution, **changes)
-    out = check_output_path(args.out) if args.out else None
-
-    from scenes.render import render_scene, validate_render_options
-
-    validate_render_options(sdef, camera, preset=preset, spp=args.spp, seed=args.seed,
-                            sigma_convention=args.sigma_convention)
     render = render_scene(sdef, camera, preset=preset, spp=args.spp, seed=args.seed, variant=args.variant,
                           sigma_convention=args.sigma_convention, force=args.force,
                           progress=not args.quiet)
@@ -152,6 +139,31 @@ def main(argv=None) -> int:
         f"{100 * st['occlusion_boundary_fraction']:.0f}%, render {m['render_time_s']:.1f} s"
     )
     return 0
+
+
+def _validated(args):
+    """(scene, camera, render size, --out path) of the command line, every flag checked before any render."""
+    from scenes.library import get_scene
+    from scenes.render import validate_render_options
+
+    preset = args.scene_size or "small"
+    resolution = parse_resolution(args.resolution) if args.resolution else None
+    if resolution is not None and args.scene_size is None:
+        preset = "full" if resolution[0] > 320 else "small"  # default spp only
+    changes = {}
+    for flag, field in (("focus_distance", "focus_distance_m"), ("focal_length", "focal_length_mm"),
+                        ("sensor_width", "sensor_width_mm"), ("sensor_height", "sensor_height_mm")):
+        value = getattr(args, flag)
+        if value is not None:
+            changes[field] = value
+    with user_input():
+        sdef = get_scene(args.scene)
+        camera = sdef.camera(preset, f_number=args.fnumber, camera_name=args.camera, resolution=resolution,
+                             **changes)
+        validate_render_options(sdef, camera, preset=preset, spp=args.spp, seed=args.seed,
+                                sigma_convention=args.sigma_convention)
+    out = check_output_path(args.out) if args.out else None
+    return sdef, camera, preset, out
 
 
 if __name__ == "__main__":

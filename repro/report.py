@@ -626,17 +626,20 @@ def main(argv=None) -> int:
                         help="folder of repro.evaluate --procedural evaluations; the newest dev and test ones give the "
                              "generalisation section (default: report/evaluations)")
     args = parser.parse_args(argv)
-    external = parse_external(args.external)
-    if args.dataset is not None and not external:
-        raise ValueError("--dataset is invalid without --external; allowed: with --external NAME=MAPDIR")
+    from repro._cli import user_input
+
+    with user_input():  # the flags and the figures folder
+        external = parse_external(args.external)
+        if args.dataset is not None and not external:
+            raise ValueError("--dataset is invalid without --external; allowed: with --external NAME=MAPDIR")
+        if not args.figures.is_dir():
+            raise ValueError(f"figures folder {args.figures} does not exist; run python -m repro.figures first")
+        metrics = load_metrics(args.figures)
+        if not metrics:
+            raise ValueError(f"no *.metrics.json in {args.figures}; run python -m repro.figures first")
     from experiments.claims import claim_matrix, claims_document, evaluate_claims
     from defocus_cache import atomic_write_text
 
-    if not args.figures.is_dir():
-        raise ValueError(f"figures folder {args.figures} does not exist; run python -m repro.figures first")
-    metrics = load_metrics(args.figures)
-    if not metrics:
-        raise ValueError(f"no *.metrics.json in {args.figures}; run python -m repro.figures first")
     args.out.mkdir(parents=True, exist_ok=True)
     verdicts = evaluate_claims(metrics)
     matrix = claim_matrix(metrics)
@@ -647,14 +650,16 @@ def main(argv=None) -> int:
     bench = _bench_summary(args.out)
     board = None
     if external:
-        board = external_leaderboard(external, args.dataset)
+        with user_input():  # --external names and folders, --dataset (too broad: also the scoring)
+            board = external_leaderboard(external, args.dataset)
         for line in board["problems"]:
             print(f"python -m repro.report: skipped {line}", file=sys.stderr)
         from experiments.registry import to_jsonable
 
         atomic_write_text(args.out / "leaderboard.json",
                           json.dumps(to_jsonable(board), indent=1, sort_keys=True, ensure_ascii=False) + "\n")
-    generalisation = _generalisation(args)
+    with user_input():  # --evaluations (too broad: also reading the evaluations)
+        generalisation = _generalisation(args)
     if generalisation is not None:
         from experiments.registry import to_jsonable
 

@@ -1,8 +1,8 @@
 """Experiment sweeps on Dask distributed: one machine by default, a cluster when pointed at one.
 
 ``python -m repro.sweep [--scenes NAME ...] [--camera PRESET ...] [--fnumber 8 4] [--estimator NAME ...]
-[--preset NAME ...] [--param FIELD=V1,V2 ...] [--seeds 0 1] [--scene-preset small|full]
-[--encoding srgb linear] [--workers N | --scheduler tcp://HOST:PORT] [--metric COLUMN] [--variant V]
+[--preset NAME ...] [--param FIELD=V1,V2 ...] [--seeds 0 1] [--scene-size small|full]
+[--encoding srgb linear] [--workers N | --scheduler tcp://HOST:PORT] [--metric COLUMN] [--variant V] [-q]
 --out DIR``
 
 The grid is the product scenes × cameras × f-numbers × seeds (one *render* each) × method presets ×
@@ -48,6 +48,10 @@ __all__ = ["DEFAULT_METRIC", "INFO_COLUMNS", "INPUT_COLUMNS", "PROG", "SCENE_CAM
 
 PROG = "python -m repro.sweep"
 
+#: Method presets (keys of ``method.PRESETS``) swept when ``--preset`` is not given: the literal
+#: reproduction, the baseline every other variant of a sweep is compared with.
+DEFAULT_PRESETS = ("paper",)
+
 
 def plot_metric(rows: list[dict], metric: str, path: Path) -> Path:
     """:func:`experiments.plotting.sweep.plot_metric` (matplotlib imported only when called)."""
@@ -73,10 +77,11 @@ def format_summary(rows: list[dict], metric: str) -> str:
 
 
 def _parser():
-    from method import BLUR_ESTIMATORS, PRESETS
+    from method import BLUR_ESTIMATORS
     from scenes import CAMERA_PRESETS, SCENES
 
-    from ._cli import ArgumentParser, add_variant_option, float_type, int_type
+    from ._cli import (ArgumentParser, add_preset_option, add_quiet_option, add_scene_size_option, add_variant_option,
+                       float_type, hidden_alias, int_type)
 
     p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     add_variant_option(p)
@@ -88,14 +93,12 @@ def _parser():
                    help="apertures (default: 8 4)")
     p.add_argument("--estimator", nargs="+", default=None, metavar="NAME",
                    help=f"blur estimators ({BLUR_ESTIMATORS.describe()}; default: each preset's own)")
-    p.add_argument("--preset", nargs="+", default=["paper"], metavar="NAME",
-                   help=f"method presets ({PRESETS.describe()}; default: paper)")
+    add_preset_option(p, default=DEFAULT_PRESETS, many=True)
     p.add_argument("--param", action="append", default=[], metavar="FIELD=V1,V2",
                    help="sweep a DefocusParams field over values (repeatable), e.g. --param alpha=0.1,0.5,1")
     p.add_argument("--seeds", nargs="+", type=int_type("--seeds", minimum=0), default=[0], metavar="S",
                    help="render sampler seeds (default: 0)")
-    p.add_argument("--scene-preset", default="small", choices=("small", "full"),
-                   help="render resolution preset (small 160x120, full 640x480; default small)")
+    add_scene_size_option(p)
     p.add_argument("--encoding", nargs="+", default=["srgb"], choices=("srgb", "linear"),
                    help="input encodings given to the method (default: srgb)")
     g = p.add_mutually_exclusive_group()
@@ -107,7 +110,8 @@ def _parser():
     p.add_argument("--metric", default=DEFAULT_METRIC, metavar="COLUMN",
                    help=f"metric of the plot and summary (default {DEFAULT_METRIC})")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_quiet_option(p, what="no progress bar")
+    hidden_alias(p, "--no-progress", dest="quiet", action="store_true")
     return p
 
 
@@ -115,17 +119,21 @@ def main(argv=None) -> int:
     """Entry point; returns the exit status."""
     from scenes import SCENES
 
+    from ._cli import CLIError, user_input
+
     args = _parser().parse_args(argv)
     if args.out.exists() and not args.out.is_dir():
-        raise ValueError(f"--out {str(args.out)!r} is a file; allowed: a folder")
+        raise CLIError(f"--out {str(args.out)!r} is a file; allowed: a folder")
     if args.scheduler is not None and "://" not in args.scheduler:
-        raise ValueError(f"--scheduler {args.scheduler!r} is invalid; allowed: an address like tcp://HOST:PORT")
-    grid = build_grid(scenes=args.scenes or list(SCENES), cameras=args.camera, f_numbers=args.fnumber,
-                      estimators=args.estimator, presets=args.preset, params=parse_params(args.param),
-                      seeds=args.seeds, scene_preset=args.scene_preset, encodings=args.encoding,
-                      metric=args.metric, variant=args.variant)
-    print(f"sweep: {len(grid.cells)} cells, {len(grid.renders)} distinct renders -> {args.out}", file=sys.stderr)
-    run = run_sweep(grid, args.out, workers=args.workers, scheduler=args.scheduler, progress=not args.no_progress)
+        raise CLIError(f"--scheduler {args.scheduler!r} is invalid; allowed: an address like tcp://HOST:PORT")
+    with user_input():
+        grid = build_grid(scenes=args.scenes or list(SCENES), cameras=args.camera, f_numbers=args.fnumber,
+                          estimators=args.estimator, presets=args.preset, params=parse_params(args.param),
+                          seeds=args.seeds, scene_preset=args.scene_size, encodings=args.encoding,
+                          metric=args.metric, variant=args.variant)
+    if not args.quiet:
+        print(f"sweep: {len(grid.cells)} cells, {len(grid.renders)} distinct renders -> {args.out}", file=sys.stderr)
+    run = run_sweep(grid, args.out, workers=args.workers, scheduler=args.scheduler, progress=not args.quiet)
     print(format_summary(run.rows, grid.metric))
     variants = sorted({r["mitsuba_variant"] for r in run.rows})
     print(f"cells: {run.n_cells} ({run.n_resumed} read back, {run.n_cells - run.n_resumed} computed; "

@@ -3,7 +3,8 @@
 :func:`render_scene` renders a :data:`scenes.library.SCENES` entry with Mitsuba 3 (thin-lens camera,
 ``box`` pixel filter), computes per-pixel ground truth (:mod:`scenes.ground_truth`: camera-space
 depth from lens-centre rays, CoC by Eq. (5), σ_gt, occlusion-boundary mask), writes everything to one
-float32 EXR (:mod:`scenes.exr`) plus a JSON sidecar, and returns a :class:`Render`.
+float32 EXR (:mod:`scenes.exr`) plus a JSON sidecar, and returns a :class:`Render` (the file and its
+reader: :mod:`scenes.render_files`).
 
 Renders are cached under ``scenes.backend.cache_root() / "renders"`` (:class:`defocus_cache.Cache`)
 keyed by everything that changes the output: the scene's *content* (:func:`scene_content_hash`, a hash
@@ -16,7 +17,6 @@ an entry once.
 
 from __future__ import annotations
 
-import dataclasses
 import datetime
 import json
 import math
@@ -27,12 +27,11 @@ import numpy as np
 
 from .backend import cache_root, import_mitsuba
 from .camera import ThinLensCamera
-from .display import camera_image
-from .exr import read_exr, write_exr
 from .ground_truth import camera_space_depth, ground_truth_from_depth
 from .library import SceneDefinition, get_scene
 from .library.base import SAMPLER
 from defocus_cache import Cache, atomic_write_text, hash_key, library_versions, source_fingerprint
+from .render_files import _UNITS, EXR_NAME, Render, load_render, sidecar_path
 from .thin_lens import BOX_FILTER_SIGMA_PX, SIGMA_CONVENTIONS
 
 __all__ = [
@@ -52,164 +51,11 @@ __all__ = [
 #: Version of the render file layout (channels and sidecar fields); part of the cache key. The
 #: ground-truth algorithm enters the key by its source (:func:`_ground_truth_code`).
 RENDER_FORMAT = 2
-#: File names inside a cache entry.
-EXR_NAME = "render.exr"
 #: Samples (pixels x spp) per ``mitsuba.render`` call; renders are split into chunks with
 #: different seeds, averaged, so progress can be shown.
 CHUNK_SAMPLES = 1 << 23
 #: σ of the ``box`` pixel filter every scene uses, px (1/√12).
 FILTER_SIGMA_PX = float(BOX_FILTER_SIGMA_PX)
-
-_CHANNELS = {"rgb": "RGB", "depth": "Z", "coc_px": "coc", "sigma_px": "sigma", "occlusion_boundary": "occlusion_boundary"}
-_UNITS = {
-    "RGB": "linear radiance (float32, unclamped)",
-    "Z": "camera-space depth z, metres; inf = the pixel-centre lens-centre ray missed",
-    "coc": "circle-of-confusion diameter, px (Eq. 5 / pixel pitch)",
-    "sigma": "ground-truth Gaussian blur sigma, px (convention + box filter in quadrature)",
-    "occlusion_boundary": "1 within a CoC radius + 1 px of a depth discontinuity, else 0",
-}
-
-
-@dataclasses.dataclass(frozen=True, eq=False)
-class Render:
-    """One rendered image with its per-pixel ground truth.
-
-    Attributes
-    ----------
-    rgb : ndarray, HxWx3 float32
-        Linear radiance (unclamped).
-    depth : ndarray, HxW float32
-        Camera-space depth z, metres (``inf`` where the pixel-centre ray missed).
-    coc_px : ndarray, HxW float32
-        Circle-of-confusion diameter, px, Eq. (5).
-    sigma_px : ndarray, HxW float32
-        σ_gt, px; convention in ``metadata["sigma_convention"]``.
-    occlusion_boundary : ndarray, HxW bool
-        Pixels within a CoC radius of a depth discontinuity (mixed blur; see
-        :func:`scenes.ground_truth.occlusion_boundary_mask`).
-    metadata : dict
-        The JSON sidecar: scene, version, camera, resolution, spp, seed, variant, versions, timings.
-    path : Path or None
-        The EXR file (None for an uncached in-memory render).
-    """
-
-    rgb: np.ndarray
-    depth: np.ndarray
-    coc_px: np.ndarray
-    sigma_px: np.ndarray
-    occlusion_boundary: np.ndarray
-    metadata: dict
-    path: Path | None = None
-
-    def image(self, *, encoding="srgb", exposure=1.0, quantize_bits=None, noise="none", jpeg_quality=None,
-              rng=None) -> np.ndarray:
-        """The image the method sees (:func:`scenes.display.camera_image`).
-
-        Parameters
-        ----------
-        encoding : {"srgb", "linear"}, keyword-only
-        exposure : float, keyword-only
-            Multiplier on the linear radiance before clipping to [0, 1].
-        quantize_bits : int or None, keyword-only
-            Round to this many bits per channel (8 for a JPEG-like input).
-        noise : str or (float, float), keyword-only
-            Sensor noise level: a name of :data:`scenes.display.NOISE_LEVELS` ("none", "iso100",
-            "iso800", "iso3200") or the variances (a, b) of a linear signal.
-        jpeg_quality : int or None, keyword-only
-            JPEG quality 1–100 applied last (8 bits); None: no JPEG.
-        rng : numpy.random.Generator or int or None, keyword-only
-            The noise's generator or seed (None: seed 0): the same seed gives the same noise.
-
-        Returns
-        -------
-        ndarray, HxWx3 float64 in [0, 1]
-        """
-        return camera_image(self.rgb, exposure=exposure, quantize_bits=quantize_bits, encoding=encoding, noise=noise,
-                            jpeg_quality=jpeg_quality, rng=rng)
-
-    @property
-    def camera(self) -> ThinLensCamera:
-        """The camera that rendered this image."""
-        d = dict(self.metadata["camera"])
-        fields = {f.name for f in dataclasses.fields(ThinLensCamera)}
-        return ThinLensCamera(**{k: (tuple(v) if k == "resolution" else v) for k, v in d.items() if k in fields})
-
-    def save(self, path) -> Path:
-        """Write the EXR and its JSON sidecar (``path`` with suffix ``.json``), atomically.
-
-        Parameters
-        ----------
-        path : str or Path
-            Destination ``.exr``; its folder must exist.
-
-        Returns
-        -------
-        Path
-            The EXR path.
-        """
-        path = Path(path)
-        write_exr(path, {_CHANNELS[k]: getattr(self, k) for k in _CHANNELS})
-        atomic_write_text(sidecar_path(path), json.dumps(self.metadata, indent=1, sort_keys=True, default=_json_default))
-        return path
-
-
-def sidecar_path(exr_path) -> Path:
-    """The JSON sidecar next to an EXR file (same name, suffix ``.json``)."""
-    return Path(exr_path).with_suffix(".json")
-
-
-def _json_default(o):
-    if isinstance(o, (np.integer,)):
-        return int(o)
-    if isinstance(o, (np.floating,)):
-        return float(o)
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, Path):
-        return str(o)
-    return str(o)
-
-
-def load_render(path) -> Render:
-    """Read a render written by :func:`render_scene` or :meth:`Render.save`.
-
-    Parameters
-    ----------
-    path : str or Path
-        The EXR file, or a cache-entry folder holding ``render.exr``.
-
-    Returns
-    -------
-    Render
-
-    Raises
-    ------
-    FileNotFoundError
-        If the EXR or its sidecar is missing.
-    ValueError
-        If a ground-truth channel is missing.
-    """
-    path = Path(path)
-    if path.is_dir():
-        path = path / EXR_NAME
-    channels = read_exr(path)
-    missing = [c for c in _CHANNELS.values() if c not in channels]
-    if missing:
-        raise ValueError(f"{path} lacks channels {missing}; has {sorted(channels)}")
-    side = sidecar_path(path)
-    if not side.is_file():
-        raise FileNotFoundError(f"no JSON sidecar next to {path}: {side}")
-    metadata = json.loads(side.read_text())
-    return Render(
-        rgb=channels["RGB"],
-        depth=channels["Z"],
-        coc_px=channels["coc"],
-        sigma_px=channels["sigma"],
-        occlusion_boundary=channels["occlusion_boundary"] > 0.5,
-        metadata=metadata,
-        path=path,
-    )
-
 
 def validate_render_options(scene, camera=None, *, preset="small", f_number=None, spp=None, seed=0,
                             sigma_convention="line_spread"):

@@ -189,7 +189,7 @@ def claims_values(metrics_by_figure):
 
 def with_presets_and_scene_sets(extract):
     """``extract`` applied to the flat metrics, to each ``presets.<P>`` and, recursively, to each
-    ``scene_sets.<S>`` (CONTRACT.md nesting), so every preset and scene set is watched."""
+    ``scene_sets.<S>`` (the nesting of experiments/scene_sets.py), so every preset and scene set is watched."""
     def values(m):
         out = extract(m)
         presets = m.get("presets")

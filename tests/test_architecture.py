@@ -55,14 +55,15 @@ def test_matplotlib_only_in_plotting_modules():
 
 
 def test_photo_io_and_cache_live_where_they_say():
-    """Photo files are read/written only by the photo tools (repro.estimate, repro.magnify): repro/photo_io.py;
-    the cache layer is its own package, defocus_cache/."""
-    assert (ROOT / "repro" / "photo_io.py").is_file() and not (ROOT / "scenes" / "photo_io.py").exists()
+    """Photo files are read/written only by the photo tools (repro.estimate, repro.magnify and their map
+    module repro/_photo_map.py): the package repro/photo_io/; the cache layer is its own package, defocus_cache/."""
+    photo_io = ROOT / "repro" / "photo_io"
+    assert (photo_io / "__init__.py").is_file() and not (ROOT / "scenes" / "photo_io.py").exists()
     assert (ROOT / "defocus_cache" / "__init__.py").is_file() and not (ROOT / "scenes" / "storage.py").exists()
     users = sorted(str(p.relative_to(ROOT)) for pkg in ("method", "scenes", "experiments", "repro", "defocus_cache")
                    for p in (ROOT / pkg).rglob("*.py") if "photo_io" in p.read_text(encoding="utf-8")
-                   and p.name != "photo_io.py")
-    assert users == ["repro/estimate.py", "repro/magnify.py"], users
+                   and photo_io not in p.parents)
+    assert users == ["repro/_photo_map.py", "repro/estimate.py", "repro/magnify.py"], users
 
 
 def test_the_checker_sees_imports(tmp_path):
@@ -201,6 +202,17 @@ def test_method_modules_are_at_most_500_lines():
     long = {str(p.relative_to(ROOT)): n for p in sorted((ROOT / "method").rglob("*.py"))
             if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES}
     assert not long, f"modules over {MAX_MODULE_LINES} lines: {long}"
+
+
+#: Modules of scenes/ and repro/ still over the limit, split in another change; the test fails as soon
+#: as one of them fits, so the list can only shrink.
+PENDING_SPLIT = {"repro/report.py", "repro/evaluate.py"}
+
+
+def test_scenes_and_repro_modules_are_at_most_500_lines():
+    long = {str(p.relative_to(ROOT)): n for pkg in ("scenes", "repro") for p in sorted((ROOT / pkg).rglob("*.py"))
+            if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES}
+    assert set(long) == PENDING_SPLIT, f"modules over {MAX_MODULE_LINES} lines: {long}; pending: {PENDING_SPLIT}"
 
 
 def test_method_functions_are_at_most_100_lines_of_code():

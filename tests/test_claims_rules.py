@@ -1,6 +1,6 @@
 """Every claim rule of experiments/claims.py on made-up metrics: each side of each threshold
 (reproduced / partly reproduced / not reproduced), missing data ("not evaluated"), a raising check
-("error"), and the projection of nested presets and scene sets (CONTRACT.md)."""
+("error"), and the projection of nested presets and scene sets (experiments/scene_sets.py)."""
 
 from __future__ import annotations
 

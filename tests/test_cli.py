@@ -1,4 +1,4 @@
-"""repro._cli.run_cli: user and machine errors become one stderr line; bugs propagate."""
+"""repro._cli.run_cli: user and machine errors become one stderr line; bugs propagate with their traceback."""
 
 import gc
 import signal
@@ -8,7 +8,7 @@ import weakref
 
 import pytest
 
-from repro._cli import run_cli
+from repro._cli import ArgumentParser, CLIError, run_cli, user_input
 
 
 def _raiser(exc):
@@ -18,7 +18,7 @@ def _raiser(exc):
 
 
 @pytest.mark.parametrize("exc, needle", [
-    (ValueError("x=3 is invalid; allowed: > 4"), "x=3 is invalid"),
+    (CLIError("x=3 is invalid; allowed: > 4"), "x=3 is invalid"),
     (PermissionError(13, "Permission denied", "/root/out.png"), "Permission denied (/root/out.png)"),
     (OSError(28, "No space left on device"), "No space left on device"),
     (MemoryError(), "out of memory"),
@@ -94,6 +94,51 @@ def test_without_the_hook_python_swallows_the_ctrl_c(capsys, monkeypatch):
 def test_bugs_propagate():
     with pytest.raises(RuntimeError):
         run_cli(_raiser(RuntimeError("bug")), [], prog="prog")
+    with pytest.raises(ValueError, match="operands could not be broadcast"):  # a plain ValueError is a bug
+        run_cli(_raiser(ValueError("operands could not be broadcast together")), [], prog="prog")
+
+
+def _validating(argv=None):
+    """A tool whose validator (an API function raising ValueError) is wrapped in user_input."""
+    args = ArgumentParser(prog="prog").parse_args(argv)
+    with user_input():
+        int("x")  # the API's ValueError on what the user gave
+    return 0 if args else 1
+
+
+def test_user_input_turns_the_apis_value_error_into_a_user_error(capsys):
+    assert run_cli(_validating, [], prog="prog") == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["prog: error: invalid literal for int() with base 10: 'x'"]
+    with pytest.raises(CLIError, match="^--n bad$") as info:
+        with user_input("--n"):
+            raise ValueError("bad")
+    assert isinstance(info.value.__cause__, ValueError)  # chained: --debug shows where it was raised
+
+    @user_input()
+    def check(x):
+        if x < 0:
+            raise ValueError(f"x={x} is invalid")
+        return x
+
+    assert check(1) == 1
+    with pytest.raises(CLIError, match="x=-1"):
+        check(-1)
+    with pytest.raises(TypeError):  # only ValueError is a user error
+        with user_input():
+            raise TypeError("a bug")
+
+
+@pytest.mark.parametrize("flag", ["--debug", "--deb"])
+def test_debug_shows_the_traceback_of_a_user_error(capsys, flag):
+    assert run_cli(_validating, [flag], prog="prog") == 2
+    err = capsys.readouterr().err
+    assert "Traceback (most recent call last)" in err and 'int("x")' in err  # where the API raised
+    assert err.strip().splitlines()[-1] == "prog: error: invalid literal for int() with base 10: 'x'"
+    assert run_cli(_raiser(CLIError("bad")), ["--debug"], prog="prog") == 2  # also before any parser ran
+    assert "Traceback" in capsys.readouterr().err
+    assert run_cli(_raiser(CLIError("bad")), ["--", "--debug"], prog="prog") == 2  # an argument, not the flag
+    assert "Traceback" not in capsys.readouterr().err
 
 
 def test_status_passes_through():
@@ -121,9 +166,20 @@ CACHED = ("figures", "render", "evaluate", "estimate", "magnify")
 def test_console_script_is_declared():
     meta = tomllib.loads((ROOT / "pyproject.toml").read_text())
     assert meta["project"]["scripts"] == {"defocus-repro": "repro._cli:console_main"}
-    assert set(COMMANDS) == {"figures", "render", "evaluate", "estimate", "magnify", "report", "bench", "sweep"}
-    for name in ("figures", "render", "evaluate", "estimate", "magnify", "report", "bench"):
+    assert set(COMMANDS) == {"figures", "render", "evaluate", "estimate", "magnify", "report", "bench", "sweep",
+                             "dataset"}
+    for name in ("figures", "render", "evaluate", "estimate", "magnify", "report", "bench", "dataset"):
         assert name in AVAILABLE
+
+
+def test_every_tool_is_a_sub_command():
+    """Every ``repro/X.py`` with a ``main`` is ``defocus-repro X`` (private ``_X.py`` helpers aside)."""
+    import ast
+
+    tools = sorted(p.stem for p in (ROOT / "repro").glob("*.py") if not p.name.startswith("_")
+                   and any(isinstance(n, ast.FunctionDef) and n.name == "main"
+                           for n in ast.parse(p.read_text(encoding="utf-8")).body))
+    assert tools == sorted(COMMANDS)
 
 
 def _help(name, capsys) -> str:
@@ -139,12 +195,38 @@ def test_every_command_has_version_and_the_shared_flag_names(name, capsys):
         console_main([name, "--version"])
     assert e.value.code == 0 and capsys.readouterr().out.strip() == version_string()
     text = _help(name, capsys)
-    assert "--version" in text
+    assert "--version" in text and "--debug" in text
     assert "--no-cache" not in text  # one documented name: --force
+    assert "--scene-preset" not in text or name == "evaluate"  # one name for the render size: --scene-size
     if "--quiet" in text:
         assert "-q, --quiet" in text
     if name in CACHED:
         assert "--force" in text
+
+
+#: Tools whose flags are renamed in their own rewrite (not yet: -q, --scene-size, one default preset).
+PENDING_QUIET = ("report",)
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="flag pending"))
+                                  if n in PENDING_QUIET else n for n in AVAILABLE])
+def test_every_tool_has_quiet(name, capsys):
+    assert "-q, --quiet" in _help(name, capsys)
+
+
+def test_preset_means_a_method_preset_with_its_default_in_the_help(capsys):
+    """``--preset`` names ``method.PRESETS`` only (the render size is ``--scene-size``), its help states the
+    tool's default."""
+    import re
+
+    from method import PRESETS
+
+    for name in ("estimate", "magnify", "sweep"):
+        text = " ".join(_help(name, capsys).split())
+        m = re.search(r"--preset NAME( \[NAME ...\])? method parameter sets? \(method.PRESETS\).*?Default: (\w+)", text)
+        assert m and m.group(2) in PRESETS, (name, text)
+    text = " ".join(_help("render", capsys).split())
+    assert "--preset" not in text and "--scene-size {small,full}" in text
 
 
 def test_help_texts_list_registry_names(capsys, monkeypatch):
@@ -197,3 +279,24 @@ def test_installed_script_and_python_m_both_work():
     for cmd in ([sys.executable, "-m", "repro.estimate", "--version"], [sys.executable, "-m", "repro", "--version"]):
         got = subprocess.run(cmd, capture_output=True, text=True, timeout=120, cwd=ROOT)
         assert got.returncode == 0 and got.stdout.strip() == version_string(), cmd
+
+
+def test_old_flag_names_still_work_hidden():
+    """``--scene-size`` is the render size everywhere; the earlier names parse the same and are not shown."""
+    from repro import dataset, render, sweep
+
+    for argv in (["planes", "--scene-size", "full"], ["planes", "--preset", "full"], ["planes", "--scene-preset", "full"]):
+        assert render._parser().parse_args(argv).scene_size == "full"
+    assert render._parser().parse_args(["planes"]).scene_size is None  # the size follows --resolution, else small
+    with pytest.raises(CLIError, match="not allowed with"):
+        render._parser().parse_args(["planes", "--scene-size", "full", "--resolution", "64x48"])
+    for module, base in ((sweep, ["--out", "x"]), (dataset, ["export", "--out", "x"])):
+        assert module._parser().parse_args(base).scene_size == "small"
+        for flag in ("--scene-size", "--scene-preset"):
+            assert module._parser().parse_args([*base, flag, "full"]).scene_size == "full"
+        with pytest.raises(CLIError, match="invalid choice"):
+            module._parser().parse_args([*base, "--scene-size", "huge"])
+    assert sweep._parser().parse_args(["--out", "x"]).quiet is False
+    assert sweep._parser().parse_args(["--out", "x", "--no-progress"]).quiet is True
+    assert sweep._parser().parse_args(["--out", "x", "-q"]).quiet is True
+    assert sweep._parser().parse_args(["--out", "x"]).preset == ["paper"]

@@ -4,6 +4,9 @@
   (``make figures``, ``make test``), both real Makefile targets;
 - the claims block that ``repro.report`` refreshes is present exactly once;
 - every relative link (and ``#anchor``) in README.md and docs/*.md resolves;
+- every repository path cited in README.md, CONTRIBUTING.md and docs/*.md (in backticks or as a link)
+  exists, ``{a,b}`` and ``*`` patterns matching at least one file; the outputs the tools write under
+  ``report/`` and the folders git ignores are exempt (:data:`GENERATED`);
 - every ``python -m repro.X --flag`` in README.md and docs/*.md names a flag that the parser of
   ``repro.X`` accepts (the parser is captured from the tool's own ``main``), and every documented
   ``--flag a|b`` value is one of its choices (or a name its help lists);
@@ -119,6 +122,82 @@ def test_the_link_check_finds_links():
 
 
 # --------------------------------------------------------------------------------------------
+# cited repository paths
+# --------------------------------------------------------------------------------------------
+#: Top-level folders of the repository: a cited path starting with one of them must exist.
+TOP_FOLDERS = ("method", "scenes", "experiments", "repro", "tests", "docs", "benchmarks", "defocus_cache",
+               "report", ".ci", "notes")
+#: Paths the tools or the tests write (not in git): cited as where an output goes. Each is written by the
+#: module named (checked below, so the list cannot outlive the code that writes them).
+GENERATED = {
+    "report/figures/": "repro/figures.py",            # python -m repro.figures (default --out)
+    "report/evaluate": "repro/evaluate.py",            # python -m repro.evaluate (default --out)
+    "report/leaderboard.json": "repro/report.py",      # python -m repro.report --external
+    "tests/_failures/": "tests/test_render_reference.py",  # images of a failed comparison (git-ignored)
+}
+#: Cited paths that are folders of every checkout but never committed (build and cache products).
+IGNORED_PARTS = ("__pycache__",)
+PATH = re.compile(r"(?<![\w./-])((?:%s)/[\w./*{},-]*)" % "|".join(map(re.escape, TOP_FOLDERS)))
+
+
+def _spans(text: str) -> list[str]:
+    """Inline code spans and link targets of Markdown ``text`` (fenced blocks: commands, not citations)."""
+    prose = FENCE.sub("", text)
+    spans = [span for para in re.split(r"\n\s*\n", prose) for span in INLINE_CODE.findall(para)]
+    return spans + LINK.findall(prose)
+
+
+def _expand(pattern: str) -> list[str]:
+    """``a/{b,c}.md`` -> ``["a/b.md", "a/c.md"]`` (one level of braces, as the docs write them)."""
+    m = re.search(r"\{([^{}]*)\}", pattern)
+    if not m:
+        return [pattern]
+    return [x for alt in m.group(1).split(",") for x in _expand(pattern[:m.start()] + alt + pattern[m.end():])]
+
+
+def _cited_paths():
+    out = set()
+    for md in [README, ROOT / "CONTRIBUTING.md", *sorted(DOCS.glob("*.md"))]:
+        for span in _spans(md.read_text(encoding="utf-8")):
+            for path in PATH.findall(span):
+                out.add((_rel(md), path.rstrip(".,:;/") + ("/" if path.rstrip(".,:;").endswith("/") else "")))
+    return sorted(out)
+
+
+def _path_exists(path: str) -> bool:
+    if any(path.startswith(prefix) for prefix in GENERATED) or any(p in path.split("/") for p in IGNORED_PARTS):
+        return True
+    for one in _expand(path):
+        if any(c in one for c in "*?["):
+            if not list(ROOT.glob(one.rstrip("/"))):
+                return False
+        elif not (ROOT / one).exists():
+            return False
+    return True
+
+
+def test_the_path_check_finds_and_refuses_paths():
+    found = _cited_paths()
+    assert ("CONTRIBUTING.md", "tests/test_architecture.py") in found and len(found) > 100
+    assert _path_exists("method/propagation/defocus.py") and not _path_exists("method/propagation/defocus/defocus.py")
+    assert _path_exists("report/bench/bench.{md,json}") and not _path_exists("report/bench/bench.{md,xlsx}")
+    assert _path_exists("tests/golden/*.json") and not _path_exists("tests/golden/*.xlsx")
+    assert _path_exists("report/figures/fig7.png")  # written by repro.figures
+    assert _spans("a `x/y.py` b\n\n```\n`c/d.py`\n```\n[l](e/f.md)") == ["x/y.py", "e/f.md"]
+
+
+@pytest.mark.parametrize("generated, writer", sorted(GENERATED.items()))
+def test_generated_paths_are_written_by_their_module(generated, writer):
+    text = (ROOT / writer).read_text(encoding="utf-8")
+    assert generated.rstrip("/").split("/")[-1] in text, f"{writer} no longer writes {generated}"
+
+
+@pytest.mark.parametrize("md,path", _cited_paths())
+def test_every_cited_path_exists(md, path):
+    assert _path_exists(path), f"{md} cites {path}, which is not in the repository"
+
+
+# --------------------------------------------------------------------------------------------
 # documented CLI flags
 # --------------------------------------------------------------------------------------------
 class _Captured(Exception):
@@ -223,10 +302,27 @@ def _ok(tool: str, flag: str) -> bool:
 
 def test_a_made_up_flag_is_caught():
     assert _ok("evaluate", "--scene-preset") and not _ok("evaluate", "--no-such-flag")
-    assert not _ok("render", "--scene-preset") and _ok("render", "--preset")
-    assert _ok("render", "--preset small") and _ok("evaluate", "--scene-preset full")
+    assert not _ok("render", "--scene-seed") and _ok("render", "--scene-size")
+    assert _ok("render", "--scene-size small") and _ok("evaluate", "--scene-preset full")
     assert _ok("magnify", "--kernel disk") and _ok("estimate", "--preset zhuo_sim")
     assert not _ok("evaluate", "--preset small") and not _ok("magnify", "--kernel box")
+
+
+def _hidden(tool: str, flag: str) -> bool:
+    """``flag`` is an old name ``repro.<tool>`` still accepts but no longer shows (``argparse.SUPPRESS``)."""
+    return any(flag in a.option_strings and a.help == argparse.SUPPRESS for a in _parser_of(tool)._actions)
+
+
+@pytest.mark.parametrize("md,tools,flag", _documented_flags())
+def test_docs_use_the_current_flag_names(md, tools, flag):
+    name = flag.partition(" ")[0]
+    hidden = [t for t in tools if _hidden(t, name)]
+    assert not hidden, f"{md} documents {name} for repro.{hidden[0]}: an old name kept as a hidden alias"
+
+
+def test_the_old_name_check_catches_one():
+    assert _hidden("render", "--preset") and _hidden("sweep", "--scene-preset") and _hidden("sweep", "--no-progress")
+    assert not _hidden("render", "--scene-size") and not _hidden("estimate", "--preset")
 
 
 # --------------------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""repro/photo_io.py: decoding, bit depths, orientation, metadata, refusals, atomic writes."""
+"""repro/photo_io/: decoding, bit depths, orientation, metadata, refusals, atomic writes."""
 
 from __future__ import annotations
 

@@ -31,7 +31,7 @@ CALIB_EDGE_POSITION_PX = 0.1
 FIG10_MAX_REL_ERR = 0.03
 
 # --- cross-bilateral refinement, propagation, magnification (method/refine/cross_bilateral.py,
-#     method/propagation/defocus/defocus.py, method/magnify/magnification.py) ------------------------------------------
+#     method/propagation/defocus.py, method/magnify/magnification.py) ------------------------------------------
 #: Bilateral grid vs brute-force oracle, max |difference| as a fraction of the BM value range.
 #: Cells of σ/3 with the tent⊛tent variance compensated measured ≤ 0.9 % over 18 cases.
 BILATERAL_GRID_REL_TOL = 0.02
@@ -72,7 +72,7 @@ SCENE_EMISSION_ATOL = 2e-2
 #: by at least this much (orientation test).
 SCENE_ORIENTATION_MARGIN = 0.2
 
-# --- photo I/O, working resolution, photo CLIs (repro/photo_io.py, method/magnify/upsampling.py,
+# --- photo I/O, working resolution, photo CLIs (repro/photo_io/, method/magnify/upsampling.py,
 #     repro/estimate.py, repro/magnify.py) ------------------------------------------------------
 #: JPEG written at quality 95, 4:4:4, then read back, smooth saturated ramp: max and mean |difference|
 #: (measured 5.4/255 and < 1/255; quantisation of DCT coefficients, worst at saturated corners).
@@ -96,7 +96,7 @@ MAGNIFY_IDENTITY_ATOL = 0.0
 GUIDED_EDGE_POSITION_PX = 1
 
 # --- Sec. 3.1/3.2: Gaussian derivatives, edges, blur estimators (method/edges/gaussian_derivatives.py,
-#     method/edges/noise_thresholds.py, method/edges/elder_zucker.py, method/blur_*.py, scenes/analytic.py)
+#     method/edges/noise_thresholds.py, method/edges/elder_zucker.py, method/blur/*.py, scenes/analytic/)
 #: FFT (analytic transfer) vs direct convolution with the sampled Eq. (7)/(8) kernels, relative to
 #: the response's max, σ >= 1.5 px on a smooth image (sampled-kernel aliasing exp(−2π²σ²)·(2π)^k
 #: and truncation, measured ≤ 4e-5).
@@ -189,7 +189,7 @@ PIPELINE_TWO_REGION_SIGMA_RTOL = 0.15
 #: 6.4e-4 px (4×) and 5.9e-4 / 2.7e-3 px (2×), so the bounds were raised from 5e-4 / 2e-3 (24
 #: iterations) to 8e-4 / 3.5e-3; the Jacobi-only refinement stays ≥ 35× outside them.
 #: On the astronaut photo the default is 0.0082 / 0.019 px RMS from the exact solve at
-#: 512² / 1024² (method/propagation/defocus/defocus.py, propagate_defocus Notes).
+#: 512² / 1024² (method/propagation/defocus.py, propagate_defocus Notes).
 PROPAGATION_DEFAULT_VS_EXACT_RMS_PX = 8e-4
 PROPAGATION_DEFAULT_VS_EXACT_P99_PX = 3.5e-3
 #: Restriction is the exact transpose of the bilinear prolongation: |⟨Pᵀu, v⟩ − ⟨u, Pv⟩| relative.
@@ -250,7 +250,7 @@ FIG8_CONSTANT_ROUNDTRIP_ATOL = 0.02
 
 # --- presets and the robust preset's switches (method/presets.py PRESETS / ROBUST_CHANGES,
 #     method/blur/model_fit.py apply_fit_rules, method/refine/cross_bilateral.py range_kernel="product" /
-#     robust_iterations, method/propagation/defocus/defocus.py confidence=, experiments/stage_attribution.py) ------
+#     robust_iterations, method/propagation/defocus.py confidence=, experiments/stage_attribution.py) ------
 #: The robust preset's blur estimator (model_fit_checked, ρ ≤ 0.03, with the fit rules and
 #: fit_max_scale = 2 px) on straight step edges (σ = 1, 3, 6 px; 8-bit + noise 1/255; 4 angles),
 #: median |σ_est − σ| at edge pixels ≤ this · σ. Measured 0.016 / 0.043 / 0.072 px (0.016σ, 0.014σ,

@@ -23,7 +23,7 @@ from .external_maps import (DETECTION_THRESHOLD_PX, HEADLINE, PNG_SCALE, PROTOCO
                             summarize)
 
 __all__ = ["ALL_APERTURES", "ALL_SCENES", "GAP_METRICS", "build_leaderboard", "generalisation_gap", "generalisation_tables",
-           "leaderboard_tables", "preset_maps", "scene_set_of"]
+           "leaderboard_intro", "leaderboard_tables", "preset_maps", "scene_set_of"]
 
 #: Scene-set label of the rows over every image (given when the images span more than one set).
 ALL_SCENES = "all"
@@ -108,6 +108,15 @@ def build_leaderboard(truth, *, presets=None, external: Mapping[str, Path] | Non
                              "n_images": mean["n_images"], **keep})
     return {"rows": rows, "problems": problems, "ground_truth": truth.source, "protocols": protocols,
             "detection_threshold_px": float(threshold_px), "png_scale": float(png_scale), "scene_sets": sets}
+
+
+def leaderboard_intro(board: dict) -> str:
+    """One paragraph: what the leaderboard's rows are and where the ground truth comes from."""
+    return ("One row per method preset and external map folder, per scene set and protocol: the mean over the "
+            f"images of the per-image metric. Ground truth: {board['ground_truth']}; occlusion bands excluded. "
+            "Presets: the method on each image's 8-bit sRGB input (as `repro.estimate --preset NAME` on the "
+            "exported PNG). Protocols: docs/dataset.md."
+            + (f" Not scored: {len(board['problems'])} map(s) (listed in leaderboard.json)." if board["problems"] else ""))
 
 
 def _cell(v) -> str:

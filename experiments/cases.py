@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["PATH_SEP", "Case", "CaseOutput", "case_key", "case_rows", "case_task", "flatten", "method_presets", "nest",
+__all__ = ["PATH_SEP", "Case", "CaseOutput", "case_key", "case_rows", "case_task", "task_key", "flatten", "method_presets", "nest",
            "order_cases", "run_case", "run_cases", "single_threaded"]
 
 #: Separator of the parts of a metric path (``image_vs_large/unchanged_small/psnr_db``).
@@ -55,6 +55,10 @@ class Case:
         f-number of the render.
     encoding : str or None
         Input encoding given to the method.
+    noise : str or None
+        Sensor noise level of the input (:data:`scenes.display.NOISE_LEVELS`).
+    estimator : str or None
+        Blur estimator overriding the preset's (:data:`method.BLUR_ESTIMATORS`).
     variant : str or None
         The figure's own axis (``"s=2"`` bias scale, ``"nsr=0.01"``, ``"stage"``, ``"pooled"`` …).
     scene_size : str or None
@@ -69,12 +73,15 @@ class Case:
     preset: str | None = None
     aperture: float | None = None
     encoding: str | None = None
+    noise: str | None = None
+    estimator: str | None = None
     variant: str | None = None
     scene_size: str | None = None
     needs: tuple = ()
 
     #: Fields that identify a case (and name its columns).
-    ID_FIELDS = ("figure", "scene_set", "scene", "preset", "aperture", "encoding", "variant", "scene_size")
+    ID_FIELDS = ("figure", "scene_set", "scene", "preset", "aperture", "encoding", "noise", "estimator", "variant",
+                 "scene_size")
 
     def ids(self) -> dict:
         """The identifying fields (``needs`` excluded), None where unset."""
@@ -266,6 +273,13 @@ def case_key(figure, config, case: Case) -> dict:
     return {**cache_key(figure, config), "case": case.key()}
 
 
+def task_key(figure, config, case: Case) -> str:
+    """A Dask task key naming the case: ``case-<figure>-<16 hex digits of its cache key>``."""
+    from defocus_cache import hash_key
+
+    return f"case-{figure.name}-{hash_key(case_key(figure, config, case))[:16]}"
+
+
 def _check_output(figure, case: Case, data) -> tuple[dict, dict, tuple, dict]:
     if not isinstance(data, Mapping) or not isinstance(data.get("metrics", {}), Mapping):
         raise TypeError(f"{figure.name}.compute_case({case.label}) must return a dict with a 'metrics' dict")
@@ -308,6 +322,7 @@ def run_case(figure, config, case: Case, inputs: Mapping | None = None, *, force
     from .registry import CACHE_SUBDIR, check_config
 
     check_config(config)
+    use_cache = use_cache and getattr(figure, "cached", True)
     inputs = dict(inputs or {})
     t0 = time.perf_counter()
 
@@ -362,10 +377,11 @@ def _from_json(flat: dict) -> dict:
 def case_task(figure_name: str, config, case: Case, *needs: CaseOutput, force: bool = False) -> CaseOutput:
     """One case as a Dask task: :func:`run_case` of a registered figure with the outputs of ``case.needs``
     (in that order); returns the output without in-memory arrays (they are in the cache)."""
-    from .registry import FIGURES
+    from .units import unit
 
     inputs = dict(zip(case.needs, needs))
-    return run_case(FIGURES[figure_name], config, case, inputs, force=force).without_arrays()
+    out = run_case(unit(figure_name), config, case, inputs, force=force)
+    return dataclasses.replace(out, memory=None)
 
 
 def run_cases(figure, config, cases: Iterable[Case] | None = None, *, force: bool = False, progress=None,

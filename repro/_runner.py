@@ -122,12 +122,9 @@ def engine_choice(workers: int | None, scheduler: str | None, *, command: str) -
     return n, None
 
 
-def _label(job: FigureJob, case) -> str:
-    return case.label
-
-
 def run_figures(jobs, *, workers: int | None = 1, scheduler: str | None = None, force: bool = False,
-                progress: bool = True, on_figure: Callable | None = None, log=None) -> list[FigureRun]:
+                progress: bool = True, on_figure: Callable | None = None, on_case: Callable | None = None,
+                log=None, desc: str = "cases") -> list[FigureRun]:
     """Compute every case of ``jobs`` (in this process for ``workers == 1``, else on Dask).
 
     Parameters
@@ -143,6 +140,10 @@ def run_figures(jobs, *, workers: int | None = 1, scheduler: str | None = None, 
         tqdm bar of cases done / total.
     on_figure : callable, optional, keyword-only
         ``on_figure(FigureRun)`` as soon as a figure's cases are all done (or one failed).
+    on_case : callable, optional, keyword-only
+        ``on_case(FigureJob, CaseOutput)`` as each case comes back (e.g. to store it for a resume).
+    desc : str, keyword-only
+        Label of the progress bar.
     log : callable, optional, keyword-only
         One-line messages (default: stderr).
 
@@ -159,13 +160,13 @@ def run_figures(jobs, *, workers: int | None = 1, scheduler: str | None = None, 
     plans = [(job, order_cases(job.case_list())) for job in jobs]
     total = sum(len(cases) for _, cases in plans)
     runs = [FigureRun(job=job) for job in jobs]
-    with tqdm(total=total, desc="cases", unit="case", file=sys.stderr, disable=not progress,
+    hooks = {"on_figure": on_figure, "on_case": on_case}
+    with tqdm(total=total, desc=desc, unit="case", file=sys.stderr, disable=not progress,
               dynamic_ncols=True) as bar:
         if scheduler is None and (workers or default_workers()) <= 1:
-            _run_here(plans, runs, force=force, bar=bar, on_figure=on_figure)
+            _run_here(plans, runs, force=force, bar=bar, **hooks)
         else:
-            _run_dask(plans, runs, workers=workers, scheduler=scheduler, force=force, bar=bar, on_figure=on_figure,
-                      log=log)
+            _run_dask(plans, runs, workers=workers, scheduler=scheduler, force=force, bar=bar, log=log, **hooks)
     return runs
 
 
@@ -176,7 +177,7 @@ def _finish(run: FigureRun, outputs: dict, cases) -> None:
                           mode=run.job.mode)
 
 
-def _run_here(plans, runs, *, force, bar, on_figure) -> None:
+def _run_here(plans, runs, *, force, bar, on_figure, on_case) -> None:
     """Every case in this process, needs first; a failing case fails its figure (the others go on)."""
     from experiments.cases import run_case
 
@@ -184,8 +185,10 @@ def _run_here(plans, runs, *, force, bar, on_figure) -> None:
         outputs: dict = {}
         try:
             for c in cases:
-                bar.set_postfix_str(_label(job, c), refresh=False)
+                bar.set_postfix_str(c.label, refresh=False)
                 outputs[c] = run_case(job.figure, job.config, c, outputs, force=force)
+                if on_case is not None:
+                    on_case(job, outputs[c])
                 bar.update(1)
         except Exception as exc:  # noqa: BLE001 - one figure's failure is reported; the others still run
             run.error = f"{c.label}: {type(exc).__name__}: {exc}"
@@ -196,12 +199,11 @@ def _run_here(plans, runs, *, force, bar, on_figure) -> None:
             on_figure(run)
 
 
-def _run_dask(plans, runs, *, workers, scheduler, force, bar, on_figure, log) -> None:
+def _run_dask(plans, runs, *, workers, scheduler, force, bar, on_figure, on_case, log) -> None:
     """One Dask task per case (needs as futures); figures finish as their last case comes back."""
     from dask.distributed import as_completed
 
-    from defocus_cache import hash_key
-    from experiments.cases import case_key, case_task
+    from experiments.cases import case_task, task_key
 
     from ._sweep_engine import _start_client
 
@@ -213,9 +215,8 @@ def _run_dask(plans, runs, *, workers, scheduler, force, bar, on_figure, log) ->
         for i, (job, cases) in enumerate(plans):
             futs: dict = {}
             for c in cases:
-                key = f"case-{job.figure.name}-{hash_key(case_key(job.figure, job.config, c))[:16]}"
                 futs[c] = client.submit(case_task, job.figure.name, job.config, c, *(futs[n] for n in c.needs),
-                                        force=force, key=key, pure=False)
+                                        force=force, key=task_key(job.figure, job.config, c), pure=False)
                 owner[futs[c].key] = (i, c)
                 futures.append(futs[c])
             remaining.append({"futures": futs, "left": len(cases), "outputs": {}})
@@ -234,6 +235,8 @@ def _run_dask(plans, runs, *, workers, scheduler, force, bar, on_figure, log) ->
                     on_figure(run)
                 continue
             state["outputs"][c] = fut.result()
+            if on_case is not None:
+                on_case(run.job, state["outputs"][c])
             state["left"] -= 1
             if state["left"] == 0:
                 _finish(run, state["outputs"], plans[i][1])

@@ -18,7 +18,9 @@ dense-map issue (:func:`experiments.bench.accuracy.accuracy_report`, configurati
 :data:`experiments.bench.accuracy.ACCURACY_CONFIG`): dense-map and sparse
 edge errors per σ bin on analytic truth (dead-leaves / photo mosaics, step-edge mosaics; 8 bits +
 noise), on the rendered scenes, and the whole-pipeline speed of the presets, with pass/fail per
-target. Writes ``accuracy.json`` and ``accuracy.md`` (``--sizes`` / ``--repeat`` do not apply).
+target. Writes ``accuracy.json`` and ``accuracy.md`` (``--sizes`` / ``--repeat`` do not apply). Its
+analytic and rendered cases run on the case runner (:mod:`repro._runner`): ``--workers N`` (alias
+``--jobs``) Dask workers, default one per core, or ``--scheduler ADDRESS``; the speed runs follow alone.
 
 ``--psf NAME…`` chooses the PSFs of its lens part (:mod:`experiments.bench.lens`: texture families and
 steps blurred by a lens PSF in linear light, then a camera's noise and tone curve) and ``--full`` its
@@ -69,13 +71,26 @@ def _previous_run(path: Path) -> dict | None:
         return None
 
 
-def run_accuracy(config: dict | None = None, *, out: Path, progress: bool = True) -> dict:
+def run_accuracy(config: dict | None = None, *, out: Path, progress: bool = True, workers: int | None = 1,
+                 scheduler: str | None = None) -> dict:
     """Measure and judge (:func:`experiments.bench.accuracy.accuracy_report`), then write
-    ``accuracy.json`` and ``accuracy.md`` to ``out`` (created; files written atomically)."""
+    ``accuracy.json`` and ``accuracy.md`` to ``out`` (created; files written atomically).
+
+    The analytic and rendered cases run on the case runner (:mod:`repro._runner`: ``workers`` Dask
+    workers, ``scheduler``, or in this process for one worker); the speed runs afterwards, alone."""
     from defocus_cache import atomic_write_text
     from experiments.bench import accuracy_markdown, accuracy_report
 
-    report = accuracy_report(config, progress=progress)
+    from ._runner import FigureJob, run_figures
+
+    def run_cases(unit, cfg):
+        (run,) = run_figures([FigureJob(unit, cfg, "accuracy")], workers=workers, scheduler=scheduler,
+                             progress=progress, desc="accuracy")
+        if run.error is not None:
+            raise RuntimeError(f"an accuracy case failed: {run.error}\n{run.traceback}")
+        return run.data.outputs
+
+    report = accuracy_report(config, progress=progress, run_cases=run_cases)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "accuracy.json", json.dumps(report, allow_nan=False, separators=(",", ":")))
     atomic_write_text(out / "accuracy.md", accuracy_markdown(report) + "\n")
@@ -128,6 +143,9 @@ def _parser():
                              f"{' '.join(LENS_CONFIG['psfs'])})")
     parser.add_argument("--full", action="store_true",
                         help="with --accuracy: the full lens grid (every PSF and noise level, JPEG 85, two seeds)")
+    from ._runner import add_engine_options
+
+    add_engine_options(parser, what="with --accuracy: the analytic and rendered cases")
     parser.add_argument("--ablation", action="store_true",
                         help="run the robust preset's ablation on the lens bench, the paper_cameras renders (full "
                              "preset, f/8 f/4 f/2) and the real photos instead (ablation.md / ablation.json)")
@@ -162,6 +180,8 @@ def main(argv=None) -> int:
         return 0
     if (args.psf or args.full) and not args.accuracy:
         raise ValueError("--psf and --full go with --accuracy")
+    if (args.workers is not None or args.scheduler is not None) and not args.accuracy:
+        raise ValueError("--workers and --scheduler go with --accuracy; allowed: --accuracy --workers N")
     if args.accuracy:
         require_extras("render", command="repro.bench --accuracy")
         from experiments.bench import accuracy, lens_config
@@ -169,7 +189,11 @@ def main(argv=None) -> int:
         config = dict(accuracy.ACCURACY_CONFIG)
         if config.get("lens") is not None and (args.psf or args.full):
             config["lens"] = {**lens_config(psfs=args.psf, full=args.full), "variants": config["lens"]["variants"]}
-        run_accuracy(config, out=args.out, progress=not args.quiet)  # a ValueError is one line + exit 2
+        from ._runner import engine_choice
+
+        workers, scheduler = engine_choice(args.workers, args.scheduler, command=f"{PROG} --accuracy")
+        run_accuracy(config, out=args.out, progress=not args.quiet, workers=workers,
+                     scheduler=scheduler)  # a ValueError is one line + exit 2
         print((args.out / "accuracy.md").read_text(encoding="utf-8"))
         return 0
     if args.ablation:

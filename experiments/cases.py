@@ -385,7 +385,7 @@ def case_task(figure_name: str, config, case: Case, *needs: CaseOutput, force: b
 
 
 def run_cases(figure, config, cases: Iterable[Case] | None = None, *, force: bool = False, progress=None,
-              cache_dir=None) -> dict:
+              cache_dir=None, use_cache: bool = True) -> dict:
     """Run a figure's cases (default: all of ``figure.cases(config)``) one after another in this process.
 
     Parameters
@@ -398,6 +398,8 @@ def run_cases(figure, config, cases: Iterable[Case] | None = None, *, force: boo
     progress : callable, optional, keyword-only
         ``progress(case)`` after each case.
     cache_dir : path, optional, keyword-only
+    use_cache : bool, keyword-only
+        Read and write the cache (False: every case computed in memory).
 
     Returns
     -------
@@ -407,7 +409,7 @@ def run_cases(figure, config, cases: Iterable[Case] | None = None, *, force: boo
     todo = order_cases(figure.cases(config) if cases is None else cases)
     done: dict = {}
     for c in todo:
-        done[c] = run_case(figure, config, c, done, force=force, cache_dir=cache_dir)
+        done[c] = run_case(figure, config, c, done, force=force, cache_dir=cache_dir, use_cache=use_cache)
         if progress is not None:
             progress(c)
     return done

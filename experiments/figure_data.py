@@ -10,9 +10,7 @@ case through the cache; :mod:`repro._runner` does the same on Dask workers and b
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
-
-from .cases import Case, CaseOutput, case_rows, run_cases
+from .cases import CaseOutput, case_rows, run_cases
 
 __all__ = ["FigureData", "evaluation_id", "run_figure"]
 
@@ -96,7 +94,7 @@ class FigureData:
 
 
 def run_figure(figure, config, *, mode: str | None = None, force: bool = False, cases=None,
-               progress=None, cache_dir=None) -> FigureData:
+               progress=None, cache_dir=None, use_cache: bool = True) -> FigureData:
     """Compute every case of ``figure`` (or ``cases``) in this process, through the cache.
 
     Parameters
@@ -112,19 +110,17 @@ def run_figure(figure, config, *, mode: str | None = None, force: bool = False, 
     progress : callable, optional, keyword-only
         ``progress(case)`` after each case.
     cache_dir : path, optional, keyword-only
+    use_cache : bool, keyword-only
+        Read and write the cache (False: every case computed in memory).
 
     Returns
     -------
     FigureData
     """
-    outputs = run_cases(figure, config, cases, force=force, progress=progress, cache_dir=cache_dir)
+    outputs = run_cases(figure, config, cases, force=force, progress=progress, cache_dir=cache_dir,
+                        use_cache=use_cache)
     if mode is None:
         mode = next((m for m, c in figure.configs.items() if c == config), "custom")
     return FigureData(figure=figure, config=config, outputs=outputs, mode=mode)
 
 
-def outputs_by_case(outputs: Mapping[Case, CaseOutput], cases) -> dict:
-    """``outputs`` restricted to ``cases`` and what they need, in :func:`experiments.cases.order_cases` order."""
-    from .cases import order_cases
-
-    return {c: outputs[c] for c in order_cases(cases)}

@@ -176,7 +176,7 @@ def _html_fragile(fragile: list[dict]) -> str:
     items = []
     for f in fragile:
         t = f["test"]
-        hand = "".join(f"<li>{e(h['scene_set'])}: {mark_svg(h['verdict'])} <b>{e(h['verdict'])}</b>: {e(h['evidence'])} "
+        hand = "".join(f"<li>{e(h['scene_set'] or 'hand-built')}: {mark_svg(h['verdict'])} <b>{e(h['verdict'])}</b>: {e(h['evidence'])} "
                        f"(<code>{e(h['evaluation'])}</code>)</li>" for h in f["hand_built"])
         items.append(f"<li><b>{e(f['claim'])}</b>, {e(f['preset'])} preset<ul><li>procedural_test: "
                      f"{mark_svg(t['verdict'])} <b>{e(t['verdict'])}</b>: {e(t['evidence'])} "

@@ -120,7 +120,7 @@ def fragile_lines(fragile: list[dict]) -> list[str]:
         lines += [f"- **{f['claim']}** ({md_cell(text.get(f['claim'], ''))}), {f['preset']} preset:",
                   f"  - procedural_test: `{mark(t['verdict'])}` **{t['verdict']}**: {md_cell(t['evidence'])} "
                   f"(`{t['evaluation']}`)"]
-        lines += [f"  - {h['scene_set']}: `{mark(h['verdict'])}` **{h['verdict']}**: {md_cell(h['evidence'])} "
+        lines += [f"  - {h['scene_set'] or 'hand-built'}: `{mark(h['verdict'])}` **{h['verdict']}**: {md_cell(h['evidence'])} "
                   f"(`{h['evaluation']}`)" for h in f["hand_built"]]
     return lines + [""]
 

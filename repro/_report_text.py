@@ -123,9 +123,10 @@ def modes(infos: dict) -> str:
 def figure_files(name: str, info: dict, figures_dir: Path | None) -> list[tuple[str, str]]:
     """``(file stem, caption)`` of a figure's images, in the order its plot wrote them.
 
-    The images are the ``.png`` files named in the figure's metrics file (``outputs``); an image of a
-    further scene set (``<name>_<set>.png``) is captioned with the set. When ``figures_dir`` is given,
-    only files that exist there are listed.
+    The images are the ``.png`` files named in the figure's metrics file (``outputs``; ``<name>.png``
+    when it names none); an image of a further scene set (``<name>_<set>.png``) is captioned with the
+    set. When ``figures_dir`` is given, the further images are listed only when they exist there (the
+    first always: a missing one is a broken image of the report).
     """
     from experiments.scene_sets import SCENE_SET_CAPTIONS
 
@@ -133,7 +134,7 @@ def figure_files(name: str, info: dict, figures_dir: Path | None) -> list[tuple[
     sets = [s for s, *_ in info.get("config", {}).get("scene_sets", [])] if isinstance(info.get("config"), dict) else []
     out = []
     for i, stem in enumerate(stems):
-        if figures_dir is not None and not (Path(figures_dir) / f"{stem}.png").exists():
+        if i and figures_dir is not None and not (Path(figures_dir) / f"{stem}.png").exists():
             continue
         tail = stem[len(name) + 1:] if stem.startswith(f"{name}_") else None
         set_name = tail if tail else (sets[0] if sets and i == 0 else None)

@@ -235,7 +235,7 @@ def main(argv=None) -> int:
                 print(f"  [{mark(v.verdict)}] {v.verdict:17s} {c.id}")
         for f in fragile:
             print(f"fragile: {f['claim']} ({f['preset']}): procedural_test {f['test']['verdict']}, hand-built "
-                  + ", ".join(f"{h['scene_set']} {h['verdict']}" for h in f["hand_built"]))
+                  + ", ".join(f"{h['scene_set'] or 'hand-built'} {h['verdict']}" for h in f["hand_built"]))
     print(f"wrote {args.out / 'README.md'}, {args.out / 'index.html'}, {args.out / 'claims.json'}"
           + (f", {args.out / 'leaderboard.json'}" if board is not None else ""))
     return 0

@@ -43,15 +43,18 @@ def _as_results(table) -> Results:
 
 def columns(table) -> list[tuple[str, str | None]]:
     """Every (preset, scene set) of the claim figures' rows: ``paper`` first, then the other presets in
-    order; the hand-built sets (in :func:`experiments.scene_sets.scene_set_names` order) before the test split."""
+    order; the hand-built sets (in :func:`experiments.scene_sets.scene_set_names` order; None when the rows
+    name none) before the test split."""
     from ..scene_sets import scene_set_names
 
     rows = _as_results(table).where(figure=tuple({c.figure for c in CLAIMS}))
     presets = [DEFAULT_PRESET] + [p for p in rows.distinct("preset") if p and p != DEFAULT_PRESET]
     present = set(rows.distinct("scene_set"))
-    order = list(scene_set_names())
-    sets = [s for s in order if s in present] + sorted(s for s in present if s and s not in order)
-    return [(p, s) for s in (sets or [None]) for p in presets]
+    test = _test_split()
+    order = [s for s in scene_set_names() if s != test]
+    hand = [s for s in order if s in present] + sorted(s for s in present if s and s not in order and s != test)
+    sets = (hand or [None]) + ([test] if test in present else [])
+    return [(p, s) for s in sets for p in presets]
 
 
 def cell_rows(table, claim: Claim, *, preset: str, scene_set: str | None):
@@ -217,8 +220,8 @@ def evaluation_problems(document: list[dict], claims: tuple[Claim, ...] = CLAIMS
                     problems.append(f"{cid} at ({p}, {sset}): verdict {cell.get('verdict')!r} names no evaluation")
                 continue
             bad = _id_problems(claim, ev, p, sset)
-            if bad:
-                problems += bad
+            problems += bad
+            if len(ev.split("/")) != 4:
                 continue
             if sset != _test_split():
                 ids_of.setdefault(cid, set()).add(ev)
@@ -252,7 +255,7 @@ def fragile_claims(matrix) -> list[dict]:
             continue
         presets = list(dict.fromkeys(p for p, _ in matrix))
         for p in presets if "preset" in claim.varies_with else presets[:1]:
-            cells = {s: dict((c.id, v) for c, v in rows)[claim.id] for (pp, s), rows in matrix.items() if pp == p}
+            cells = {s: v for (pp, s), rows in matrix.items() if pp == p for c, v in rows if c.id == claim.id}
             t = cells.get(test)
             if t is None or t.verdict not in JUDGED:
                 continue

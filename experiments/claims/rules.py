@@ -149,8 +149,8 @@ def bias_outliers(r):
     rows = _fig5_cases(r, outliers_only=True)
     if not rows:
         raise MissingData("fig5: no cases of the outlier scenes (outlier_scene = 1)")
-    before = {k: num(m["before/in_focus_outliers/fraction"]) for k, m in rows.items()}
-    after = {k: num(m["after_bias/in_focus_outliers/fraction"]) for k, m in rows.items()}
+    before = {k: num(_need(m, "before/in_focus_outliers/fraction", f"fig5 {k}")) for k, m in rows.items()}
+    after = {k: num(_need(m, "after_bias/in_focus_outliers/fraction", f"fig5 {k}")) for k, m in rows.items()}
     nobias = {k: m.get("after_no_bias/in_focus_outliers/fraction") for k, m in rows.items()}
     judged = [k for k in sorted(rows) if before[k] >= BIAS_MIN_OUTLIERS_BEFORE]
     if not judged:
@@ -173,7 +173,8 @@ def refinement_small_change(r):
     cases = _fig5_cases(r, outliers_only=False)
     if not cases:
         raise MissingData("fig5: no cases")
-    changes = {k: (num(m["before/mae"]), num(m["after_bias/mae"])) for k, m in cases.items()}
+    changes = {k: (num(_need(m, "before/mae", f"fig5 {k}")), num(_need(m, "after_bias/mae", f"fig5 {k}")))
+               for k, m in cases.items()}
     rel = {k: abs(a - b) / b for k, (b, a) in changes.items()}
     small = [x <= SMALL_CHANGE_MAX_REL for x in rel.values()]
     mean_b = sum(b for b, _ in changes.values()) / len(changes)
@@ -208,8 +209,8 @@ def alpha_balance(r):
         alphas = sorted(terms, key=_alpha_key)
         if len(alphas) < 2:
             raise MissingData(f"fig6 {name}: fewer than two α")
-        data = [num(terms[a]["data_term"]) for a in alphas]
-        smooth = [num(terms[a]["smoothness_term"]) for a in alphas]
+        data = [num(_need(terms[a], "data_term", f"fig6 {name}")) for a in alphas]
+        smooth = [num(_need(terms[a], "smoothness_term", f"fig6 {name}")) for a in alphas]
         change = num(sc.value("map_change_px/textured_mean"))
         change_all = num(sc.value("map_change_px/all_mean"))
         rows[name] = {"alphas": [_alpha_key(a) for a in alphas], "data_term": data, "smoothness_term": smooth,
@@ -258,12 +259,14 @@ def _fig7_scenes(r) -> dict:
 def doubled_map(r):
     rows = {}
     for name, (_, p) in _fig7_scenes(r).items():
-        d, g = p["k_x_map_small_vs_map_large"], p["maps_vs_gt_large"]
-        rows[name] = {"doubled_f8_vs_map_f4_median_rel": num(d["median_rel_error"]),
-                      "doubled_f8_vs_map_f4_mae": num(d["mae"]),
-                      "doubled_f8_vs_gt_median_rel": num(g["k_x_map_small"]["median_rel_error"]),
-                      "map_f4_vs_gt_median_rel": num(g["map_large"]["median_rel_error"]),
-                      "doubled_f8_vs_gt_mae": num(g["k_x_map_small"]["mae"]), "map_f4_vs_gt_mae": num(g["map_large"]["mae"])}
+        w = f"fig7 {name}"
+        d, g = _need(p, "k_x_map_small_vs_map_large", w), _need(p, "maps_vs_gt_large", w)
+        kx, fl = _need(g, "k_x_map_small", w), _need(g, "map_large", w)
+        rows[name] = {"doubled_f8_vs_map_f4_median_rel": num(_need(d, "median_rel_error", w)),
+                      "doubled_f8_vs_map_f4_mae": num(_need(d, "mae", w)),
+                      "doubled_f8_vs_gt_median_rel": num(_need(kx, "median_rel_error", w)),
+                      "map_f4_vs_gt_median_rel": num(_need(fl, "median_rel_error", w)),
+                      "doubled_f8_vs_gt_mae": num(_need(kx, "mae", w)), "map_f4_vs_gt_mae": num(_need(fl, "mae", w))}
     similar = [x["doubled_f8_vs_map_f4_median_rel"] <= DOUBLING_MAX_MEDIAN_REL_DIFF for x in rows.values()]
     accurate = [max(x["doubled_f8_vs_gt_median_rel"], x["map_f4_vs_gt_median_rel"]) <= DOUBLING_MAX_MEDIAN_REL_ERR
                 for x in rows.values()]

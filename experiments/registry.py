@@ -200,9 +200,10 @@ def to_jsonable(obj):
 
 #: Packages whose source determines every figure's numbers.
 _FINGERPRINT_PACKAGES = ("method", "scenes", "experiments")
-#: Modules that only read computed results (plots, the claim verdicts of the report): editing them must
-#: not invalidate cached figure data.
-_FINGERPRINT_EXCLUDED = ("experiments/plotting", "experiments/claims", "experiments/results_query.py")
+#: Modules that only read computed results (plots, the claim verdicts of the report, the table's queries,
+#: the finished figure's views, the leaderboard's tables): editing them must not invalidate cached figure data.
+_FINGERPRINT_EXCLUDED = ("experiments/plotting", "experiments/claims", "experiments/results_query.py",
+                         "experiments/figure_data.py", "experiments/leaderboard.py")
 
 
 @functools.lru_cache(maxsize=1)

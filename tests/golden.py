@@ -1,5 +1,10 @@
-"""Golden numbers: quick-figure metrics checked into ``tests/golden/*.json``, each with a tolerance
-derived from measured spread (``tests/golden/tolerances.json``), and the claim verdicts.
+"""Golden numbers: rows of the quick results table checked into ``tests/golden/*.json``, each with a
+tolerance derived from measured spread (``tests/golden/tolerances.json``), and the claim verdicts.
+
+A golden is keyed by table row (:func:`row_key`: the row's set id columns — scene set, scene, preset,
+aperture, encoding, noise, estimator, variant — and its metric path), so it watches every preset and
+scene set of the quick run, the procedural test split included; :data:`FIGURE_GOLDENS` says which
+metrics of each figure are watched.
 
 What is compared
 ----------------
@@ -11,7 +16,7 @@ What is compared
 How the tolerances were measured
 --------------------------------
 ``python -m tests.golden --regenerate`` computes every quick figure the goldens watch (renders
-through the render cache, figure results uncached) in four separate processes: Mitsuba variants
+through the render cache, every case uncached, in one process) in four separate processes: Mitsuba variants
 ``llvm_ad_rgb`` and ``scalar_rgb`` (different sample streams) × render seeds 0 and 1 (the seed is
 forced on every ``render_scene`` call, also for figures without a seed option). For each metric,
 ``spread`` = max − min over the four runs and ``tol = max(SPREAD_FACTOR × spread, FLOOR_ATOL +

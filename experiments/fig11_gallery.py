@@ -15,11 +15,10 @@ Notes
 3. :func:`method.estimate_defocus_map` (paper defaults), timed per stage (wall time on a shared
    2-core machine: indicative only).
 4. :func:`method.magnify_defocus` with ``factor`` (Sec. 5 preprocessing, Gaussian kernel).
-5. Method presets (``config.presets``; the first is always ``"paper"`` = ``DefocusParams()``, the
-   reproduction, whose metrics are the top-level ones): steps 3–4 again with every further preset
-   of :data:`method.PRESETS` (e.g. ``"robust"``, beyond the paper; Sec. 5 preprocessing with its
-   ``map_clip_percent`` / ``map_smoothing``) on the same inputs, scored the same way, under
-   ``metrics["presets"][name]`` = {``items``, ``summary``} with the paper's keys.
+5. Cases (:func:`cases`): one per scene set × scene × method preset of ``config.presets`` (e.g.
+   ``robust`` beside ``paper``, Sec. 5 preprocessing with the preset's ``map_clip_percent`` /
+   ``map_smoothing``) and one per photo × preset (``variant="photo"``), each scored the same way; the
+   means over a set's scenes are the report's and the plot's.
 """
 
 from __future__ import annotations

@@ -26,13 +26,13 @@ Notes
    ``analytic_border_px`` from the image border; errors against the exact σ.
 4. Bias decomposition: encoding effect = bias(srgb) − bias(linear) (same convention); convention
    effect = bias(line_spread) − bias(erf_fit) (same encoding and pixels) = mean(σ_erf − σ_ls).
-5. Method presets (``config.presets``, the first ``"paper"`` = ``DefocusParams()``): steps 1–4 with
-   each preset's parameters (edge detector and estimators) and its own model fit in place of
-   ``model_fit`` (:func:`fit_estimator`: the robust preset's ``model_fit_checked``); further presets
-   under ``metrics["presets"][name]``.
-6. Scene sets: the rendered comparison (steps 1, 2, 4) on the default set ``scene_set`` (flat keys)
-   and on each of ``other_scene_sets`` (``metrics["scene_sets"][name]``, with its own ``"presets"``);
-   the analytic images (step 3) have no scene set and are computed once per preset.
+5. Cases (:func:`cases`): per preset of ``config.presets`` (the paper's, ``robust``'s …) the three
+   analytic families (step 3; no scene set), with the preset's parameters (edge detector and
+   estimators) and its own model fit in place of ``model_fit`` (:func:`fit_estimator`: the robust
+   preset's ``model_fit_checked``); per hand-built scene set × scene × aperture × preset a ``rendered``
+   case (steps 1–2) and per set × preset a ``pooled`` case needing them (steps 2 and 4); on the
+   procedural test split the straight and curved steps with the σ of its scenes' surfaces
+   (:func:`experiments.fig4_analytic.procedural_steps`).
 """
 
 from __future__ import annotations
@@ -57,9 +57,8 @@ class Fig4Config:
     # stands for each preset's fit (its ``estimator`` when that is a model-fit variant, e.g. the
     # robust preset's "model_fit_checked").
     presets: tuple[str, ...] = ("paper", "robust")
-    # method parameter presets (method.PRESETS); the first is "paper" (= DefocusParams(), the
-    # top-level metrics), the others go to metrics["presets"][name] (edge detection and every
-    # estimator run with that preset's parameters). Not to be confused with the render `preset`.
+    # method parameter presets (method.PRESETS), each its own cases (edge detection and every estimator
+    # run with that preset's parameters). Not to be confused with the render `preset`.
     scene_sets: tuple = (("tabletop_stress", ("planes", "tilted_plane", "portrait", "clutter", "shadow_gloss")),
                          ("paper_cameras", ("portrait_garden", "street_figures", "patio_table", "heron_at_the_lake")),
                          ("procedural_test", ("procedural_100000", "procedural_100001", "procedural_100002",

@@ -28,6 +28,8 @@ Notes
    A smaller s trusts sharp measures more: fewer in-focus outliers, but blurry edges pulled
    towards their sharp neighbours. For each edge pixel the refined value is a weighted mean of
    BM under weights w_pq·exp(−BM_q/s) — an exponential tilt, so it is non-decreasing in s.
+5. Cases (:func:`cases`): per scene set × scene × aperture a ``stages`` case (steps 1–3) and, needing
+   its sparse measure, one case per bias scale s (step 4, ``variant = scale_label(s)``).
 """
 
 from __future__ import annotations

@@ -31,13 +31,11 @@ Notes
    of the Eq. (3) output. The biased cross-bilateral filter (σs = 10 % of the image size) already
    makes BM smooth, so with refinement the α values give nearly the same map; without it α decides
    how much of the sparse outliers leak into the map.
-6. Method presets (``config.presets``; the first is always ``"paper"`` = ``DefocusParams()``, the
-   reproduction, whose metrics are the top-level ones): every further preset of
-   :data:`method.PRESETS` (e.g. ``"robust"``, beyond the paper) runs the same sweep — its own
-   stages 2–3, then Eq. (4) with ``preset.replace(alpha=a)`` — on the same inputs, scored the same
-   way (no ablation), under ``metrics["presets"][name]`` with the paper's structure (``scenes``,
-   ``summary``). A preset whose propagation has no α (``"matting_laplacian"``: Zhuo & Sim's λ) is
-   propagated once and that map repeated for every α (``alpha_applies`` = false).
+6. Cases (:func:`cases`): one per scene set × scene × method preset of ``config.presets`` × encoding;
+   a preset's sweep runs its own stages 2–3, then Eq. (4) with ``preset.replace(alpha=a)``, scored the
+   same way (the ablation of step 5 for the ``paper`` preset only). A preset whose propagation has no α
+   (``"matting_laplacian"``: Zhuo & Sim's λ) is propagated once and that map repeated for every α
+   (``alpha_applies`` = false).
 """
 
 from __future__ import annotations

@@ -48,13 +48,11 @@ Notes
    ``magnified_estimated_R``, ``magnified_oracle_srgb_R`` (the 8-bit sRGB input, blended as R's
    default encoding says: linear light for the scatter) and ``magnified_oracle_linear_R`` (linear
    radiance in, encoded and quantised like the renders).
-7. Method presets (``config.presets``; the first is always ``"paper"`` = ``DefocusParams()``, the
-   reproduction, whose metrics are the top-level ones): every further preset of
-   :data:`method.PRESETS` (e.g. ``"robust"``, beyond the paper) estimates both maps with its
-   parameters (steps 2–3, 5 and 6 with its maps; Sec. 5 preprocessing with its ``map_clip_percent`` /
-   ``map_smoothing``) under ``metrics["presets"][name]["scenes"][scene]``, with the paper's structure.
-   The preset-independent rows (naive / filter-aware doubled truth, unchanged f/8 render, oracle
-   magnifications) are repeated there, so each preset's entry reads like the paper's.
+7. Cases (:func:`cases`): per scene set × scene a ``stage`` case — both renders and the rows that do not
+   depend on the method preset (the naive and filter-aware doubled truth, the unchanged f/8 render, the
+   oracle magnifications) — and, needing it, one case per preset of ``config.presets`` (steps 2–3, 5 and
+   6 with its maps; Sec. 5 preprocessing with its ``map_clip_percent`` / ``map_smoothing``). A value is
+   measured once: the preset cases do not repeat the stage's rows.
 """
 
 from __future__ import annotations

@@ -53,11 +53,10 @@ Notes
 6. Sensitivity to λ: the PSNRs of step 4 (whole image) and 5 for each λ of ``nsr_sweep``.
 7. Virtual-map error against σ_gt(D2) (MAE/bias, px) outside occlusion bands, and the depth at the
    click (checked to lie on the D2 plane).
-8. Method presets (``config.presets``, the first ``"paper"``): steps 2–7 with each preset's map
-   (renders and the oracle results shared); further presets under ``metrics["presets"][name]``.
-9. Scene sets: steps 1–8 on the default set's scene (``scene_set``, flat keys) and on each of
-   ``other_scene_sets`` (its own scene, D2 and click; ``metrics["scene_sets"][name]``, with its own
-   ``"presets"``; arrays ``<set>__<key>``).
+8. Cases (:func:`cases`): per scene set of ``config.scene_sets`` (its scene, D2 and click) a ``stage``
+   case (step 1, the oracle results of steps 3 and 5 and their rows), per preset a ``map`` case (step 2,
+   the virtual map and step 7) and, needing both, one case per λ of the sweep (step 6; at λ =
+   ``config.nsr`` also steps 3–5 with the preset's map).
 """
 
 from __future__ import annotations

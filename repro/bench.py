@@ -27,6 +27,11 @@ steps blurred by a lens PSF in linear light, then a camera's noise and tone curv
 full grid. ``python -m repro.bench --ablation`` runs the robust preset's ablation on the lens bench, the
 paper_cameras renders and the real photos (:mod:`experiments.bench.ablation`; ``ablation.md``).
 
+``python -m repro.bench --figures [--out report/bench]`` benchmarks the case runner
+(:func:`repro._figures_bench.run_figures_bench`): ``repro.figures --quick`` with every case recomputed
+(renders cached), 1 and 2 workers, the two tables compared row for row; ``figures_speed.json`` and
+``figures_speed.md`` (target: ≥ 1.3× with 2 workers on a 2-core machine).
+
 ``python -m repro.bench --sweep [--out report/bench]`` benchmarks the sweep engine
 (:func:`repro._sweep_bench.run_sweep_bench`): cells per minute for 1 and 2 workers on the small preset and the
 engine's overhead per cell. Writes ``sweep.json`` and ``sweep.md``.
@@ -149,6 +154,9 @@ def _parser():
     parser.add_argument("--ablation", action="store_true",
                         help="run the robust preset's ablation on the lens bench, the paper_cameras renders (full "
                              "preset, f/8 f/4 f/2) and the real photos instead (ablation.md / ablation.json)")
+    parser.add_argument("--figures", action="store_true",
+                        help="benchmark the case runner instead: repro.figures --quick (every case recomputed) with 1 "
+                             "and 2 workers, tables compared (figures_speed.md / figures_speed.json)")
     parser.add_argument("--sweep", action="store_true",
                         help="benchmark the sweep engine instead (cells/minute for 1 and 2 workers, engine overhead "
                              "per cell; sweep.md / sweep.json)")
@@ -206,6 +214,13 @@ def main(argv=None) -> int:
         atomic_write_text(args.out / "ablation.json", json.dumps(report, indent=1, allow_nan=False, default=str))
         atomic_write_text(args.out / "ablation.md", ablation_markdown(report) + "\n")
         print((args.out / "ablation.md").read_text(encoding="utf-8"))
+        return 0
+    if args.figures:
+        require_extras("sweep", "render", command="repro.bench --figures")
+        from repro._figures_bench import run_figures_bench
+
+        run_figures_bench(args.out, progress=not args.quiet)
+        print((args.out / "figures_speed.md").read_text(encoding="utf-8"))
         return 0
     if args.sweep:
         require_extras("sweep", "render", command="repro.bench --sweep")

@@ -148,3 +148,28 @@ def test_a_killed_worker_loses_no_case(quick_figure, tmp_path):
     assert proc.returncode == 0, stderr[-3000:]
     serial = quick_figure("fig5")
     assert read_table(out).where(figure="fig5").rows == serial.rows()
+
+
+def test_bench_figures_flag_runs_the_runner_benchmark(tmp_path, monkeypatch):
+    from repro import _figures_bench, bench
+
+    calls = []
+
+    def fake(out, **kw):
+        calls.append(out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "figures_speed.md").write_text("# repro.figures with 1 and 2 workers\n")
+        return {}
+
+    monkeypatch.setattr(_figures_bench, "run_figures_bench", fake)
+    assert bench.main(["--figures", "--out", str(tmp_path)]) == 0
+    assert calls == [tmp_path]
+
+
+def test_bench_accuracy_engine_flags_go_with_accuracy(capsys, tmp_path):
+    from repro._cli import run_cli
+    from repro.bench import PROG, main
+
+    assert run_cli(main, ["--workers", "2", "--out", str(tmp_path / "b")], prog=PROG) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "go with --accuracy" in err

@@ -207,6 +207,10 @@ def compare(name: str, flat: dict, golden: dict, tolerances: dict | None, *, rto
             if not (_is_nan(ref) and _is_nan(got)):
                 bad.append(f"{key}: golden {ref!r}, got {got!r} (NaN must stay NaN)")
             continue
+        if math.isinf(ref) or math.isinf(got):  # e.g. the PSNR of equal pixels: infinite must stay equal
+            if got != ref:
+                bad.append(f"{key}: golden {ref!r}, got {got!r} (an infinity must stay the same)")
+            continue
         if rtol is not None or atol is not None:
             allowed = (atol or 0.0) + (rtol or 0.0) * abs(ref)
         else:

@@ -269,3 +269,19 @@ def test_cli_unknown_preset_exits_2_with_one_line(tmp_path, capsys):
     lines = [l for l in capsys.readouterr().err.splitlines() if l.strip()]
     assert len(lines) == 1 and "nope" in lines[0] and "'paper', 'robust', 'zhuo_sim'" in lines[0], lines
     assert not out.exists()
+
+
+def test_fig5_to_fig8_expose_at_least_16_independent_cases_at_the_full_preset():
+    """The unit of parallel work is a case (scene set × scene × preset × aperture …), not a figure: at the full
+    preset each of figs. 5–8 has at least 16 cases that do not need one another."""
+    from experiments.cases import order_cases
+    from experiments.registry import FIGURES
+
+    for name in ("fig5", "fig6", "fig7", "fig8"):
+        fig = FIGURES[name]
+        cases = order_cases(fig.cases(fig.config("full")))
+        needed = {n for c in cases for n in c.needs}
+        leaves = [c for c in cases if c not in needed]  # no other case waits for these
+        assert len(leaves) >= 16, (name, len(leaves))
+        assert len(set(cases)) == len(cases)
+        assert {c.scene_size for c in cases if c.scene} <= {"full", None}

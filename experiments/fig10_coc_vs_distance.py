@@ -12,6 +12,11 @@ Notes
    (``canon_1d_mark_ii`` sensor, 28.7 mm, by default — the paper's camera with an 85 mm lens),
    fit the exact disk ⊗ box edge profile, and convert c_px → c_cm = c_px · pitch.
 3. Metrics: relative error of every measured point vs Eq. (5); the maximum is the headline.
+4. On the procedural test split (``scene_sets``): per held-out scene its own camera (one of the paper's,
+   focused at the scene's drawn distance, f/``procedural_f_number``, film ``width_px`` wide) and its own
+   depths (the first ``procedural_points`` surfaces whose CoC on that film lies in
+   [``procedural_min_coc_px``, ``crop_width`` − 40] px), measured and scored the same way: Eq. (5) with
+   cameras and distances nobody chose for it.
 """
 
 from __future__ import annotations
@@ -23,7 +28,7 @@ import numpy as np
 
 from .registry import Figure
 
-__all__ = ["FIGURE", "Fig10Config", "camera", "compute", "edge_renderer"]
+__all__ = ["FIGURE", "Fig10Config", "camera", "cases", "compute_case", "edge_renderer", "procedural_depths"]
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -55,10 +60,20 @@ class Fig10Config:
     # samples per pixel.
     seed: int = 0
     # sampler seed.
+    scene_sets: tuple = (("procedural_test", ("procedural_100000", "procedural_100001", "procedural_100002",
+                                              "procedural_100003")),)
+    # held-out scenes whose camera and depths are measured too (experiments.scene_sets); () for none.
+    procedural_f_number: float = 4.0
+    # N of the procedural scenes' cameras.
+    procedural_points: int = 4
+    # at most this many depths per procedural scene.
+    procedural_min_coc_px: float = 3.0
+    # smallest CoC on the film measured, px (the disk fit needs a few pixels of blur).
 
 
 FULL = Fig10Config()
-QUICK = Fig10Config(measured_distances_cm=(100.0, 150.0, 250.0, 300.0), spp=1024, curve_points=201)
+QUICK = Fig10Config(measured_distances_cm=(100.0, 150.0, 250.0, 300.0), spp=1024, curve_points=201,
+                    scene_sets=(("procedural_test", ("procedural_100000", "procedural_100001")),))
 
 
 def camera(config: Fig10Config, f_number: float):
@@ -90,7 +105,7 @@ def edge_renderer(config: Fig10Config):
     return StepEdgeRenderer(spp=config.spp, rows=config.rows, crop_width=config.crop_width, seed=config.seed)
 
 
-def compute(config: Fig10Config) -> dict:
+def _paper_case(config: Fig10Config) -> dict:
     """Eq. (5) curves and rendered points of Fig. 10.
 
     Parameters
@@ -128,17 +143,14 @@ def compute(config: Fig10Config) -> dict:
     metrics = {
         "max_rel_err": float(np.nanmax(np.abs(rel))),
         "rms_rel_err": float(np.sqrt(np.nanmean(rel**2))),
-        "max_rel_err_by_f_number": {f"f/{n:g}": float(np.nanmax(np.abs(r))) for n, r in zip(ns, rel)},
+        "max_rel_err_by_f_number": {f"N={n:g}": float(np.nanmax(np.abs(r))) for n, r in zip(ns, rel)},
         "n_points": int(np.isfinite(rel).sum()),
         "pixel_pitch_um": pitch_cm * 1e4,
         "coc_px_range": [float(np.nanmin(eq5_px)), float(np.nanmax(eq5_px))],
-        "render_seconds": renderer.render_seconds,
-        "compute_seconds": time.perf_counter() - t0,
-        "variant": renderer.variant,
-        "measurement": "disk (diameter c) convolved with the box pixel footprint, least-squares fit to a "
-                       "rendered step edge; c_cm = c_px * pixel pitch",
     }
-    return {
+    info = {"render_seconds": renderer.render_seconds, "compute_seconds": time.perf_counter() - t0,
+            "variant": renderer.variant, "measurement": _MEASUREMENT, **metrics}
+    return {"metrics": metrics, "info": info, "arrays": {
         "f_numbers": ns,
         "curve_s_cm": s_curve,
         "curve_c_cm": curves,
@@ -150,16 +162,77 @@ def compute(config: Fig10Config) -> dict:
         "points_rel_err": rel,
         "points_edge_offset_px": grid["edge_offset_px"],
         "points_sigma_2nd_px": grid["sigma_2nd_px"],
-        "metrics": metrics,
-    }
+    }}
+
+
+_MEASUREMENT = ("disk (diameter c) convolved with the box pixel footprint, least-squares fit to a rendered step edge; "
+                "c_cm = c_px * pixel pitch")
+
+
+def procedural_depths(config: Fig10Config, scene: str) -> tuple:
+    """(camera, depths in m) of a procedural scene: its camera on a ``width_px`` × ``rows`` film at
+    f/``procedural_f_number``, and the depths of its first ``procedural_points`` surfaces (objects, then the
+    background) whose CoC on that film lies in [``procedural_min_coc_px``, ``crop_width`` − 40] px."""
+    from scenes.library.procedural import draw_layout, procedural_scene, seed_of
+    from scenes.thin_lens import circle_of_confusion
+
+    seed, _ = seed_of(scene)
+    cam = procedural_scene(seed).camera("full", f_number=config.procedural_f_number,
+                                        resolution=(config.width_px, config.rows))
+    layout = draw_layout(seed)
+    depths = []
+    for z in [o["depth_m"] for o in layout["objects"]] + [layout["background"]["depth_m"]]:
+        c = circle_of_confusion(z, focal_length=cam.focal_length_m, f_number=cam.f_number,
+                                focus_distance=cam.focus_distance_m) / cam.pixel_pitch_m
+        if config.procedural_min_coc_px <= c <= config.crop_width - 40 and len(depths) < config.procedural_points:
+            depths.append(float(z))
+    return cam, tuple(depths)
+
+
+def _procedural_case(config: Fig10Config, case) -> dict:
+    from scenes.calibration import measure_edge_grid
+
+    cam, depths = procedural_depths(config, case.scene)
+    if not depths:
+        raise ValueError(f"{case.scene}: no surface with a measurable CoC; allowed: scenes with a depth whose CoC "
+                         f"is in [{config.procedural_min_coc_px}, {config.crop_width - 40}] px")
+    renderer = edge_renderer(config)
+    grid = measure_edge_grid(renderer, [cam], np.asarray(depths), label=case.scene)
+    c_px, eq5_px = grid["coc_fit_px"][0], grid["coc_eq5_px"][0]
+    rel = c_px / eq5_px - 1.0
+    metrics = {"max_rel_err": float(np.nanmax(np.abs(rel))), "rms_rel_err": float(np.sqrt(np.nanmean(rel**2))),
+               "n_points": int(np.isfinite(rel).sum()), "pixel_pitch_um": cam.pixel_pitch_m * 1e6,
+               "focal_length_mm": cam.focal_length_m * 1e3, "focus_distance_m": cam.focus_distance_m,
+               "coc_px_range": [float(np.nanmin(eq5_px)), float(np.nanmax(eq5_px))]}
+    return {"metrics": metrics, "info": {"variant": renderer.variant, "measurement": _MEASUREMENT},
+            "arrays": {"depths_m": np.asarray(depths), "coc_fit_px": c_px, "coc_eq5_px": eq5_px, "rel_err": rel}}
+
+
+def cases(config: Fig10Config) -> tuple:
+    """The paper's camera at the config's distances (``variant="paper"``) and each procedural scene's camera
+    at its own depths (one case per scene of ``scene_sets``)."""
+    from .cases import Case
+    from .scene_sets import set_scene_pairs
+
+    return (Case("fig10", variant="paper"),
+            *(Case("fig10", scene_set=s, scene=n, aperture=float(config.procedural_f_number))
+              for s, n in set_scene_pairs(config)))
+
+
+def compute_case(config: Fig10Config, case, inputs) -> dict:
+    """One case of :func:`cases`: curves and points of the paper's camera (arrays ``f_numbers`` (k,),
+    ``curve_s_cm`` (n,), ``curve_c_cm`` (k, n) — Eq. (5), cm; ``points_s_cm`` (m,), ``points_c_cm`` (k, m),
+    ``points_eq5_cm``, ``points_c_px`` / ``points_eq5_px``, ``points_rel_err``, ``points_edge_offset_px``,
+    ``points_sigma_2nd_px`` (k, m)), or one procedural scene's points (``depths_m``, ``coc_fit_px``,
+    ``coc_eq5_px``, ``rel_err``); metrics ``max_rel_err``, ``rms_rel_err``, ``n_points`` and the camera's."""
+    return _paper_case(config) if case.variant == "paper" else _procedural_case(config, case)
 
 
 FIGURE = Figure(
     name="fig10",
     title="CoC diameter vs object distance (Eq. 5) with Mitsuba-measured points",
-    compute=compute,
     plot="experiments.plotting.fig10:plot",
     configs={"quick": QUICK, "full": FULL},
-    version=3,  # 3: edge offsets and second-moment σ of the points
+    cases_fn=cases, case_fn=compute_case, version=4,
     sigma_convention="none: the figure reports the CoC diameter c itself (disk fit), not a Gaussian sigma",
 )

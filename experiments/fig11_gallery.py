@@ -15,11 +15,10 @@ Notes
 3. :func:`method.estimate_defocus_map` (paper defaults), timed per stage (wall time on a shared
    2-core machine: indicative only).
 4. :func:`method.magnify_defocus` with ``factor`` (Sec. 5 preprocessing, Gaussian kernel).
-5. Method presets (``config.presets``; the first is always ``"paper"`` = ``DefocusParams()``, the
-   reproduction, whose metrics are the top-level ones): steps 3–4 again with every further preset
-   of :data:`method.PRESETS` (e.g. ``"robust"``, beyond the paper; Sec. 5 preprocessing with its
-   ``map_clip_percent`` / ``map_smoothing``) on the same inputs, scored the same way, under
-   ``metrics["presets"][name]`` = {``items``, ``summary``} with the paper's keys.
+5. Cases (:func:`cases`): one per scene set × scene × method preset of ``config.presets`` (e.g.
+   ``robust`` beside ``paper``, Sec. 5 preprocessing with the preset's ``map_clip_percent`` /
+   ``map_smoothing``) and one per photo × preset (``variant="photo"``), each scored the same way; the
+   means over a set's scenes are the report's and the plot's.
 """
 
 from __future__ import annotations
@@ -30,24 +29,21 @@ import warnings
 
 import numpy as np
 
-from .scene_sets import scene_set_figure
+from .registry import Figure
 
-__all__ = ["FIGURE", "FULL", "QUICK", "Fig11Config", "compute", "compute_set", "load_photo"]
+__all__ = ["FIGURE", "FULL", "QUICK", "SUMMARY_KEYS", "Fig11Config", "cases", "compute_case", "load_photo"]
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class Fig11Config:
     """Every parameter of Fig. 11."""
 
-    scenes: tuple[str, ...] = ("portrait_garden", "street_figures", "patio_table", "heron_at_the_lake")
-    # rendered scenes (scenes.SCENES), scored against σ_gt.
-    scene_set: str = "paper_cameras"
-    # name of the scenes.SCENE_SETS entry ``scenes`` is drawn from (the flat metrics describe it).
-    other_scene_sets: tuple = (("tabletop_stress", (("scenes", ("planes", "tilted_plane", "portrait", "clutter",
-                                                               "shadow_gloss")), ("photos", ()))),)
-    # further scene sets computed the same way (the photos only once, with the default set):
-    # (set name, ((config field, value), ...)) overrides; their metrics go to
-    # metrics["scene_sets"][name], arrays to "<name>__<key>" (experiments.scene_sets).
+    scene_sets: tuple = (("paper_cameras", ("portrait_garden", "street_figures", "patio_table", "heron_at_the_lake")),
+                         ("tabletop_stress", ("planes", "tilted_plane", "portrait", "clutter", "shadow_gloss")),
+                         ("procedural_test", ("procedural_100000", "procedural_100001", "procedural_100002",
+                                              "procedural_100003")))
+    # (scene set, scenes) pairs (experiments.scene_sets) of rendered scenes scored against σ_gt, the first
+    # the default (drawn with the photos).
     preset: str = "full"
     # render preset: "small" (160x120 px) or "full" (640x480 px).
     f_number: float = 8.0
@@ -67,14 +63,14 @@ class Fig11Config:
     render_seed: int = 0
     # Mitsuba sampler seed.
     presets: tuple[str, ...] = ("paper", "robust")
-    # method parameter presets (method.PRESETS); the first is "paper" (the reproduction, top-level
-    # metrics), the others go to metrics["presets"][name] (not to be confused with the render `preset`).
+    # method parameter presets (method.PRESETS), one case per image each (not to be confused with the
+    # render `preset`).
 
 
 FULL = Fig11Config()
 QUICK = Fig11Config(preset="small", photos=("astronaut", "coffee", "chelsea"), photo_max_side=160,
-                    other_scene_sets=(("tabletop_stress", (("scenes", ("planes", "portrait", "shadow_gloss")),
-                                                            ("photos", ()))),))
+                    scene_sets=(FULL.scene_sets[0], ("tabletop_stress", ("planes", "portrait", "shadow_gloss")),
+                                ("procedural_test", ("procedural_100000", "procedural_100001"))))
 
 
 def load_photo(name: str, max_side: int = 0) -> tuple[np.ndarray, float]:
@@ -145,104 +141,68 @@ def _map_stats(res):
             "sparse_median_px": float(np.nanmedian(res.sparse_sigma)) if res.edges.any() else float("nan")}
 
 
-def compute_set(config: Fig11Config) -> dict:
-    """Gallery of rendered scenes and bundled photos: maps, magnified results, metrics (one scene set).
+def cases(config: Fig11Config) -> tuple:
+    """One case per scene set × scene × preset (renders) and per photo × preset (``variant="photo"``)."""
+    from .cases import Case, method_presets
+    from .scene_sets import set_scene_pairs
 
-    Parameters
-    ----------
-    config : Fig11Config
+    presets = method_presets(config.presets)
+    out = [Case("fig11", scene_set=s, scene=n, preset=p, aperture=float(config.f_number), encoding="srgb",
+                scene_size=config.preset) for s, n in set_scene_pairs(config) for p in presets]
+    out += [Case("fig11", scene=name, preset=p, variant="photo") for name in config.photos for p in presets]
+    return tuple(out)
+
+
+def compute_case(config: Fig11Config, case, inputs) -> dict:
+    """Estimate and magnify one image with one preset; score a render's map against σ_gt.
 
     Returns
     -------
     dict
-        ``items`` (n,) names in drawing order (``"scene:<name>"`` / ``"photo:<name>"``); per item
-        ``<item>__input`` (H, W, 3), ``<item>__map`` (H, W) σ px, ``<item>__magnified`` (H, W, 3),
-        ``<item>__sparse`` (H, W) σ px at edges (NaN elsewhere); for scenes also ``<item>__gt``
-        (H, W) σ_gt px and ``<item>__occlusion`` (H, W) bool; ``metrics``: per item map statistics
-        and timings, for scenes dense MAE / bias per region vs σ_gt, and means over scenes — all for
-        the ``"paper"`` preset. Every further preset P of ``config.presets``: ``<item>__<P>__map``
-        (H, W) σ px, ``<item>__<P>__magnified`` (H, W, 3), ``<item>__<P>__sparse`` (H, W) σ px, and
-        ``metrics.presets.<P>`` = {``items``, ``summary`` (the paper's keys), ``compute_seconds``}.
+        Arrays ``input`` (H, W, 3), ``map`` (H, W) σ px, ``magnified`` (H, W, 3), ``sparse`` (H, W) σ px at
+        edges (NaN elsewhere); for renders also ``gt`` (H, W) σ_gt px and ``occlusion`` (H, W) bool.
+        Metrics: map statistics (:func:`_map_stats`); for renders dense MAE / bias per region vs σ_gt
+        (``all``, ``textured``, ``edges``), RTF-normalised errors and ``sigma_gt_range_px``; for photos
+        ``scale_from_original`` and ``megapixels``. Info: ``shape`` and ``timings``.
     """
-    from scenes import render_scene
+    from method import DefocusParams
 
-    from .fig6_alpha_sweep import method_presets
     from .metrics import dense_metrics, region_masks, rtf_normalized_errors
 
-    presets = method_presets(config.presets)
-    t_start = time.perf_counter()
-    data, items = {}, []
-    per_preset = {p: {} for p in presets}  # preset -> item -> metrics
-    seconds = dict.fromkeys(presets, 0.0)
+    params = DefocusParams.preset(case.preset)
+    if case.variant == "photo":
+        image, scale = load_photo(case.scene, config.photo_max_side)
+        res, out, timings = _run(image, config, params)
+        metrics = {**_map_stats(res), "scale_from_original": scale,
+                   "megapixels": image.shape[0] * image.shape[1] / 1e6}
+        arrays = {}
+    else:
+        from scenes import render_scene
 
-    def store(item, pname, res, out):
-        tag = "" if pname == "paper" else f"__{pname}"
-        data.update({f"{item}{tag}__map": res.defocus_map.astype(np.float32),
-                     f"{item}{tag}__magnified": out.astype(np.float32),
-                     f"{item}{tag}__sparse": res.sparse_sigma.astype(np.float32)})
-
-    for name in config.scenes:
-        render = render_scene(name, preset=config.preset, f_number=config.f_number, seed=config.render_seed,
+        render = render_scene(case.scene, preset=config.preset, f_number=config.f_number, seed=config.render_seed,
                               progress=False)
         image = render.image(encoding="srgb", quantize_bits=config.quantize_bits)
         gt = np.asarray(render.sigma_px, dtype=np.float64)
-        item = f"scene:{name}"
-        items.append(item)
-        data.update({f"{item}__gt": gt.astype(np.float32), f"{item}__occlusion": render.occlusion_boundary,
-                     f"{item}__input": image.astype(np.float32)})
-        for pname, params in presets.items():
-            t0 = time.perf_counter()
-            res, out, timings = _run(image, config, params)
-            regions = region_masks(image, gt, edges=res.edges, exclude=render.occlusion_boundary,
-                                   texture_threshold=config.texture_threshold)
-            dm = dense_metrics(res.defocus_map, gt, regions=regions)
-            per_preset[pname][item] = {
-                **{f"{r}_{k}": dm[r][k] for r in dm for k in ("mae", "bias")},
-                **{f"rtf_{k}": v for k, v in rtf_normalized_errors(res.defocus_map, gt, mask=regions["all"]).items()
-                   if k != "n"},
-                **_map_stats(res), "timings": timings, "shape": list(image.shape[:2]),
-                "sigma_gt_range_px": [float(np.nanmin(gt)), float(np.nanmax(gt))],
-            }
-            store(item, pname, res, out)
-            seconds[pname] += time.perf_counter() - t0
-    for name in config.photos:
-        image, scale = load_photo(name, config.photo_max_side)
-        item = f"photo:{name}"
-        items.append(item)
-        data[f"{item}__input"] = image.astype(np.float32)
-        for pname, params in presets.items():
-            t0 = time.perf_counter()
-            res, out, timings = _run(image, config, params)
-            per_preset[pname][item] = {**_map_stats(res), "timings": timings, "shape": list(image.shape[:2]),
-                                       "scale_from_original": scale,
-                                       "megapixels": image.shape[0] * image.shape[1] / 1e6}
-            store(item, pname, res, out)
-            seconds[pname] += time.perf_counter() - t0
-    scene_items = [f"scene:{n}" for n in config.scenes]
-
-    def summarise(per_item):
-        summary = {}
-        if scene_items:
-            for key in ("all_mae", "all_bias", "textured_mae", "edges_mae", "rtf_nmae", "rtf_nmse"):
-                summary[f"scenes_mean_{key}"] = float(np.mean([per_item[i][key] for i in scene_items]))
-        return summary
-
-    names = list(presets)
-    per_item, summary = per_preset[names[0]], summarise(per_preset[names[0]])
-    extra = {p: {"items": per_preset[p], "summary": summarise(per_preset[p]), "compute_seconds": seconds[p]}
-             for p in names[1:]}
-    data["items"] = np.asarray(items)
-    data["metrics"] = {"items": per_item, "summary": summary, "presets": extra, "factor": config.factor,
-                       "compute_seconds": time.perf_counter() - t_start,
-                       "regions_note": "scene metrics exclude occlusion-boundary pixels; photos have no "
-                                       "ground truth (map statistics in px of the processed image)"}
-    return data
+        res, out, timings = _run(image, config, params)
+        regions = region_masks(image, gt, edges=res.edges, exclude=render.occlusion_boundary,
+                               texture_threshold=config.texture_threshold)
+        dm = dense_metrics(res.defocus_map, gt, regions=regions)
+        metrics = {**{f"{r}_{k}": dm[r][k] for r in dm for k in ("mae", "bias")},
+                   **{f"rtf_{k}": v for k, v in rtf_normalized_errors(res.defocus_map, gt, mask=regions["all"]).items()
+                      if k != "n"},
+                   **_map_stats(res), "sigma_gt_range_px": {"min": float(np.nanmin(gt)), "max": float(np.nanmax(gt))}}
+        arrays = {"gt": gt.astype(np.float32), "occlusion": render.occlusion_boundary}
+    arrays.update({"input": image.astype(np.float32), "map": res.defocus_map.astype(np.float32),
+                   "magnified": out.astype(np.float32), "sparse": res.sparse_sigma.astype(np.float32)})
+    return {"arrays": arrays, "metrics": metrics, "info": {"shape": list(image.shape[:2]), "timings": timings}}
 
 
-FIGURE = scene_set_figure(
-    compute_set, name="fig11", quick=QUICK, full=FULL, version=3,
+#: Scene metrics averaged over a scene set (the report's and the plot's summary).
+SUMMARY_KEYS = ("all_mae", "all_bias", "textured_mae", "edges_mae", "rtf_nmae", "rtf_nmse")
+
+
+FIGURE = Figure(
+    name="fig11", plot="experiments.plotting.fig11:plot", configs={"quick": QUICK, "full": FULL},
+    cases_fn=cases, case_fn=compute_case, version=4,
     title="Results gallery: input, defocus map, magnified result (renders with MAE; skimage.data photos)",
 )
-#: :func:`compute_set` on the default scene set and on each of ``config.other_scene_sets``
-#: (:func:`experiments.scene_sets.compute_scene_sets`); the photos only with the default set.
-compute = FIGURE.compute

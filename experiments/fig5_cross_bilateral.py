@@ -28,6 +28,8 @@ Notes
    A smaller s trusts sharp measures more: fewer in-focus outliers, but blurry edges pulled
    towards their sharp neighbours. For each edge pixel the refined value is a weighted mean of
    BM under weights w_pq·exp(−BM_q/s) — an exponential tilt, so it is non-decreasing in s.
+5. Cases (:func:`cases`): per scene set × scene × aperture a ``stages`` case (steps 1–3) and, needing
+   its sparse measure, one case per bias scale s (step 4, ``variant = scale_label(s)``).
 """
 
 from __future__ import annotations
@@ -38,9 +40,9 @@ import time
 
 import numpy as np
 
-from .scene_sets import scene_set_figure
+from .registry import Figure
 
-__all__ = ["FIGURE", "FULL", "QUICK", "SWEEP_CURVES", "Fig5Config", "bias_sweep", "compute", "compute_set", "scale_label"]
+__all__ = ["FIGURE", "FULL", "QUICK", "SWEEP_CURVES", "Fig5Config", "bias_sweep", "cases", "compute_case", "scale_label"]
 
 #: Stages compared, in plot order.
 STAGES = ("before", "after_bias", "after_no_bias")
@@ -50,16 +52,12 @@ STAGES = ("before", "after_bias", "after_no_bias")
 class Fig5Config:
     """Every parameter of Fig. 5."""
 
-    scenes: tuple[str, ...] = ("patio_table", "portrait_garden")
-    # keys of scenes.SCENES: the outlier scene (soft shadow + glossy highlight) and a control.
-    outlier_scenes: tuple[str, ...] = ("patio_table",)
-    # which of ``scenes`` have the paper's outliers (written to metrics["outlier_scenes"] for the claims).
-    scene_set: str = "paper_cameras"
-    # name of the scenes.SCENE_SETS entry ``scenes`` is drawn from (the flat metrics describe it).
-    other_scene_sets: tuple = (("tabletop_stress", (("scenes", ("shadow_gloss", "planes")),
-                                                    ("outlier_scenes", ("shadow_gloss",)))),)
-    # further scene sets computed the same way: (set name, ((config field, value), ...)) overrides;
-    # their metrics go to metrics["scene_sets"][name], arrays to "<name>__<key>" (experiments.scene_sets).
+    scene_sets: tuple = (("paper_cameras", ("patio_table", "portrait_garden")),
+                         ("tabletop_stress", ("shadow_gloss", "planes")))
+    # (scene set, scenes) pairs (experiments.scene_sets), the first the default: the outlier scene of
+    # each set (soft shadow + glossy highlight) and a control.
+    outlier_scenes: tuple[str, ...] = ("patio_table", "shadow_gloss")
+    # which scenes have the paper's outliers (the metric outlier_scene of their stage cases, for the claims).
     f_numbers: tuple[float, ...] = (8.0, 4.0)
     # apertures N, dimensionless.
     preset: str = "full"
@@ -193,97 +191,79 @@ SWEEP_CURVES = {
 }
 
 
-def compute_set(config: Fig5Config) -> dict:
-    """Sparse maps before/after Eq. (3) with and without the bias, and their metrics (one scene set).
+def cases(config: Fig5Config) -> tuple:
+    """Per scene set × scene × aperture: a ``stages`` case (render, sparse measure, Eq. 3 with and without
+    the bias) and, needing it, one case per bias scale (``variant = scale_label(s)``)."""
+    from .cases import Case
+    from .scene_sets import set_scene_pairs
 
-    Parameters
-    ----------
-    config : Fig5Config
+    scales = _validate_scales(config.bias_scales)
+    out = []
+    for set_name, scene in set_scene_pairs(config):
+        for n in config.f_numbers:
+            stage = Case("fig5", scene_set=set_name, scene=scene, aperture=float(n), variant="stages",
+                         scene_size=config.preset)
+            out.append(stage)
+            out += [Case("fig5", scene_set=set_name, scene=scene, aperture=float(n), variant=scale_label(sc),
+                         scene_size=config.preset, needs=(stage,)) for sc in scales]
+    return tuple(out)
+
+
+def compute_case(config: Fig5Config, case, inputs) -> dict:
+    """One case of :func:`cases` (see the module Notes).
 
     Returns
     -------
     dict
-        Per case ``c`` = ``<scene>_f<N>``: ``<c>_image`` HxWx3, ``<c>_sigma_gt`` HxW px,
-        ``<c>_occlusion`` HxW bool, ``<c>_before`` / ``<c>_after_bias`` / ``<c>_after_no_bias``
-        HxW px (NaN off edges); ``cases`` (str); ``metrics[case][stage]`` = sparse metrics +
-        ``in_focus_outliers``; ``metrics["summary"]`` the headline numbers.
-        Bias-scale sweep (:func:`bias_sweep`): ``bias_scales`` (S,) px (inf = no bias);
-        ``<c>_sweep_refined`` (S, H, W) px (NaN off edges), ``<c>_sweep_dense`` (S, H, W) px;
-        ``sweep_<name>`` (n_cases, S) for each name of :data:`SWEEP_CURVES` (px, or a fraction for
-        ``in_focus_outliers``; NaN where the pixel set is empty); ``metrics["bias_sweep"][case][label]``
-        the full metrics (``label`` = :func:`scale_label`).
+        ``stages``: arrays ``image`` HxWx3, ``sigma_gt`` HxW px, ``occlusion`` and ``edges`` HxW bool,
+        ``before`` / ``after_bias`` / ``after_no_bias`` HxW px (NaN off edges); metrics per stage
+        (sparse metrics + ``in_focus_outliers``) and ``outlier_scene`` (the scene has the paper's
+        outliers: ``config.outlier_scenes``). A bias scale s: arrays ``refined`` and ``dense`` HxW px;
+        metrics :func:`bias_sweep`'s for s (``refined``, ``in_focus_outliers``, ``dense``).
     """
     from method import DefocusParams, biased_cross_bilateral
-    from scenes import render_scene
 
     from .evaluation import ground_truth_sigma, input_image, sparse_estimates, validate_estimators
     from .metrics import in_focus_outlier_fraction, sparse_metrics
 
     validate_estimators([config.estimator])
-    scales = _validate_scales(config.bias_scales)
     params = DefocusParams(estimator=config.estimator)
-    out: dict = {}
-    metrics: dict = {}
-    sweep: dict = {}
-    cases = []
-    t_sweep = 0.0
-    t0 = time.perf_counter()
-    for scene in config.scenes:
-        for n in config.f_numbers:
-            case = f"{scene}_f{n:g}"
-            cases.append(case)
-            render = render_scene(scene, preset=config.preset, f_number=n, progress=False)
-            image = input_image(render, encoding=config.encoding, quantize_bits=config.quantize_bits)
-            gt = ground_truth_sigma(render, convention=config.convention)
-            keep = ~np.asarray(render.occlusion_boundary, dtype=bool)
-            edges, sig = sparse_estimates(image, [config.estimator], params=params)
-            before = sig[config.estimator]
-            maps = {"before": before}
-            for stage, bias in (("after_bias", True), ("after_no_bias", False)):
-                maps[stage] = biased_cross_bilateral(
-                    before, image, sigma_spatial=params.bilateral_sigma_spatial,
-                    sigma_range=params.bilateral_sigma_range, sharpness_bias=bias,
-                    bias_scale=params.bias_scale, method=params.bilateral_method)
-            metrics[case] = {}
-            for stage, m in maps.items():
-                sm = sparse_metrics(m, gt, mask=keep)
-                sm["in_focus_outliers"] = in_focus_outlier_fraction(
-                    m, gt, mask=keep, in_focus_px=config.in_focus_px, blurry_px=config.blurry_px)
-                metrics[case][stage] = sm
-                out[f"{case}_{stage}"] = m.astype(np.float32)
-            ts = time.perf_counter()
-            refined, dense, sweep[case] = bias_sweep(
-                before, image, gt, keep, edges, scales, params=params, in_focus_px=config.in_focus_px,
-                blurry_px=config.blurry_px, blurry_edge_px=config.blurry_edge_px,
-                texture_threshold=config.texture_threshold)
-            t_sweep += time.perf_counter() - ts
-            out[f"{case}_sweep_refined"] = refined.astype(np.float32)
-            out[f"{case}_sweep_dense"] = dense.astype(np.float32)
-            out[f"{case}_image"] = image.astype(np.float32)
-            out[f"{case}_sigma_gt"] = gt.astype(np.float32)
-            out[f"{case}_occlusion"] = ~keep
-    metrics["summary"] = {
-        case: {f"{stage}.{k}": (metrics[case][stage]["mae"] if k == "mae"
-                                else metrics[case][stage]["in_focus_outliers"]["fraction"])
-               for stage in STAGES for k in ("mae", "in_focus_outlier_fraction")}
-        for case in cases
-    }
-    for name, path in SWEEP_CURVES.items():
-        rows = []
-        for case in cases:
-            row = []
-            for sc in scales:
-                v = sweep[case][scale_label(sc)]
-                for k in path:
-                    v = v[k]
-                row.append(v)
-            rows.append(row)
-        out[f"sweep_{name}"] = np.asarray(rows, dtype=np.float64)
-    out["bias_scales"] = np.asarray(scales, dtype=np.float64)
-    metrics["bias_sweep"] = sweep
-    metrics["outlier_scenes"] = [s for s in config.outlier_scenes if s in config.scenes]
-    metrics["timings"] = {"total_s": time.perf_counter() - t0, "bias_sweep_s": t_sweep}
-    metrics["definitions"] = {
+    if case.variant != "stages":
+        (stage,) = case.needs
+        a = inputs[stage].arrays()
+        scale = next(sc for sc in _validate_scales(config.bias_scales) if scale_label(sc) == case.variant)
+        refined, dense, m = bias_sweep(
+            a["before"], a["image"], a["sigma_gt"], ~a["occlusion"], a["edges"], [scale], params=params,
+            in_focus_px=config.in_focus_px, blurry_px=config.blurry_px, blurry_edge_px=config.blurry_edge_px,
+            texture_threshold=config.texture_threshold)
+        return {"arrays": {"refined": refined[0].astype(np.float32), "dense": dense[0].astype(np.float32)},
+                "metrics": m[case.variant]}
+    from scenes import render_scene
+
+    render = render_scene(case.scene, preset=config.preset, f_number=case.aperture, progress=False)
+    image = input_image(render, encoding=config.encoding, quantize_bits=config.quantize_bits)
+    gt = ground_truth_sigma(render, convention=config.convention)
+    keep = ~np.asarray(render.occlusion_boundary, dtype=bool)
+    edges, sig = sparse_estimates(image, [config.estimator], params=params)
+    maps = {"before": sig[config.estimator]}
+    for stage, bias in (("after_bias", True), ("after_no_bias", False)):
+        maps[stage] = biased_cross_bilateral(
+            maps["before"], image, sigma_spatial=params.bilateral_sigma_spatial,
+            sigma_range=params.bilateral_sigma_range, sharpness_bias=bias,
+            bias_scale=params.bias_scale, method=params.bilateral_method)
+    metrics = {"outlier_scene": case.scene in config.outlier_scenes}
+    for stage, m in maps.items():
+        sm = sparse_metrics(m, gt, mask=keep)
+        sm["in_focus_outliers"] = in_focus_outlier_fraction(m, gt, mask=keep, in_focus_px=config.in_focus_px,
+                                                            blurry_px=config.blurry_px)
+        metrics[stage] = sm
+    arrays = {k: v for k, v in maps.items()}  # float64: the scale cases filter this very measure
+    arrays.update(image=image, sigma_gt=gt, occlusion=~keep, edges=edges)
+    return {"arrays": arrays, "metrics": metrics, "info": {"definitions": _definitions(config)}}
+
+
+def _definitions(config) -> dict:
+    return {
         "mae": "mean |σ_est − σ_gt| at edge pixels off occlusion boundaries, px",
         "in_focus_outlier_fraction": f"fraction of those with σ_gt ≤ {config.in_focus_px} px estimated "
                                      f"> {config.blurry_px} px",
@@ -293,13 +273,10 @@ def compute_set(config: Fig5Config) -> dict:
                       f"dense map of Eq. (4) (DefocusParams defaults) over all / textured / edges pixels "
                       f"off occlusion boundaries; mae and bias (mean signed error) in px",
     }
-    return {"cases": np.asarray(cases), **out, "metrics": metrics}
 
 
-FIGURE = scene_set_figure(
-    compute_set, name="fig5", quick=QUICK, full=FULL, version=3,
+FIGURE = Figure(
+    name="fig5", plot="experiments.plotting.fig5:plot", configs={"quick": QUICK, "full": FULL},
+    cases_fn=cases, case_fn=compute_case, version=4,
     title="Blur measure before/after the biased cross-bilateral filter (Eq. 3), no-bias ablation and bias-scale sweep",
 )
-#: :func:`compute_set` on the default scene set and on each of ``config.other_scene_sets``
-#: (:func:`experiments.scene_sets.compute_scene_sets`).
-compute = FIGURE.compute

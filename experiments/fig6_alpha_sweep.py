@@ -31,13 +31,11 @@ Notes
    of the Eq. (3) output. The biased cross-bilateral filter (σs = 10 % of the image size) already
    makes BM smooth, so with refinement the α values give nearly the same map; without it α decides
    how much of the sparse outliers leak into the map.
-6. Method presets (``config.presets``; the first is always ``"paper"`` = ``DefocusParams()``, the
-   reproduction, whose metrics are the top-level ones): every further preset of
-   :data:`method.PRESETS` (e.g. ``"robust"``, beyond the paper) runs the same sweep — its own
-   stages 2–3, then Eq. (4) with ``preset.replace(alpha=a)`` — on the same inputs, scored the same
-   way (no ablation), under ``metrics["presets"][name]`` with the paper's structure (``scenes``,
-   ``summary``). A preset whose propagation has no α (``"matting_laplacian"``: Zhuo & Sim's λ) is
-   propagated once and that map repeated for every α (``alpha_applies`` = false).
+6. Cases (:func:`cases`): one per scene set × scene × method preset of ``config.presets`` × encoding;
+   a preset's sweep runs its own stages 2–3, then Eq. (4) with ``preset.replace(alpha=a)``, scored the
+   same way (the ablation of step 5 for the ``paper`` preset only). A preset whose propagation has no α
+   (``"matting_laplacian"``: Zhuo & Sim's λ) is propagated once and that map repeated for every α
+   (``alpha_applies`` = false).
 """
 
 from __future__ import annotations
@@ -48,51 +46,22 @@ import warnings
 
 import numpy as np
 
-from .scene_sets import scene_set_figure
+from .registry import Figure
 
-__all__ = ["FIGURE", "FULL", "QUICK", "Fig6Config", "StageOutputs", "compute", "compute_set", "method_presets", "sweep_alpha"]
-
-
-def method_presets(names) -> dict:
-    """``name → DefocusParams`` for a figure's ``presets`` field, checked (shared by Fig. 6, 7 and 11).
-
-    Parameters
-    ----------
-    names : sequence of str
-        Keys of :data:`method.PRESETS`, unique; the first must be ``"paper"`` (the reproduction,
-        whose results keep the figure's top-level metric keys).
-
-    Returns
-    -------
-    dict
-        ``{name: DefocusParams.preset(name)}`` in the given order.
-
-    Raises
-    ------
-    ValueError
-        Empty, not starting with ``"paper"``, duplicated or unknown names.
-    """
-    from method import PRESETS, DefocusParams
-
-    names = tuple(names)
-    allowed = f"unique names of method.PRESETS ({', '.join(PRESETS)}), the first 'paper'"
-    if not names or names[0] != "paper" or len(set(names)) != len(names):
-        raise ValueError(f"presets={names!r} is invalid; allowed: {allowed}")
-    PRESETS.check_all(names, what="preset")
-    return {n: DefocusParams.preset(n) for n in names}
+__all__ = ["FIGURE", "FULL", "QUICK", "Fig6Config", "StageOutputs", "alpha_summary", "cases", "compute_case",
+           "evaluate_input", "sweep_alpha"]
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class Fig6Config:
     """Every parameter of Fig. 6."""
 
-    scenes: tuple[str, ...] = ("portrait_garden", "street_figures", "heron_at_the_lake")
-    # scene names (scenes.SCENES); the first is plotted, all enter the metrics.
-    scene_set: str = "paper_cameras"
-    # name of the scenes.SCENE_SETS entry ``scenes`` is drawn from (the flat metrics describe it).
-    other_scene_sets: tuple = (("tabletop_stress", (("scenes", ("portrait", "planes", "clutter")),)),)
-    # further scene sets computed the same way: (set name, ((config field, value), ...)) overrides;
-    # their metrics go to metrics["scene_sets"][name], arrays to "<name>__<key>" (experiments.scene_sets).
+    scene_sets: tuple = (("paper_cameras", ("portrait_garden", "street_figures", "heron_at_the_lake")),
+                         ("tabletop_stress", ("portrait", "planes", "clutter")),
+                         ("procedural_test", ("procedural_100000", "procedural_100001", "procedural_100002",
+                                              "procedural_100003")))
+    # (scene set, scenes) pairs (experiments.scene_sets), the first the default; in each set the first
+    # scene is plotted, all enter the metrics.
     preset: str = "full"
     # render preset: "small" (160x120 px) or "full" (640x480 px).
     f_number: float = 4.0
@@ -114,13 +83,13 @@ class Fig6Config:
     render_seed: int = 0
     # Mitsuba sampler seed.
     presets: tuple[str, ...] = ("paper", "robust")
-    # method parameter presets (method.PRESETS) swept; the first is "paper" (the reproduction, top-level
-    # metrics), the others go to metrics["presets"][name] (not to be confused with the render `preset`).
+    # method parameter presets (method.PRESETS) swept, one case each (not to be confused with the render
+    # `preset`); the α ablation without Eq. (3) runs for "paper" only.
 
 
 FULL = Fig6Config()
-QUICK = Fig6Config(scenes=("portrait_garden",), preset="small",
-                   other_scene_sets=(("tabletop_stress", (("scenes", ("portrait",)),)),))
+QUICK = Fig6Config(scene_sets=(("paper_cameras", ("portrait_garden",)), ("tabletop_stress", ("portrait",)),
+                               ("procedural_test", ("procedural_100000", "procedural_100001"))), preset="small")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -324,107 +293,82 @@ def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, als
     return stages, out
 
 
-def compute_set(config: Fig6Config) -> dict:
-    """α sweep of Eq. (4) on rendered scenes, both encodings, with errors against σ_gt.
+def cases(config: Fig6Config) -> tuple:
+    """One case per scene set × scene × preset × encoding (aperture ``config.f_number``)."""
+    from .cases import Case, method_presets
+    from .scene_sets import set_scene_pairs
 
-    Parameters
-    ----------
-    config : Fig6Config
+    if config.plot_encoding not in config.encodings:
+        raise ValueError(f"plot_encoding={config.plot_encoding!r} is invalid; allowed: one of {config.encodings}")
+    presets = method_presets(config.presets)
+    return tuple(Case("fig6", scene_set=s, scene=n, preset=p, aperture=float(config.f_number), encoding=enc,
+                      scene_size=config.preset)
+                 for s, n in set_scene_pairs(config) for p in presets for enc in config.encodings)
+
+
+def compute_case(config: Fig6Config, case, inputs) -> dict:
+    """α sweep of Eq. (4) of one preset on one input, scored against σ_gt (see the module Notes).
 
     Returns
     -------
     dict
-        ``alphas`` (k,); for the plotted (first) scene: ``image`` (H, W, 3) — the ``plot_encoding``
-        input, ``sigma_gt`` (H, W) px, ``occlusion`` (H, W) bool, ``edges`` (H, W) bool, ``maps``
-        (k, H, W) px; ``maps_<scene>_<encoding>`` (k, H, W) px for every scene and encoding;
-        ``metrics``: ``scenes.<scene>.<encoding>.alpha=<a>.{all,textured,edges}_{mae,bias,rmse}``,
-        ``rtf_nmse``, ``rtf_nmae``, ``edge_rms_to_bm``, … (see the module Notes), plus
-        ``summary.<encoding>.alpha=<a>`` means over scenes, and timings — all for the ``"paper"``
-        preset. Every further preset P of ``config.presets``: ``preset_<P>__maps`` (k, H, W) px and
-        ``preset_<P>__refined`` (H, W) px (its Eq. 3 output, NaN off edges) for the plotted scene and
-        encoding, ``preset_<P>__maps_<scene>_<encoding>`` (k, H, W) px, and
-        ``metrics.presets.<P>`` = {``scenes``, ``summary`` (same keys as the paper's, no
-        ``from_sparse``), ``alpha_applies``, ``compute_seconds``}.
+        Arrays ``maps`` (k, H, W) px, ``refined`` (H, W) px (Eq. 3 output, NaN off edges), the input
+        ``image`` (H, W, 3), ``sigma_gt`` (H, W) px, ``occlusion`` and ``edges`` (H, W) bool, and for the
+        paper preset with ``ablation_from_sparse`` ``maps_from_sparse`` (k, H, W) px; metrics of
+        :func:`evaluate_input` (``alpha=<a>/…``, ``energy_terms``, ``map_change_px``, ``regions``, the
+        edge errors, ``from_sparse``), ``sigma_gt_range_px`` and ``alpha_applies``.
     """
+    from method import DefocusParams
     from scenes import render_scene
 
-    if config.plot_encoding not in config.encodings:
-        raise ValueError(f"plot_encoding={config.plot_encoding!r} is invalid; allowed: one of {config.encodings}")
-    others = dict(list(method_presets(config.presets).items())[1:])  # "paper" is the top level
-    t_start = time.perf_counter()
-    data = {"alphas": np.asarray(config.alphas, dtype=np.float64)}
-    per_scene = {}
-    extra = {p: {"scenes": {}, "summary": {}, "alpha_applies": alpha_applies(params), "compute_seconds": 0.0}
-             for p, params in others.items()}
-    for si, name in enumerate(config.scenes):
-        render = render_scene(name, preset=config.preset, f_number=config.f_number, seed=config.render_seed,
-                              progress=False)
-        per_scene[name] = {"sigma_gt_range_px": [float(np.nanmin(render.sigma_px)),
-                                                 float(np.nanmax(render.sigma_px))]}
-        for enc in config.encodings:
-            image = render.image(encoding=enc, quantize_bits=config.quantize_bits)
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)
-                stages, metrics = evaluate_input(image, render, config.alphas,
-                                                 texture_threshold=config.texture_threshold,
-                                                 rtf_clip_px=config.rtf_clip_px,
-                                                 also_from_sparse=config.ablation_from_sparse)
-            per_scene[name][enc] = metrics
-            data[f"maps_{name}_{enc}"] = stages.maps.astype(np.float32)
-            if config.ablation_from_sparse:
-                data[f"maps_from_sparse_{name}_{enc}"] = stages.maps_from_sparse.astype(np.float32)
-            if si == 0 and enc == config.plot_encoding:
-                data.update(image=image.astype(np.float32), sigma_gt=render.sigma_px.astype(np.float32),
-                            occlusion=render.occlusion_boundary.astype(bool), edges=stages.edges,
-                            maps=stages.maps.astype(np.float32))
-            for pname, params in others.items():
-                t0 = time.perf_counter()
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore", RuntimeWarning)
-                    st, mm = evaluate_input(image, render, config.alphas, texture_threshold=config.texture_threshold,
-                                            rtf_clip_px=config.rtf_clip_px, params=params)
-                extra[pname]["scenes"].setdefault(name, {"sigma_gt_range_px": per_scene[name]["sigma_gt_range_px"]})
-                extra[pname]["scenes"][name][enc] = mm
-                data[f"preset_{pname}__maps_{name}_{enc}"] = st.maps.astype(np.float32)
-                if si == 0 and enc == config.plot_encoding:
-                    data[f"preset_{pname}__maps"] = st.maps.astype(np.float32)
-                    data[f"preset_{pname}__refined"] = st.refined_sigma.astype(np.float32)
-                extra[pname]["compute_seconds"] += time.perf_counter() - t0
-    summary = _summary(per_scene, config, from_sparse=config.ablation_from_sparse)
-    for pname in others:
-        extra[pname]["summary"] = _summary(extra[pname]["scenes"], config, from_sparse=False)
-    data["metrics"] = {
-        "scenes": per_scene,
-        "summary": summary,
-        "presets": extra,
-        "regions_note": "occlusion-boundary pixels (within a CoC radius + 1 px of a depth discontinuity) "
-                        "are excluded from every region; 'all' = finite sigma_gt, 'textured' = local std > "
-                        f"{config.texture_threshold}, 'edges' = the method's edge pixels",
-        "compute_seconds": time.perf_counter() - t_start,
-    }
-    return data
+    params = DefocusParams.preset(case.preset)
+    ablation = config.ablation_from_sparse and case.preset == "paper"
+    render = render_scene(case.scene, preset=config.preset, f_number=config.f_number, seed=config.render_seed,
+                          progress=False)
+    image = render.image(encoding=case.encoding, quantize_bits=config.quantize_bits)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        stages, metrics = evaluate_input(image, render, config.alphas, texture_threshold=config.texture_threshold,
+                                         rtf_clip_px=config.rtf_clip_px, also_from_sparse=ablation, params=params)
+    timings = metrics.pop("timings")
+    metrics["sigma_gt_range_px"] = {"min": float(np.nanmin(render.sigma_px)), "max": float(np.nanmax(render.sigma_px))}
+    metrics["alpha_applies"] = alpha_applies(params)
+    arrays = {"maps": stages.maps.astype(np.float32), "refined": stages.refined_sigma.astype(np.float32),
+              "image": image.astype(np.float32), "sigma_gt": render.sigma_px.astype(np.float32),
+              "occlusion": render.occlusion_boundary.astype(bool), "edges": stages.edges}
+    if ablation:
+        arrays["maps_from_sparse"] = stages.maps_from_sparse.astype(np.float32)
+    return {"arrays": arrays, "metrics": metrics,
+            "info": {"timings": timings,
+                     "regions_note": "occlusion-boundary pixels (within a CoC radius + 1 px of a depth discontinuity) "
+                                     "are excluded from every region; 'all' = finite sigma_gt, 'textured' = local std "
+                                     f"> {config.texture_threshold}, 'edges' = the method's edge pixels"}}
 
 
-def _summary(per_scene, config, *, from_sparse):
-    """``{encoding: {"alpha=<a>": mean over scenes of each metric}}`` (and the ablation's, if asked)."""
+def alpha_summary(per_scene: dict, encodings, alphas, *, from_sparse: bool) -> dict:
+    """``{encoding: {"alpha=<a>": mean over scenes of each metric}}`` (and the ablation's, if asked).
+
+    Parameters
+    ----------
+    per_scene : dict
+        ``{scene: {encoding: case metrics (nested)}}``.
+    """
     summary = {}
-    for enc in config.encodings:
+    for enc in encodings:
         summary[enc] = {}
-        for a in config.alphas:
+        for a in alphas:
             key = f"alpha={float(a):g}"
-            rows = [per_scene[s][enc][key] for s in config.scenes]
-            summary[enc][key] = {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
+            rows = [per_scene[s][enc][key] for s in per_scene]
+            summary[enc][key] = {k: float(np.mean([np.nan if r[k] is None else r[k] for r in rows])) for k in rows[0]}
             if from_sparse:
-                rows = [per_scene[s][enc]["from_sparse"][key] for s in config.scenes]
+                rows = [per_scene[s][enc]["from_sparse"][key] for s in per_scene]
                 summary[enc].setdefault("from_sparse", {})[key] = {
-                    k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
+                    k: float(np.mean([np.nan if r[k] is None else r[k] for r in rows])) for k in rows[0]}
     return summary
 
 
-FIGURE = scene_set_figure(
-    compute_set, name="fig6", quick=QUICK, full=FULL, version=3,
+FIGURE = Figure(
+    name="fig6", plot="experiments.plotting.fig6:plot", configs={"quick": QUICK, "full": FULL},
+    cases_fn=cases, case_fn=compute_case, version=4,
     title="Eq. (4) data weight alpha in {0.1, 0.2, 0.5, 1}: dense maps vs ground truth (sRGB and linear input)",
 )
-#: :func:`compute_set` on the default scene set and on each of ``config.other_scene_sets``
-#: (:func:`experiments.scene_sets.compute_scene_sets`).
-compute = FIGURE.compute

@@ -48,13 +48,11 @@ Notes
    ``magnified_estimated_R``, ``magnified_oracle_srgb_R`` (the 8-bit sRGB input, blended as R's
    default encoding says: linear light for the scatter) and ``magnified_oracle_linear_R`` (linear
    radiance in, encoded and quantised like the renders).
-7. Method presets (``config.presets``; the first is always ``"paper"`` = ``DefocusParams()``, the
-   reproduction, whose metrics are the top-level ones): every further preset of
-   :data:`method.PRESETS` (e.g. ``"robust"``, beyond the paper) estimates both maps with its
-   parameters (steps 2–3, 5 and 6 with its maps; Sec. 5 preprocessing with its ``map_clip_percent`` /
-   ``map_smoothing``) under ``metrics["presets"][name]["scenes"][scene]``, with the paper's structure.
-   The preset-independent rows (naive / filter-aware doubled truth, unchanged f/8 render, oracle
-   magnifications) are repeated there, so each preset's entry reads like the paper's.
+7. Cases (:func:`cases`): per scene set × scene a ``stage`` case — both renders and the rows that do not
+   depend on the method preset (the naive and filter-aware doubled truth, the unchanged f/8 render, the
+   oracle magnifications) — and, needing it, one case per preset of ``config.presets`` (steps 2–3, 5 and
+   6 with its maps; Sec. 5 preprocessing with its ``map_clip_percent`` / ``map_smoothing``). A value is
+   measured once: the preset cases do not repeat the stage's rows.
 """
 
 from __future__ import annotations
@@ -65,23 +63,21 @@ import warnings
 
 import numpy as np
 
-from .scene_sets import scene_set_figure
+from .registry import Figure
 
-__all__ = ["FIGURE", "FULL", "QUICK", "Fig7Config", "compute", "compute_set"]
+__all__ = ["FIGURE", "FULL", "QUICK", "Fig7Config", "cases", "compute_case"]
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class Fig7Config:
     """Every parameter of Fig. 7."""
 
-    scenes: tuple[str, ...] = ("portrait_garden", "heron_at_the_lake")
-    # scenes rendered at both apertures; the first is plotted. Scenes with large depth differences
-    # make the doubling visible.
-    scene_set: str = "paper_cameras"
-    # name of the scenes.SCENE_SETS entry ``scenes`` is drawn from (the flat metrics describe it).
-    other_scene_sets: tuple = (("tabletop_stress", (("scenes", ("portrait", "planes")),)),)
-    # further scene sets computed the same way: (set name, ((config field, value), ...)) overrides;
-    # their metrics go to metrics["scene_sets"][name], arrays to "<name>__<key>" (experiments.scene_sets).
+    scene_sets: tuple = (("paper_cameras", ("portrait_garden", "heron_at_the_lake")),
+                         ("tabletop_stress", ("portrait", "planes")),
+                         ("procedural_test", ("procedural_100000", "procedural_100001", "procedural_100002",
+                                              "procedural_100003")))
+    # (scene set, scenes) pairs (experiments.scene_sets), the first the default; scenes rendered at both
+    # apertures, the first of each set plotted. Scenes with large depth differences make the doubling visible.
     preset: str = "full"
     # render preset: "small" (160x120 px) or "full" (640x480 px).
     f_number_small_aperture: float = 8.0
@@ -105,8 +101,8 @@ class Fig7Config:
     render_seed: int = 0
     # Mitsuba sampler seed (same for both apertures).
     presets: tuple[str, ...] = ("paper", "robust")
-    # method parameter presets (method.PRESETS); the first is "paper" (the reproduction, top-level
-    # metrics), the others go to metrics["presets"][name] (not to be confused with the render `preset`).
+    # method parameter presets (method.PRESETS), one case each per scene (not to be confused with the
+    # render `preset`).
 
     @property
     def factor(self) -> float:
@@ -115,7 +111,8 @@ class Fig7Config:
 
 
 FULL = Fig7Config()
-QUICK = Fig7Config(preset="small")
+QUICK = Fig7Config(preset="small", scene_sets=(*FULL.scene_sets[:2], ("procedural_test", ("procedural_100000",
+                                                                                          "procedural_100001"))))
 
 
 def _estimate(image, params=None):
@@ -274,14 +271,15 @@ def _preset_independent(pair: _RenderedPair, config) -> tuple[dict, dict, dict]:
     return truth_rows, images, {n: _score_image(im, pair) for n, im in images.items()}
 
 
-def _estimated_case(pair: _RenderedPair, params, config, truth_rows: dict, fixed_quality: dict) -> tuple[dict, dict]:
+def _estimated_case(pair: _RenderedPair, params, config) -> tuple[dict, dict, dict]:
     """Estimate both maps with ``params``, magnify the f/8 input and score everything (one preset).
 
     Returns
     -------
-    (dict, dict)
+    (dict, dict, dict)
         Arrays ``map_small``, ``map_large``, ``magnified<sx>`` (per renderer, :func:`_suffix`),
-        ``magnified_subtract``, ``map_small_subtract`` and the preset's metrics (see :func:`scene_case`).
+        ``magnified_subtract``, ``map_small_subtract``; the preset's metrics (see :func:`compute_case`);
+        the seconds of the estimate and of each magnification.
     """
     from method.magnify.magnification import preprocess_defocus_map
 
@@ -291,18 +289,16 @@ def _estimated_case(pair: _RenderedPair, params, config, truth_rows: dict, fixed
     t0 = time.perf_counter()
     res_s = _estimate(img_s, params)
     res_l = _estimate(pair.image_large, params)
-    t_est = time.perf_counter() - t0
+    seconds = {"estimate_seconds": time.perf_counter() - t0}
     candidates = {"map_small": res_s.defocus_map, "k_x_map_small": k * res_s.defocus_map,
                   "map_large": res_l.defocus_map}
     maps = {n: dense_metrics(m, gt_l, regions=regions)["all"] for n, m in candidates.items()}
-    maps.update(truth_rows)
     maps_vs_gt_small = {"map_small": dense_metrics(res_s.defocus_map, gt_s, regions=regions)["all"]}
     # the doubling claim compared directly: k × map(f/8) with map(f/4) as the reference, px
     doubled_vs_map_large = dense_metrics(k * res_s.defocus_map, res_l.defocus_map, regions=regions)["all"]
     clip, smooth = params.map_clip_percent, params.map_smoothing  # paper: 5 %, 0.5 %
-    quality = {"unchanged_small": fixed_quality["unchanged_small"]}
+    quality = {}
     arrays = {"map_small": res_s.defocus_map, "map_large": res_l.defocus_map}
-    seconds = {}
     for renderer in config.renderers:
         sx = _suffix(renderer, config)
         t0 = time.perf_counter()
@@ -315,8 +311,6 @@ def _estimated_case(pair: _RenderedPair, params, config, truth_rows: dict, fixed
                                     smoothing=smooth, floor="subtract")
             quality["magnified_estimated_subtract"] = _score_image(mag_subtract, pair)
             arrays["magnified_subtract"] = mag_subtract
-        for row in ("magnified_oracle_srgb", "magnified_oracle_linear"):
-            quality[row + sx] = fixed_quality[row + sx]
     arrays["map_small_subtract"] = preprocess_defocus_map(res_s.defocus_map, clip_percent=clip, smoothing=smooth,
                                                           floor="subtract")
     map_floor_px = max(float(np.percentile(res_s.defocus_map, clip)), 0.0)  # p_lo, px
@@ -325,119 +319,81 @@ def _estimated_case(pair: _RenderedPair, params, config, truth_rows: dict, fixed
         "maps_vs_gt_small": maps_vs_gt_small,
         "k_x_map_small_vs_map_large": doubled_vs_map_large,
         "image_vs_large": quality,
-        "gt_range_px": {"small": [float(np.nanmin(gt_s)), float(np.nanmax(gt_s))],
-                        "large": [float(np.nanmin(gt_l)), float(np.nanmax(gt_l))]},
         "map_floor_px": map_floor_px,
-        "evaluated_pixels": int(pair.mask.sum()),
-        "in_focus_pixels": int(pair.in_focus.sum()),
-        "defocused_pixels": int(pair.defocused.sum()),
-        "occlusion_pixels": int(pair.occlusion.sum()),
-        "estimate_seconds": t_est,
-        **seconds,
     }
-    return arrays, metrics
+    return arrays, metrics, seconds
 
 
-def scene_case(name, config) -> tuple[dict, dict, dict]:
-    """Render, estimate, magnify and score one scene for every preset; returns (arrays, metrics, presets).
-
-    Parameters
-    ----------
-    name : str
-        Scene name.
-    config : Fig7Config
-
-    Returns
-    -------
-    (dict, dict, dict)
-        Arrays of the ``"paper"`` preset (all HxW or HxWx3): ``image_small`` / ``image_large`` (the
-        f/8 and f/4 inputs), ``map_small`` / ``map_large`` (estimated σ, px), ``gt_small`` /
-        ``gt_large`` (σ_gt, px), ``mask`` (evaluated pixels), ``magnified`` (estimated map,
-        ``floor="clamp"``), ``magnified_subtract`` (estimated map, ``floor="subtract"``),
-        ``map_small_subtract`` (the f/8 map after Sec. 5 preprocessing with ``floor="subtract"``, σ
-        px), ``magnified_oracle_srgb``, ``magnified_oracle_linear``, ``occlusion`` (the f/4 render's
-        occlusion band), and per further renderer R ``magnified_R``, ``magnified_oracle_srgb_R``,
-        ``magnified_oracle_linear_R``; its metrics as described in the module Notes; and
-        ``{preset: (arrays, metrics)}`` for every further preset of ``config.presets`` (arrays: the
-        estimated-map ones above, ``map_small`` … ``map_small_subtract``, ``magnified_R``; metrics: the
-        paper's keys).
-    """
-    from .fig6_alpha_sweep import method_presets
-
-    presets = method_presets(config.presets)
-    pair = _render_pair(name, config)
-    truth_rows, images, fixed_quality = _preset_independent(pair, config)
-    names = list(presets)
-    arrays, metrics = _estimated_case(pair, presets[names[0]], config, truth_rows, fixed_quality)
-    arrays.update({"image_small": pair.image_small, "image_large": pair.image_large, "gt_small": pair.gt_small,
-                   "gt_large": pair.gt_large, "mask": pair.mask, "occlusion": pair.occlusion})
-    arrays.update({k: v for k, v in images.items() if k != "unchanged_small"})
-    others = {}
-    for pname in names[1:]:
-        t0 = time.perf_counter()
-        a, m = _estimated_case(pair, presets[pname], config, truth_rows, fixed_quality)
-        m["compute_seconds"] = time.perf_counter() - t0
-        others[pname] = (a, m)
-    return arrays, metrics, others
-
-
-def compute_set(config: Fig7Config) -> dict:
-    """Doubled-defocus experiment on every scene of ``config`` (one scene set).
-
-    Parameters
-    ----------
-    config : Fig7Config
-
-    Returns
-    -------
-    dict
-        ``<scene>__<array>`` for every array of :func:`scene_case` (float32 images/maps, px), and
-        ``metrics``: ``scenes.<scene>.maps_vs_gt_large.<candidate>.{mae, bias, …}``,
-        ``scenes.<scene>.k_x_map_small_vs_map_large.{mae, bias, median_rel_error, …}`` (k × the f/8
-        map against the f/4 map as reference),
-        ``scenes.<scene>.image_vs_large.<image>.{psnr_db, ssim, psnr_<region>_db, ssim_<region>}``
-        (regions ``in_focus``, ``defocused``, ``occlusion``; images per renderer, module Notes 6),
-        the factor k, ``renderers``, timings — all for the ``"paper"`` preset. Every further preset P
-        of ``config.presets``: ``<scene>__<P>__<array>`` for its estimated-map arrays (``map_small``,
-        ``map_large``, ``magnified``, ``magnified_<R>``, ``magnified_subtract``, ``map_small_subtract``) and
-        ``metrics.presets.<P>.scenes.<scene>`` with the paper's keys (plus ``compute_seconds``).
-    """
+def cases(config: Fig7Config) -> tuple:
+    """Per scene set × scene: a ``stage`` case (both renders and the preset-independent rows: the doubled
+    truth, the unchanged input, the oracle magnifications) and, needing it, one case per preset."""
     from method.magnify.magnification import MAGNIFICATION_RENDERERS
+
+    from .cases import Case, method_presets
+    from .scene_sets import set_scene_pairs
 
     if config.factor < 1:
         raise ValueError(f"f_number_small_aperture/f_number_large_aperture = {config.factor:g} is invalid; allowed: >= 1")
     MAGNIFICATION_RENDERERS.check_all(config.renderers, what="Fig7Config.renderers")
-    t0 = time.perf_counter()
-    data, per_scene = {}, {}
-    extra = {p: {"scenes": {}, "compute_seconds": 0.0} for p in config.presets[1:]}
-    for name in config.scenes:
-        arrays, metrics, others = scene_case(name, config)
-        per_scene[name] = metrics
-        for key, a in arrays.items():
-            a = np.asarray(a)
-            data[f"{name}__{key}"] = a.astype(np.float32) if a.dtype.kind == "f" else a
-        for pname, (p_arrays, p_metrics) in others.items():
-            extra[pname]["scenes"][name] = p_metrics
-            extra[pname]["compute_seconds"] += p_metrics["compute_seconds"]
-            for key, a in p_arrays.items():
-                data[f"{name}__{pname}__{key}"] = np.asarray(a).astype(np.float32)
-    data["metrics"] = {
-        "scenes": per_scene,
-        "presets": extra,
-        "factor": config.factor,
-        "renderers": list(config.renderers),
-        "upper_bound_note": "oracle map = defocus-only sigma c/4 = sqrt(sigma_gt^2 - sigma_filter^2) of the "
-                            "small-aperture render, no Sec. 5 preprocessing; the box-filter sigma does not "
-                            "double with the aperture",
-        "compute_seconds": time.perf_counter() - t0,
-    }
-    return data
+    presets = method_presets(config.presets)
+    out = []
+    for set_name, scene in set_scene_pairs(config):
+        stage = Case("fig7", scene_set=set_name, scene=scene, aperture=float(config.f_number_small_aperture),
+                     encoding=config.encoding, variant="stage", scene_size=config.preset)
+        out.append(stage)
+        out += [Case("fig7", scene_set=set_name, scene=scene, preset=p, aperture=stage.aperture,
+                     encoding=config.encoding, scene_size=config.preset, needs=(stage,)) for p in presets]
+    return tuple(out)
 
 
-FIGURE = scene_set_figure(
-    compute_set, name="fig7", quick=QUICK, full=FULL, version=5,
+#: Arrays of the stage case the preset cases read (as a :class:`_RenderedPair`).
+_PAIR_FIELDS = ("image_small", "image_large", "gt_small", "gt_large", "mask", "in_focus", "defocused", "occlusion")
+
+
+def compute_case(config: Fig7Config, case, inputs) -> dict:
+    """One case of :func:`cases`.
+
+    Returns
+    -------
+    dict
+        ``stage``: arrays ``image_small`` / ``image_large`` (the f/8 and f/4 inputs, HxWx3),
+        ``gt_small`` / ``gt_large`` (σ_gt, px), ``mask``, ``in_focus``, ``defocused``, ``occlusion``
+        (HxW bool) and the oracle results ``magnified_oracle_srgb<sx>`` / ``magnified_oracle_linear<sx>``
+        per renderer (HxWx3); metrics ``maps_vs_gt_large`` (the naive and the filter-aware doubled truth
+        against σ_gt(f/4)), ``image_vs_large`` (``unchanged_small`` and the oracle rows), ``gt_range_px``
+        and pixel counts. A preset: arrays ``map_small``, ``map_large``, ``magnified<sx>``,
+        ``magnified_subtract``, ``map_small_subtract``; metrics ``maps_vs_gt_large`` (its maps),
+        ``maps_vs_gt_small``, ``k_x_map_small_vs_map_large``, ``image_vs_large`` (its magnified rows),
+        ``map_floor_px`` (module Notes).
+    """
+    from method import DefocusParams
+
+    if case.variant == "stage":
+        pair = _render_pair(case.scene, config)
+        truth_rows, images, quality = _preset_independent(pair, config)
+        gt_s, gt_l = pair.gt_small, pair.gt_large
+        metrics = {"maps_vs_gt_large": truth_rows, "image_vs_large": quality,
+                   "gt_range_px": {"small": [float(np.nanmin(gt_s)), float(np.nanmax(gt_s))],
+                                   "large": [float(np.nanmin(gt_l)), float(np.nanmax(gt_l))]},
+                   "evaluated_pixels": int(pair.mask.sum()), "in_focus_pixels": int(pair.in_focus.sum()),
+                   "defocused_pixels": int(pair.defocused.sum()), "occlusion_pixels": int(pair.occlusion.sum())}
+        arrays = {k: getattr(pair, k) for k in _PAIR_FIELDS}
+        arrays.update({k: v.astype(np.float32) for k, v in images.items() if k != "unchanged_small"})
+        return {"arrays": arrays, "metrics": metrics, "info": {"upper_bound_note": _UPPER_BOUND_NOTE}}
+    (stage,) = case.needs
+    a = inputs[stage].arrays()
+    pair = _RenderedPair(linear_small=None, defocus_small=None, **{k: a[k] for k in _PAIR_FIELDS})
+    arrays, metrics, seconds = _estimated_case(pair, DefocusParams.preset(case.preset), config)
+    return {"arrays": {k: np.asarray(v).astype(np.float32) for k, v in arrays.items()}, "metrics": metrics,
+            "info": {"seconds": seconds}}
+
+
+_UPPER_BOUND_NOTE = ("oracle map = defocus-only sigma c/4 = sqrt(sigma_gt^2 - sigma_filter^2) of the small-aperture "
+                     "render, no Sec. 5 preprocessing; the box-filter sigma does not double with the aperture")
+
+
+FIGURE = Figure(
+    name="fig7", plot="experiments.plotting.fig7:plot", configs={"quick": QUICK, "full": FULL},
+    cases_fn=cases, case_fn=compute_case, version=6,
     title="Doubled defocus: f/8 render magnified x2 vs the real f/4 render (maps and images)",
 )
-#: :func:`compute_set` on the default scene set and on each of ``config.other_scene_sets``
-#: (:func:`experiments.scene_sets.compute_scene_sets`).
-compute = FIGURE.compute

@@ -53,11 +53,10 @@ Notes
 6. Sensitivity to λ: the PSNRs of step 4 (whole image) and 5 for each λ of ``nsr_sweep``.
 7. Virtual-map error against σ_gt(D2) (MAE/bias, px) outside occlusion bands, and the depth at the
    click (checked to lie on the D2 plane).
-8. Method presets (``config.presets``, the first ``"paper"``): steps 2–7 with each preset's map
-   (renders and the oracle results shared); further presets under ``metrics["presets"][name]``.
-9. Scene sets: steps 1–8 on the default set's scene (``scene_set``, flat keys) and on each of
-   ``other_scene_sets`` (its own scene, D2 and click; ``metrics["scene_sets"][name]``, with its own
-   ``"presets"``; arrays ``<set>__<key>``).
+8. Cases (:func:`cases`): per scene set of ``config.scene_sets`` (its scene, D2 and click) a ``stage``
+   case (step 1, the oracle results of steps 3 and 5 and their rows), per preset a ``map`` case (step 2,
+   the virtual map and step 7) and, needing both, one case per λ of the sweep (step 6; at λ =
+   ``config.nsr`` also steps 3–5 with the preset's map).
 """
 
 from __future__ import annotations
@@ -70,36 +69,27 @@ import numpy as np
 
 from .registry import Figure
 
-__all__ = ["FIGURE", "FULL", "QUICK", "Fig8Config", "compute", "virtual_focus_map"]
+__all__ = ["FIGURE", "FULL", "QUICK", "Fig8Config", "cases", "compute_case", "virtual_focus_map"]
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
 class Fig8Config:
     """Every parameter of Fig. 8."""
 
-    scene: str = "portrait"
-    # scene rendered at both focus distances (portrait: figure at 0.25 m, cat photo at 1.5 m,
-    # shelf at 0.6 m, foreground card at 0.125 m); in ``scene_set``.
-    scene_set: str = "tabletop_stress"
-    # name of the scenes.SCENE_SETS entry ``scene`` belongs to (the flat metrics describe it).
-    other_scene_sets: tuple = (("paper_cameras", (("scene", "portrait_garden"), ("focus_distance_2_m", 10.0),
-                                                  ("focus_point_xy", (0.8, 0.15)))),)
-    # further scene sets: (set name, ((config field, value), ...)) overrides of ``scene``,
-    # ``focus_distance_2_m`` and ``focus_point_xy`` (portrait_garden: person at 2 m, refocused to the
-    # brick house at 10 m, clicked on it at the top right); metrics["scene_sets"][name], arrays "<name>__<key>".
+    scene_sets: tuple = (("tabletop_stress", "portrait", 1.5, (0.15, 0.3)),
+                         ("paper_cameras", "portrait_garden", 10.0, (0.8, 0.15)))
+    # per scene set (the first the default): (set name, scene rendered at both focus distances, D2 = the
+    # distance to refocus to in m, the "click" on the region to bring into focus as (x, y) fractions of
+    # width and height from the top-left corner). portrait: figure at 0.25 m, cat photo at 1.5 m, shelf
+    # at 0.6 m, foreground card at 0.125 m, refocused to the photo, clicked on the background left of the
+    # figure; portrait_garden: person at 2 m, refocused to the brick house at 10 m, clicked on it.
     presets: tuple[str, ...] = ("paper", "robust")
-    # method parameter presets (method.PRESETS) whose maps are refocused; the first is "paper"
-    # (= DefocusParams(), the top-level metrics), the others go to metrics["presets"][name]
-    # (not to be confused with the render `preset`).
+    # method parameter presets (method.PRESETS) whose maps are refocused, each its own cases (not to be
+    # confused with the render `preset`).
     preset: str = "full"
     # render preset: "small" (160x120 px) or "full" (640x480 px).
     f_number: float = 4.0
     # N of both renders (same aperture; only the focus changes).
-    focus_distance_2_m: float = 1.5
-    # D2, the distance to refocus to, m (portrait: the background photo; D1 is the scene's default).
-    focus_point_xy: tuple[float, float] = (0.15, 0.3)
-    # the "click" on the region to bring into focus: (x, y) as fractions of width and height from
-    # the top-left corner (portrait: the background, left of the figure).
     focus_window_frac: float = 0.03
     # half-side of the square window around the click whose median estimated σ_d is σ_t, as a
     # fraction of max(H, W).
@@ -179,67 +169,77 @@ def _masked_ssim(test, reference, mask):
     return float(smap.mean(axis=-1)[mask].mean())
 
 
-def compute(config: Fig8Config) -> dict:
-    """Refocusing experiment (see the module Notes) for every preset and scene set.
+def cases(config: Fig8Config) -> tuple:
+    """Per scene set: a ``stage`` case (the renders and the oracle results), one ``map`` case per preset
+    (its estimated and virtual maps) and, needing both, one case per λ of ``nsr_sweep`` (and ``nsr``)."""
+    from .cases import Case, method_presets
+    from .scene_sets import check_scene_sets
 
-    Parameters
-    ----------
-    config : Fig8Config
+    check_scene_sets([(s, (scene,)) for s, scene, _, _ in config.scene_sets])
+    presets = method_presets(config.presets)
+    lams = tuple(dict.fromkeys([*config.nsr_sweep, config.nsr]))
+    out = []
+    for set_name, scene, _, _ in config.scene_sets:
+        ids = dict(scene_set=set_name, scene=scene, aperture=float(config.f_number), encoding=config.encoding,
+                   scene_size=config.preset)
+        stage = Case("fig8", variant="stage", **ids)
+        out.append(stage)
+        for p in presets:
+            mcase = Case("fig8", preset=p, variant="map", needs=(stage,), **ids)
+            out.append(mcase)
+            out += [Case("fig8", preset=p, variant=f"nsr={lam:g}", needs=(stage, mcase), **ids) for lam in lams]
+    return tuple(out)
+
+
+def _set_fields(config, set_name) -> tuple[str, float, tuple]:
+    """(scene, D2 in m, click) of a scene set of ``config.scene_sets``."""
+    return next((scene, d2, click) for s, scene, d2, click in config.scene_sets if s == set_name)
+
+
+def compute_case(config: Fig8Config, case, inputs) -> dict:
+    """One case of :func:`cases` (see the module Notes).
 
     Returns
     -------
     dict
-        HxW(x3) float32 arrays ``image_d1``, ``image_d2``, ``image_pinhole``, ``map_estimated`` (B, px),
-        ``virtual_map_estimated``, ``gt_d1``, ``gt_d2``, ``gt_pinhole`` (σ, px), ``deconvolved_estimated``,
-        ``deconvolved_oracle``, ``refocused_estimated``, ``refocused_estimated_oracle_virtual``,
-        ``refocused_oracle``; bool ``mask`` (outside occlusion bands) and ``in_focus_d2``;
-        ``focus_point_px`` (x, y); and ``metrics``: ``images_vs_d2.<image>.{psnr_db, ssim,
-        psnr_in_focus_db, ssim_in_focus}``, ``deconvolution_vs_pinhole.<image>.{psnr_db, ssim,
-        psnr_no_occlusion_db}``, ``virtual_map_vs_gt_d2.<map>.<region>.{mae, bias}``, ``nsr_sweep.nsr=<λ>.*_psnr_db``, ``sigma_t_px``,
-        ``map_floor_px``, ``click_depth_m``, pixel counts, timings — the paper preset on the default
-        scene set; ``presets.<P>`` the same keys for preset P (its map: ``<P>__map_estimated``,
-        ``<P>__virtual_map_estimated``, ``<P>__deconvolved_estimated``, ``<P>__refocused_estimated``);
-        ``scene_set``; ``scene_sets.<set>`` the same for each further set (arrays ``<set>__<key>``).
+        ``stage``: arrays ``image_d1``, ``image_d2``, ``image_pinhole`` (HxWx3), ``gt_d1``, ``gt_d2``,
+        ``gt_pinhole``, ``oracle_deblur`` (σ px), ``refocused_oracle``, ``deconvolved_oracle``, bool
+        ``mask``, ``in_focus_d2``, ``occlusion_pinhole``, ``focus_point_px`` (x, y); metrics
+        ``images_vs_d2`` / ``deconvolution_vs_pinhole`` of the unchanged and oracle images, the click depth,
+        focus distances, σ_gt ranges and pixel counts. ``map``: arrays ``map_estimated`` (B, px) and
+        ``virtual_map_estimated`` (px); metrics ``sigma_t_px``, ``map_floor_px``, ``virtual_map_vs_gt_d2``.
+        ``nsr=<λ>``: metrics ``nsr`` and the four PSNRs of the λ sweep; at λ = ``config.nsr`` also the
+        estimated-map rows of ``images_vs_d2`` / ``deconvolution_vs_pinhole`` and arrays
+        ``deconvolved_estimated``, ``refocused_estimated``, ``refocused_estimated_oracle_virtual``.
     """
-    from .fig6_alpha_sweep import method_presets
-    from .scene_sets import scene_set_configs
-
-    presets = method_presets(config.presets)
-    sets = scene_set_configs(config)
-    data = metrics = None
-    nested = {}
-    for set_name, cfg in sets:
-        arrays, m = _compute_set(cfg, presets)
-        m["scene_set"] = set_name
-        if data is None:
-            data, metrics = arrays, m
-        else:
-            nested[set_name] = m
-            data.update({f"{set_name}__{k}": v for k, v in arrays.items()})
-    metrics["scene_sets"] = nested
-    data["metrics"] = metrics
-    return data
+    if case.variant == "stage":
+        return _stage(config, case)
+    if case.variant == "map":
+        return _map_case(config, case, inputs[case.needs[0]].arrays())
+    stage, mcase = case.needs
+    lam = float(case.variant.split("=", 1)[1])
+    return _refocus_case(config, inputs[stage].arrays(), inputs[mcase].arrays(), lam)
 
 
-def _compute_set(config: Fig8Config, presets: dict) -> tuple[dict, dict]:
-    """Renders of ``config.scene`` and the refocusing of every preset's map: (arrays, metrics)."""
+def _stage(config: Fig8Config, case) -> dict:
+    """Renders of the set's scene at D1, D2 and the near-pinhole aperture, and the oracle results."""
     from method.magnify.refocusing import deconvolve_defocus, refocus
     from scenes import SCENES, render_scene
     from scenes.render import FILTER_SIGMA_PX
 
-    t_start = time.perf_counter()
-    scene = SCENES[config.scene]
+    scene_name, d2_m, click_xy = _set_fields(config, case.scene_set)
+    scene = SCENES[scene_name]
 
     def render(f_number, **changes):
         cam = scene.camera(config.preset, f_number=f_number, **changes)
-        return render_scene(config.scene, camera=cam, preset=config.preset, seed=config.render_seed, progress=False)
+        return render_scene(scene_name, camera=cam, preset=config.preset, seed=config.render_seed, progress=False)
 
     r1 = render(config.f_number)
     # same field of view at D2: scale the sensor by v2/v1 (lens-sensor distances), see the module docstring
     cam1 = scene.camera(config.preset, f_number=config.f_number)
-    v_ratio = (scene.camera(config.preset, f_number=config.f_number, focus_distance_m=config.focus_distance_2_m)
+    v_ratio = (scene.camera(config.preset, f_number=config.f_number, focus_distance_m=d2_m)
                .lens_sensor_distance_m / cam1.lens_sensor_distance_m)
-    r2 = render(config.f_number, focus_distance_m=config.focus_distance_2_m,
+    r2 = render(config.f_number, focus_distance_m=d2_m,
                 sensor_width_mm=cam1.sensor_width_mm * v_ratio, sensor_height_mm=cam1.sensor_height_mm * v_ratio)
     rp = render(config.all_in_focus_f_number)
     img1, img2, imgp = (r.image(encoding=config.encoding, quantize_bits=config.quantize_bits) for r in (r1, r2, rp))
@@ -249,132 +249,115 @@ def _compute_set(config: Fig8Config, presets: dict) -> tuple[dict, dict]:
     mask = finite & ~r1.occlusion_boundary & ~r2.occlusion_boundary
     sf = FILTER_SIGMA_PX
     in_focus = mask & (np.sqrt(np.maximum(gt2**2 - sf**2, 0.0)) <= config.in_focus_sigma_px)
-    t_renders = time.perf_counter() - t_start
-
     opts = {"method": config.deconvolution, "nsr": config.nsr}
     oracle_deblur = np.sqrt(np.maximum(gt1**2 - gtp**2, 0.0))
     refocused_oracle = refocus(img1, gt1, gt2, kernel=config.kernel, **opts)
     deconv_oracle = deconvolve_defocus(img1, oracle_deblur, **opts)
     h, w = img1.shape[:2]
-    click = (round(config.focus_point_xy[0] * (w - 1)), round(config.focus_point_xy[1] * (h - 1)))
+    click = (round(click_xy[0] * (w - 1)), round(click_xy[1] * (h - 1)))
     r_win = max(1, round(config.focus_window_frac * max(h, w)))
     win = np.s_[max(click[1] - r_win, 0):click[1] + r_win + 1, max(click[0] - r_win, 0):click[0] + r_win + 1]
-    shared = {"config": config, "img1": img1, "img2": img2, "imgp": imgp, "gt1": gt1, "gt2": gt2, "gtp": gtp,
-              "mask": mask, "in_focus": in_focus, "occl_p": rp.occlusion_boundary, "opts": opts,
-              "oracle_deblur": oracle_deblur, "refocused_oracle": refocused_oracle, "deconv_oracle": deconv_oracle}
-    common = {
+    arrays = {"image_d1": img1, "image_d2": img2, "image_pinhole": imgp, "gt_d1": gt1, "gt_d2": gt2,
+              "gt_pinhole": gtp, "oracle_deblur": oracle_deblur, "refocused_oracle": refocused_oracle,
+              "deconvolved_oracle": deconv_oracle, "mask": mask, "in_focus_d2": in_focus,
+              "occlusion_pinhole": np.asarray(rp.occlusion_boundary, dtype=bool),
+              "focus_point_px": np.asarray(click, dtype=np.int64)}
+    metrics = {
+        "images_vs_d2": {name: _vs_d2(im, img2, in_focus) for name, im in
+                         (("unchanged_d1", img1), ("refocused_oracle", refocused_oracle))},
+        "deconvolution_vs_pinhole": {name: _vs_pinhole(im, imgp, mask & ~arrays["occlusion_pinhole"]) for name, im in
+                                     (("unchanged_d1", img1), ("deconvolved_oracle", deconv_oracle))},
         "click_depth_m": float(np.median(np.asarray(r1.depth)[win])),
         "focus_distance_1_m": float(scene.focus_distance_m),
-        "focus_distance_2_m": float(config.focus_distance_2_m),
+        "focus_distance_2_m": float(d2_m),
         "gt_range_px": {"d1": [float(gt1.min()), float(gt1.max())], "d2": [float(gt2.min()), float(gt2.max())],
                         "pinhole": [float(gtp.min()), float(gtp.max())]},
         "nonfinite_gt_pixels": int((~finite).sum()),
         "evaluated_pixels": int(mask.sum()),
         "in_focus_d2_pixels": int(in_focus.sum()),
     }
-    names = list(presets)
-    per_preset = {}
-    for pname in names:
-        t0 = time.perf_counter()
-        p_arrays, p_metrics = _refocus_one(shared, presets[pname])
-        p_metrics.update(common)
-        p_metrics["compute_seconds"] = time.perf_counter() - t0 + (t_renders if pname == names[0] else 0.0)
-        per_preset[pname] = (p_arrays, p_metrics)
-    arrays, metrics = per_preset[names[0]]
-    metrics["presets"] = {p: per_preset[p][1] for p in names[1:]}
-    arrays = {
-        "image_d1": img1, "image_d2": img2, "image_pinhole": imgp,
-        "gt_d1": gt1, "gt_d2": gt2, "gt_pinhole": gtp,
-        "deconvolved_oracle": deconv_oracle, "refocused_oracle": refocused_oracle, **arrays,
-    }
-    data = {k: np.asarray(a, dtype=np.float32) for k, a in arrays.items()}
-    for p in names[1:]:
-        data.update({f"{p}__{k}": np.asarray(a, dtype=np.float32) for k, a in per_preset[p][0].items()})
-    data["mask"] = mask
-    data["in_focus_d2"] = in_focus
-    data["focus_point_px"] = np.asarray(click, dtype=np.int64)
-    return data, metrics
+    return {"arrays": arrays, "metrics": metrics}
 
 
-def _refocus_one(shared: dict, params) -> tuple[dict, dict]:
-    """Steps 2–7 of the module Notes with one preset's map: (its arrays, its metrics)."""
-    from method import estimate_defocus_map, preprocess_defocus_map
-    from method.magnify.refocusing import deconvolve_defocus, refocus
+def _vs_d2(im, img2, in_focus) -> dict:
+    from .metrics import image_quality
 
-    from .metrics import dense_metrics, image_quality
+    q = image_quality(im, img2)
+    q["psnr_in_focus_db"] = _masked_psnr(im, img2, in_focus)
+    q["ssim_in_focus"] = _masked_ssim(im, img2, in_focus)
+    return q
 
-    config = shared["config"]
-    img1, img2, imgp, gt1, gt2 = (shared[k] for k in ("img1", "img2", "imgp", "gt1", "gt2"))
-    mask, in_focus, opts = shared["mask"], shared["in_focus"], shared["opts"]
+
+def _vs_pinhole(im, imgp, keep) -> dict:
+    from .metrics import image_quality
+
+    q = image_quality(im, imgp)
+    q["psnr_no_occlusion_db"] = _masked_psnr(im, imgp, keep)
+    return q
+
+
+def _map_case(config: Fig8Config, case, stage: dict) -> dict:
+    """Steps 2 and 7 of the module Notes with one preset: its prepared map B, the virtual map, their errors."""
+    from method import DefocusParams, estimate_defocus_map, preprocess_defocus_map
+
+    from .metrics import dense_metrics
+
+    params = DefocusParams.preset(case.preset)
+    _, _, click_xy = _set_fields(config, case.scene_set)
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        est = estimate_defocus_map(img1, params).defocus_map
+        est = estimate_defocus_map(stage["image_d1"], params).defocus_map
     t_est = time.perf_counter() - t0
     b = preprocess_defocus_map(est, clip_percent=params.map_clip_percent, smoothing=params.map_smoothing,
                                floor="clamp")
     floor_px = max(float(np.percentile(est, params.map_clip_percent)), 0.0)
-    virtual, sigma_t = virtual_focus_map(b, config.focus_point_xy, window_frac=config.focus_window_frac,
-                                         floor_px=floor_px)
-    t0 = time.perf_counter()
-    refocused_est = refocus(img1, b, virtual, kernel=config.kernel, **opts)
-    t_refocus = time.perf_counter() - t0
-    refocused_est_ov = refocus(img1, b, gt2, kernel=config.kernel, **opts)
-    deconv_est = deconvolve_defocus(img1, b, **opts)
-
-    results = {
-        "unchanged_d1": img1,
-        "refocused_estimated": refocused_est,
-        "refocused_estimated_oracle_virtual": refocused_est_ov,
-        "refocused_oracle": shared["refocused_oracle"],
-    }
-    vs_d2 = {}
-    for name, im in results.items():
-        q = image_quality(im, img2)
-        q["psnr_in_focus_db"] = _masked_psnr(im, img2, in_focus)
-        q["ssim_in_focus"] = _masked_ssim(im, img2, in_focus)
-        vs_d2[name] = q
-    deconv = {}
-    for name, im in (("unchanged_d1", img1), ("deconvolved_estimated", deconv_est),
-                     ("deconvolved_oracle", shared["deconv_oracle"])):
-        q = image_quality(im, imgp)
-        q["psnr_no_occlusion_db"] = _masked_psnr(im, imgp, mask & ~shared["occl_p"])
-        deconv[name] = q
-    sweep = []
-    for lam in config.nsr_sweep:
-        o = {"method": config.deconvolution, "nsr": lam}
-        sweep.append({
-            "nsr": float(lam),
-            "refocused_estimated_psnr_db": image_quality(refocus(img1, b, virtual, kernel=config.kernel, **o), img2)["psnr_db"],
-            "refocused_oracle_psnr_db": image_quality(refocus(img1, gt1, gt2, kernel=config.kernel, **o), img2)["psnr_db"],
-            "deconvolved_estimated_psnr_db": image_quality(deconvolve_defocus(img1, b, **o), imgp)["psnr_db"],
-            "deconvolved_oracle_psnr_db": image_quality(
-                deconvolve_defocus(img1, shared["oracle_deblur"], **o), imgp)["psnr_db"],
-        })
-    regions = {"all": mask, "in_focus_d2": in_focus}
-    vmaps = {name: dense_metrics(m, gt2, regions=regions) for name, m in
+    virtual, sigma_t = virtual_focus_map(b, click_xy, window_frac=config.focus_window_frac, floor_px=floor_px)
+    regions = {"all": stage["mask"], "in_focus_d2": stage["in_focus_d2"]}
+    vmaps = {name: dense_metrics(m, stage["gt_d2"], regions=regions) for name, m in
              (("estimated", virtual), ("d1_map_unchanged", b))}
     vmaps = {name: {reg: {"mae": v["mae"], "bias": v["bias"]} for reg, v in d.items()} for name, d in vmaps.items()}
+    return {"arrays": {"map_estimated": b, "virtual_map_estimated": virtual},
+            "metrics": {"virtual_map_vs_gt_d2": vmaps, "sigma_t_px": sigma_t, "map_floor_px": floor_px},
+            "info": {"estimate_seconds": t_est}}
+
+
+def _refocus_case(config: Fig8Config, stage: dict, maps: dict, lam: float) -> dict:
+    """Steps 3–6 of the module Notes at one λ with one preset's maps (all rows at λ = ``config.nsr``)."""
+    from method.magnify.refocusing import deconvolve_defocus, refocus
+
+    from .metrics import image_quality
+
+    img1, img2, imgp, gt1, gt2 = (stage[k] for k in ("image_d1", "image_d2", "image_pinhole", "gt_d1", "gt_d2"))
+    b, virtual = maps["map_estimated"], maps["virtual_map_estimated"]
+    o = {"method": config.deconvolution, "nsr": lam}
+    refocused_est = refocus(img1, b, virtual, kernel=config.kernel, **o)
+    deconv_est = deconvolve_defocus(img1, b, **o)
     metrics = {
-        "images_vs_d2": vs_d2,
-        "deconvolution_vs_pinhole": deconv,
-        "virtual_map_vs_gt_d2": vmaps,
-        "nsr_sweep": {f"nsr={row['nsr']:g}": row for row in sweep},
-        "sigma_t_px": sigma_t,
-        "map_floor_px": floor_px,
-        "estimate_seconds": t_est,
-        "refocus_seconds": t_refocus,
+        "nsr": float(lam),
+        "refocused_estimated_psnr_db": image_quality(refocused_est, img2)["psnr_db"],
+        "refocused_oracle_psnr_db": image_quality(refocus(img1, gt1, gt2, kernel=config.kernel, **o), img2)["psnr_db"],
+        "deconvolved_estimated_psnr_db": image_quality(deconv_est, imgp)["psnr_db"],
+        "deconvolved_oracle_psnr_db": image_quality(deconvolve_defocus(img1, stage["oracle_deblur"], **o),
+                                                    imgp)["psnr_db"],
     }
-    arrays = {"map_estimated": b, "virtual_map_estimated": virtual, "deconvolved_estimated": deconv_est,
-              "refocused_estimated": refocused_est, "refocused_estimated_oracle_virtual": refocused_est_ov}
-    return arrays, metrics
+    if lam != config.nsr:
+        return {"metrics": metrics}
+    refocused_est_ov = refocus(img1, b, gt2, kernel=config.kernel, **o)
+    keep = stage["mask"] & ~stage["occlusion_pinhole"]
+    metrics["images_vs_d2"] = {name: _vs_d2(im, img2, stage["in_focus_d2"]) for name, im in
+                               (("refocused_estimated", refocused_est),
+                                ("refocused_estimated_oracle_virtual", refocused_est_ov))}
+    metrics["deconvolution_vs_pinhole"] = {"deconvolved_estimated": _vs_pinhole(deconv_est, imgp, keep)}
+    arrays = {"deconvolved_estimated": deconv_est, "refocused_estimated": refocused_est,
+              "refocused_estimated_oracle_virtual": refocused_est_ov}
+    return {"arrays": {k: v.astype(np.float32) for k, v in arrays.items()}, "metrics": metrics}
 
 
 FIGURE = Figure(
     name="fig8",
     title="Refocusing: deconvolve a render focused at D1 with its map, re-blur to focus at D2, vs the real D2 render",
-    compute=compute,
     plot="experiments.plotting.fig8:plot",
     configs={"quick": QUICK, "full": FULL},
-    version=2,  # 2: every preset of ``presets`` and every scene set
+    cases_fn=cases, case_fn=compute_case, version=3,
 )

@@ -24,14 +24,13 @@ Notes
 from __future__ import annotations
 
 import dataclasses
-import time
 import warnings
 
 import numpy as np
 
 from .registry import Figure
 
-__all__ = ["FIGURE", "FULL", "QUICK", "StagesConfig", "compute"]
+__all__ = ["FIGURE", "FULL", "QUICK", "STAGES", "StagesConfig", "case_label", "cases", "compute_case"]
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -64,7 +63,7 @@ QUICK = StagesConfig(mosaic_tile=64, mosaic_sigmas=(0.5, 1.0, 2.0, 4.0, 6.0), mo
                      scenes=("portrait", "planes"), preset="small")
 FULL = StagesConfig()
 
-_STAGES = (("estimated", "sparse"), ("estimated", "refined"), ("estimated", "dense_textured"),
+STAGES = (("estimated", "sparse"), ("estimated", "refined"), ("estimated", "dense_textured"),
            ("oracle_refine", "dense_textured"), ("oracle_propagate", "dense_textured"))
 
 
@@ -85,86 +84,83 @@ def _targets(errs: dict) -> dict:
     return {"bins": rows, "mae_ok": bool(ok_mae), "bias_ok": bool(ok_bias)}
 
 
-def compute(config: StagesConfig) -> dict:
-    """Stage attribution for every preset on mosaics and renders; see the module Notes."""
-    from method import DefocusParams, NoEdgesWarning
+def cases(config: StagesConfig) -> tuple:
+    """One case per image (mosaic texture, scene × aperture) × preset, and per mosaic × ablation row of
+    the robust preset (``variant = "ablation:<row>"``)."""
+    from method import PRESETS
+
+    from .cases import Case
+
+    presets = PRESETS.check_all(config.presets, what="preset")
+    out = [Case("stages", scene=tex, preset=p, variant="mosaic") for tex in config.mosaic_textures for p in presets]
+    out += [Case("stages", scene=scene, preset=p, aperture=float(n), variant="render", scene_size=config.preset)
+            for scene in config.scenes for n in config.f_numbers for p in presets]
+    if config.ablation and "robust" in presets:
+        out += [Case("stages", scene=tex, preset="robust", variant=f"ablation:{row}")
+                for tex in config.mosaic_textures for row in _ablation_rows()]
+    return tuple(out)
+
+
+def _ablation_rows() -> dict:
+    from method import DefocusParams
     from method.presets import ROBUST_CHANGES
-    from scenes import render_scene
+
+    from .stage_attribution import ablation_params
+
+    return ablation_params(DefocusParams.preset("robust"), ROBUST_CHANGES)
+
+
+def _image(config: StagesConfig, case):
+    """(image, σ_gt, valid) of a case's mosaic or render."""
+    if case.variant == "render":
+        from scenes import render_scene
+
+        from .evaluation import ground_truth_sigma, input_image
+
+        r = render_scene(case.scene, preset=config.preset, f_number=case.aperture, progress=False)
+        return input_image(r), ground_truth_sigma(r), ~np.asarray(r.occlusion_boundary, dtype=bool)
     from scenes.analytic import texture_mosaic
 
-    from .evaluation import ground_truth_sigma, input_image
-    from .stage_attribution import ablation_params, stage_errors
+    m = texture_mosaic(texture=case.scene, sigmas=config.mosaic_sigmas, tile=config.mosaic_tile,
+                       noise_std=config.noise_std, quantize_bits=8, rng=config.seed)
+    return m.image, m.sigma, ~m.boundary
 
-    t0 = time.perf_counter()
-    cases = []
-    for tex in config.mosaic_textures:
-        m = texture_mosaic(texture=tex, sigmas=config.mosaic_sigmas, tile=config.mosaic_tile,
-                           noise_std=config.noise_std, quantize_bits=8, rng=config.seed)
-        cases.append((f"mosaic:{tex}", "mosaic", m.image, m.sigma, ~m.boundary))
-    for scene in config.scenes:
-        for n in config.f_numbers:
-            r = render_scene(scene, preset=config.preset, f_number=n, progress=False)
-            cases.append((f"{scene} f/{n:g}", "render", input_image(r), ground_truth_sigma(r),
-                          ~np.asarray(r.occlusion_boundary, dtype=bool)))
-    presets = {name: DefocusParams.preset(name) for name in config.presets}
-    per_case: dict = {}
-    mae = np.full((len(cases), len(presets), len(_STAGES)), np.nan)
+
+def compute_case(config: StagesConfig, case, inputs) -> dict:
+    """Stage attribution (:func:`experiments.stage_attribution.stage_errors`) of one preset on one image;
+    on a mosaic with the robust preset also its accuracy targets (``targets_robust``); an ablation row:
+    ``sparse_mae``, ``sparse_coverage``, ``dense_textured_mae``, ``dense_textured_bias``."""
+    from method import DefocusParams, NoEdgesWarning
+
+    from .stage_attribution import stage_errors
+
+    img, gt, valid = _image(config, case)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NoEdgesWarning)
-        for i, (label, kind, img, gt, valid) in enumerate(cases):
-            per_case[label] = {"kind": kind}
-            for j, (pname, params) in enumerate(presets.items()):
-                errs = stage_errors(img, gt, params=params, valid=valid)
-                per_case[label][pname] = errs
-                for k, (inp, st) in enumerate(_STAGES):
-                    v = errs.get(inp, {}).get(st, {}).get("mae")
-                    mae[i, j, k] = np.nan if v is None else v
-            if kind == "mosaic" and "robust" in presets:
-                per_case[label]["targets_robust"] = _targets(per_case[label]["robust"]["estimated"]["dense_textured"])
-    ablation = {}
-    if config.ablation and "robust" in presets:
-        rows = ablation_params(presets["robust"], ROBUST_CHANGES)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", NoEdgesWarning)
-            for label, kind, img, gt, valid in cases:
-                if kind != "mosaic":
-                    continue
-                for row, params in rows.items():
-                    e = stage_errors(img, gt, params=params, valid=valid)["estimated"]
-                    ablation.setdefault(row, {})[label] = {
-                        "sparse_mae": e["sparse"]["mae"], "sparse_coverage": e["sparse"]["coverage"],
-                        "dense_textured_mae": e["dense_textured"]["mae"],
-                        "dense_textured_bias": e["dense_textured"]["bias"]}
-    render_cases = [c[0] for c in cases if c[1] == "render"]
-    ratio = {}
-    if "paper" in presets and "robust" in presets and render_cases:
-        for label in render_cases:
-            p = per_case[label]["paper"]["estimated"]["dense_textured"]["mae"]
-            r = per_case[label]["robust"]["estimated"]["dense_textured"]["mae"]
-            ratio[label] = None if (p is None or r is None or p == 0) else r / p
-    vals = [v for v in ratio.values() if v is not None]
-    metrics = {
-        "cases": per_case,
-        "ablation": ablation,
-        "robust_over_paper_textured_mae": ratio,
-        "robust_over_paper_textured_mae_mean": float(np.mean(vals)) if vals else None,
-        "robust_render_target_ok": bool(vals and all(v <= 0.5 for v in vals)),
-        "stages": [f"{a}:{b}" for a, b in _STAGES],
-        "presets": list(presets),
-        "compute_seconds": time.perf_counter() - t0,
-    }
-    bins_lo = [b["lo"] for b in per_case[cases[0][0]][next(iter(presets))]["estimated"]["dense_textured"]["bins"]]
-    return {"case_labels": np.array([c[0] for c in cases]), "mae": mae, "bins_lo": np.array(bins_lo),
-            "metrics": metrics}
+        if case.variant.startswith("ablation:"):
+            params = _ablation_rows()[case.variant.split(":", 1)[1]]
+            e = stage_errors(img, gt, params=params, valid=valid)["estimated"]
+            return {"metrics": {"sparse_mae": e["sparse"]["mae"], "sparse_coverage": e["sparse"]["coverage"],
+                                "dense_textured_mae": e["dense_textured"]["mae"],
+                                "dense_textured_bias": e["dense_textured"]["bias"]}}
+        errs = stage_errors(img, gt, params=DefocusParams.preset(case.preset), valid=valid)
+    metrics = dict(errs)
+    if case.variant == "mosaic" and case.preset == "robust":
+        metrics["targets_robust"] = _targets(errs["estimated"]["dense_textured"])
+    return {"metrics": metrics}
+
+
+def case_label(case) -> str:
+    """The plot's and the report's name of an image: ``mosaic:<texture>`` or ``<scene> f/<N>``."""
+    return f"mosaic:{case.scene}" if case.variant == "mosaic" else f"{case.scene} f/{case.aperture:g}"
 
 
 FIGURE = Figure(
     name="stages",
     title="Supplementary S1: stage attribution (sparse / refined / dense, with oracle inputs) per preset",
-    compute=compute,
     plot="experiments.plotting.stages:plot",
     configs={"quick": QUICK, "full": FULL},
-    version=1,
+    cases_fn=cases, case_fn=compute_case, version=2,
     sigma_convention="Gaussian σ in px: mosaics exactly the applied σ (dead leaves) or √(σ² + σ0²) (photos); "
                      "renders σ_gt = √((c/4)² + 1/12) px",
 )

@@ -31,7 +31,7 @@ import numpy as np
 
 from .registry import Figure
 
-__all__ = ["FIGURE", "FULL", "MIN_CROP_PX", "QUICK", "PhotosConfig", "border_crop", "compute"]
+__all__ = ["FIGURE", "FULL", "MIN_CROP_PX", "QUICK", "PhotosConfig", "border_crop", "cases", "compute_case", "photo_view"]
 
 #: Smallest side of the border crop, px.
 MIN_CROP_PX = 48
@@ -106,87 +106,116 @@ def border_crop(in_focus, defocus_map) -> tuple[int, int, int, int]:
     return y0, y0 + side, x0, x0 + side
 
 
-def compute(config: PhotosConfig) -> dict:
-    """Maps, scores and magnified results of every photo × preset.
+def cases(config: PhotosConfig) -> tuple:
+    """One case per photo × preset (its map and scores) and per photo × renderer (``variant="magnify:<R>"``,
+    needing the ``magnify_preset`` case: the magnified photo and its border crop)."""
+    from method import PRESETS
+    from method.magnify.magnification import MAGNIFICATION_RENDERERS
 
-    Parameters
-    ----------
-    config : PhotosConfig
+    from .cases import Case
+    from .photo_regions import SCORE_PRESETS, validate_photo_names
+
+    names = validate_photo_names(config.photos)
+    renderers = MAGNIFICATION_RENDERERS.check_all(config.renderers, what="PhotosConfig.renderers")
+    presets = tuple(PRESETS.check_all(dict.fromkeys(config.presets or SCORE_PRESETS), what="preset"))
+    mag = config.magnify_preset if config.magnify_preset in presets else presets[0]
+    out = []
+    for name in names:
+        maps = {p: Case("photos", scene=name, preset=p, variant="map") for p in presets}
+        out += maps.values()
+        out += [Case("photos", scene=name, preset=mag, variant=f"magnify:{r}", needs=(maps[mag],)) for r in renderers]
+    return tuple(out)
+
+
+def compute_case(config: PhotosConfig, case, inputs) -> dict:
+    """One case of :func:`cases`.
 
     Returns
     -------
     dict
-        ``items`` (n,) photo names; per photo ``<photo>__input`` (H, W, 3) float32 in [0, 1],
-        ``<photo>__in_focus`` / ``<photo>__defocused`` (H, W) bool region masks,
-        ``<photo>__<preset>__map`` (H, W) float32 σ px, ``<photo>__magnified`` (H, W, 3) float32
-        (the map of ``magnify_preset`` magnified ×factor with the first renderer) and
-        ``<photo>__magnified_<R>`` for every further renderer R; ``metrics``: ``photos.<photo>.<preset>``
-        = the score dict (:func:`experiments.photo_regions.score_defocus_map`) plus ``seconds``,
-        ``photos.<photo>.shape``, ``photos.<photo>.border_crop`` ([y0, y1, x0, x1], :func:`border_crop`),
-        ``photos.<photo>.magnify_seconds.<R>``, ``summary.<preset>`` (min AUC, max share, photos
-        meeting the targets), ``targets``, ``magnify_preset``, ``factor``, ``renderers``.
+        ``map``: arrays ``input`` (H, W, 3) float in [0, 1], ``in_focus`` / ``defocused`` (H, W) bool region
+        masks, ``map`` (H, W) σ px; metrics :func:`experiments.photo_regions.score_defocus_map`'s.
+        ``magnify:<R>``: array ``magnified`` (H, W, 3), the map magnified ×factor with renderer R (Sec. 5
+        preprocessing of the preset); info ``border_crop`` ([y0, y1, x0, x1], :func:`border_crop`).
     """
     from method import DefocusParams, magnify_defocus
     from method.magnify.magnification import MAGNIFICATION_RENDERERS
 
-    from .photo_regions import (SCORE_PRESETS, TARGET_AUC, TARGET_SHARE, compute_photo_maps, score_defocus_map,
-                                validate_photo_names)
+    from .photo_regions import compute_photo_maps, score_defocus_map
 
-    names = validate_photo_names(config.photos)
-    renderers = MAGNIFICATION_RENDERERS.check_all(config.renderers, what="PhotosConfig.renderers")
-    presets = tuple(dict.fromkeys(config.presets or SCORE_PRESETS))
-    mag_preset = config.magnify_preset if config.magnify_preset in presets else presets[0]
-    data, per_photo = {}, {}
-    t_start = time.perf_counter()
-    for name in names:
-        run = compute_photo_maps(name, presets)
-        image, regions = run["image"], run["regions"]
+    if case.variant == "map":
+        run = compute_photo_maps(case.scene, (case.preset,))
+        image, regions, res = run["image"], run["regions"], run["results"][case.preset]
         masks = regions.masks()
-        data[f"{name}__input"] = image.astype(np.float32)
-        data[f"{name}__in_focus"] = masks["in_focus"]
-        data[f"{name}__defocused"] = masks["defocused"]
-        scores = {"shape": list(image.shape[:2]), "source": regions.source}
-        for p, res in run["results"].items():
-            data[f"{name}__{p}__map"] = res.defocus_map.astype(np.float32)
-            scores[p] = {**score_defocus_map(res.defocus_map, regions), "seconds": run["seconds"][p]}
-        params = DefocusParams.preset(mag_preset)
-        dmap = run["results"][mag_preset].defocus_map
-        scores["magnify_seconds"] = {}
-        for i, renderer in enumerate(renderers):
-            caps = MAGNIFICATION_RENDERERS.entry(renderer).capabilities
-            t0 = time.perf_counter()
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)
-                out = magnify_defocus(image, dmap, factor=config.factor, renderer=renderer,
-                                      kernel=config.kernel if "kernel" in caps else None,
-                                      clip_percent=params.map_clip_percent, smoothing=params.map_smoothing)
-            scores["magnify_seconds"][renderer] = time.perf_counter() - t0
-            data[f"{name}__magnified" + (f"_{renderer}" if i else "")] = out.astype(np.float32)
-        scores["border_crop"] = list(border_crop(masks["in_focus"], dmap))
-        per_photo[name] = scores
+        return {"arrays": {"input": image, "in_focus": masks["in_focus"], "defocused": masks["defocused"],
+                           "map": res.defocus_map},
+                "metrics": score_defocus_map(res.defocus_map, regions),
+                "info": {"seconds": run["seconds"][case.preset], "shape": list(image.shape[:2]),
+                         "source": regions.source}}
+    a = inputs[case.needs[0]].arrays()
+    renderer = case.variant.split(":", 1)[1]
+    params = DefocusParams.preset(case.preset)
+    caps = MAGNIFICATION_RENDERERS.entry(renderer).capabilities
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        out = magnify_defocus(a["input"], a["map"], factor=config.factor, renderer=renderer,
+                              kernel=config.kernel if "kernel" in caps else None,
+                              clip_percent=params.map_clip_percent, smoothing=params.map_smoothing)
+    return {"arrays": {"magnified": out.astype(np.float32)},
+            "info": {"seconds": time.perf_counter() - t0, "border_crop": list(border_crop(a["in_focus"], a["map"]))}}
+
+
+def photo_view(fd) -> dict:
+    """The cases as one dict: ``items`` (photo names), per photo ``<photo>__input``, ``<photo>__in_focus``,
+    ``<photo>__defocused``, ``<photo>__<preset>__map``, ``<photo>__magnified[_<R>]``; ``metrics``:
+    ``photos.<photo>.<preset>`` (scores, ``seconds``), ``photos.<photo>.border_crop`` / ``.shape`` /
+    ``.magnify_seconds.<R>``, ``summary.<preset>``, ``presets_scored``, ``targets``, ``magnify_preset``,
+    ``factor``, ``renderers``."""
+    from .photo_regions import TARGET_AUC, TARGET_SHARE
+
+    config = fd.config
+    names = fd.values("scene", variant="map")
+    presets = fd.values("preset", variant="map")
+    renderers = [v.split(":", 1)[1] for v in fd.values("variant") if v.startswith("magnify:")]
+    view, per_photo = {"items": np.asarray(names)}, {}
+    for name in names:
+        scores = per_photo[name] = {"magnify_seconds": {}}
+        for p in presets:
+            o = fd.one(scene=name, preset=p, variant="map")
+            a = o.arrays()
+            if f"{name}__input" not in view:
+                view.update({f"{name}__input": a["input"].astype(np.float32), f"{name}__in_focus": a["in_focus"],
+                             f"{name}__defocused": a["defocused"]})
+            view[f"{name}__{p}__map"] = a["map"].astype(np.float32)
+            scores[p] = {**o.metrics, "seconds": o.info.get("seconds")}
+            scores["shape"] = o.info.get("shape")
+        for i, r in enumerate(renderers):
+            o = fd.one(scene=name, variant=f"magnify:{r}")
+            view[f"{name}__magnified" + (f"_{r}" if i else "")] = o.arrays()["magnified"]
+            scores["magnify_seconds"][r] = o.info.get("seconds")
+            scores["border_crop"] = o.info["border_crop"]
     summary = {}
     for p in presets:
         aucs = [per_photo[n][p]["auc"] for n in names]
         shares = [per_photo[n][p]["in_focus_above_defocused_median"] for n in names]
         summary[p] = {"min_auc": float(min(aucs)), "max_in_focus_above_defocused_median": float(max(shares)),
-                      "photos_meeting_targets": int(sum(per_photo[n][p]["meets_targets"] for n in names)),
+                      "photos_meeting_targets": int(sum(bool(per_photo[n][p]["meets_targets"]) for n in names)),
                       "n_photos": len(names)}
-    data["items"] = np.asarray(names)
-    data["metrics"] = {"photos": per_photo, "summary": summary, "presets_scored": list(presets),
+    mag = next((o.case.preset for o in fd.outputs.values() if o.case.variant.startswith("magnify:")), presets[0])
+    view["metrics"] = {"photos": per_photo, "summary": summary, "presets_scored": list(presets),
                        "targets": {"auc_min": TARGET_AUC, "in_focus_above_defocused_median_max": TARGET_SHARE},
-                       "magnify_preset": mag_preset, "factor": config.factor, "renderers": list(renderers),
-                       "compute_seconds": time.perf_counter() - t_start}
-    return data
+                       "magnify_preset": mag, "factor": config.factor, "renderers": renderers}
+    return view
 
 
 FIGURE = Figure(
     name="photos",
     title="Real photos (skimage.data) with hand-drawn in-focus/defocused regions: map per preset, ranking AUC, "
           "magnified result",
-    compute=compute,
     plot="experiments.plotting.photos:plot",
     configs={"quick": QUICK, "full": FULL},
-    version=2,
+    cases_fn=cases, case_fn=compute_case, version=3,
     sigma_convention="Gaussian sigma of the estimated blur, px of the photo (no ground truth)",
     renders=False,
 )

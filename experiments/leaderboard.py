@@ -19,11 +19,12 @@ import warnings
 from collections.abc import Mapping
 from pathlib import Path
 
-from .external_maps import (DETECTION_THRESHOLD_PX, HEADLINE, PNG_SCALE, PROTOCOLS, score_folder, score_maps,
-                            summarize)
+import numpy as np
+
+from .external_maps import DETECTION_THRESHOLD_PX, HEADLINE, PNG_SCALE, PROTOCOLS, score_folder, score_maps
 
 __all__ = ["ALL_APERTURES", "ALL_SCENES", "GAP_METRICS", "build_leaderboard", "generalisation_gap", "generalisation_tables",
-           "leaderboard_tables", "preset_maps", "scene_set_of"]
+           "leaderboard_intro", "leaderboard_rows", "leaderboard_tables", "preset_maps", "scene_set_of"]
 
 #: Scene-set label of the rows over every image (given when the images span more than one set).
 ALL_SCENES = "all"
@@ -69,8 +70,9 @@ def build_leaderboard(truth, *, presets=None, external: Mapping[str, Path] | Non
     Returns
     -------
     dict
-        ``rows``: one per entry × scene set × protocol, ``{"entry", "kind" ("preset"|"external"),
-        "scene_set", "protocol", "n_images", <HEADLINE metric>: mean}``; ``problems``: one line per map
+        ``table``: the per-image scores as rows of the long results table (:func:`_long_rows`);
+        ``rows``: from them (:func:`leaderboard_rows`), one per entry × scene set × protocol, ``{"entry",
+        "kind" ("preset"|"external"), "scene_set", "protocol", "n_images", <HEADLINE metric>: mean}``; ``problems``: one line per map
         that could not be scored, naming the entry and the file; ``ground_truth``, ``protocols``,
         ``detection_threshold_px``, ``png_scale``, ``scene_sets`` (set -> images).
     """
@@ -96,18 +98,70 @@ def build_leaderboard(truth, *, presets=None, external: Mapping[str, Path] | Non
               for p in presets]
     scored += [(n, "external", score_folder(f, truth, protocols=protocols, threshold_px=threshold_px,
                                             png_scale=png_scale)) for n, f in external.items()]
-    rows, problems = [], []
+    problems, table = [], []
     for entry, kind, result in scored:
         problems += [f"{entry}: {p}" for p in result.problems]
+        table += _long_rows(entry, kind, result.rows)
+    return {"rows": leaderboard_rows(table, sets, protocols), "table": table, "problems": problems,
+            "ground_truth": truth.source, "protocols": protocols, "detection_threshold_px": float(threshold_px),
+            "png_scale": float(png_scale), "scene_sets": sets}
+
+
+def _long_rows(entry: str, kind: str, rows) -> list[dict]:
+    """Per-image scores of one entry as rows of the long results table (:mod:`experiments.results_table`):
+    ``source`` ``leaderboard``, ``variant`` ``<kind>:<entry>``, ``preset`` the entry's when a preset,
+    ``scene`` the image, ``metric`` ``<protocol>/<name>``."""
+    from .results_table import metric_rows
+
+    out = []
+    for r in rows:
+        ids = {"evaluation_id": "leaderboard", "source": "leaderboard", "scene_set": scene_set_of(r["scene"]),
+               "scene": r["image"], "variant": f"{kind}:{entry}", "preset": entry if kind == "preset" else None}
+        nums = {f"{r['protocol']}/{k}": v for k, v in r.items() if k not in ("image", "scene", "protocol", "map")
+                and isinstance(v, (int, float)) and not isinstance(v, bool)}
+        out += metric_rows(ids, nums)
+    return out
+
+
+def leaderboard_rows(table, sets: dict, protocols) -> list[dict]:
+    """The leaderboard's rows from its long-table rows: per entry × scene set × protocol the mean over the set's
+    images of each headline metric (a non-finite value left out), in entry order, presets first.
+
+    Returns
+    -------
+    list of dict
+        ``{"entry", "kind", "scene_set", "protocol", "n_images", <HEADLINE metric>: mean}``.
+    """
+    from .results_query import Results
+
+    table = Results(table)
+    out = []
+    for variant, rows in table.group("variant").items():
+        kind, entry = variant.split(":", 1)
         for scene_set, images in sets.items():
-            members = set(images)
-            chosen = [r for r in result.rows if r["image"] in members]
-            for mean in summarize(chosen):
-                keep = {k: mean[k] for k, _ in HEADLINE[mean["protocol"]]}
-                rows.append({"entry": entry, "kind": kind, "scene_set": scene_set, "protocol": mean["protocol"],
-                             "n_images": mean["n_images"], **keep})
-    return {"rows": rows, "problems": problems, "ground_truth": truth.source, "protocols": protocols,
-            "detection_threshold_px": float(threshold_px), "png_scale": float(png_scale), "scene_sets": sets}
+            chosen = rows.where(scene=tuple(images))
+            for protocol in protocols:
+                per = chosen.where(metric=tuple(f"{protocol}/{k}" for k, _ in HEADLINE[protocol]))
+                n = len(set(per.distinct("scene")))
+                if not n:
+                    continue
+                keep = {}
+                for k, _ in HEADLINE[protocol]:
+                    vals = [r["value"] for r in per.where(metric=f"{protocol}/{k}")
+                            if r["value"] is not None and np.isfinite(r["value"])]
+                    keep[k] = float(np.mean(vals)) if vals else float("nan")
+                out.append({"entry": entry, "kind": kind, "scene_set": scene_set, "protocol": protocol,
+                            "n_images": n, **keep})
+    return out
+
+
+def leaderboard_intro(board: dict) -> str:
+    """One paragraph: what the leaderboard's rows are and where the ground truth comes from."""
+    return ("One row per method preset and external map folder, per scene set and protocol: the mean over the "
+            f"images of the per-image metric. Ground truth: {board['ground_truth']}; occlusion bands excluded. "
+            "Presets: the method on each image's 8-bit sRGB input (as `repro.estimate --preset NAME` on the "
+            "exported PNG). Protocols: docs/dataset.md."
+            + (f" Not scored: {len(board['problems'])} map(s) (listed in leaderboard.json)." if board["problems"] else ""))
 
 
 def _cell(v) -> str:
@@ -115,15 +169,18 @@ def _cell(v) -> str:
 
 
 def leaderboard_tables(board: dict) -> list[dict]:
-    """One table per protocol of :func:`build_leaderboard`'s rows: ``{"title", "header", "rows"}``.
+    """One table per protocol of :func:`build_leaderboard`'s result, rendered from its long-table rows
+    (``table``, :func:`leaderboard_rows`): ``{"title", "header", "rows"}``.
 
     Rows by scene set, then entries in their order (presets first); cells are strings.
     """
     tables = []
     sets = list(board.get("scene_sets", {}))
+    means = leaderboard_rows(board["table"], board.get("scene_sets", {}), board.get("protocols", [])) \
+        if "table" in board else board["rows"]
     for protocol in board.get("protocols", []):
         cols = HEADLINE[protocol]
-        rows = [r for r in board["rows"] if r["protocol"] == protocol]
+        rows = [r for r in means if r["protocol"] == protocol]
         rows.sort(key=lambda r: sets.index(r["scene_set"]) if r["scene_set"] in sets else len(sets))
         body = [[r["scene_set"], r["entry"], r["kind"], str(r["n_images"]), *(_cell(r.get(k)) for k, _ in cols)]
                 for r in rows]

@@ -1,14 +1,17 @@
-"""Figure registry and cached compute (showyourwork style).
+"""Figure registry (showyourwork style).
 
-Every reproduced figure is a :class:`Figure`: a name (``"fig10"``), a title, a ``compute(config)``
-function returning a dict of numpy arrays plus a ``"metrics"`` dict, a ``plot`` function (in
-:mod:`experiments.plotting`, imported lazily so compute workers never load matplotlib), and one
-frozen config dataclass per mode (``"quick"`` and ``"full"``). Every parameter of an experiment is
-a field of that one dataclass, with a comment giving its meaning and unit.
+Every reproduced figure is a :class:`Figure`: a name (``"fig10"``), a title, its cases
+(``cases(config)``: the independent units it is made of, :class:`experiments.cases.Case`) and
+``compute_case(config, case, inputs)`` returning one case's arrays and metrics, a ``plot`` function
+(in :mod:`experiments.plotting`, imported lazily so compute workers never load matplotlib) that
+draws from the finished cases (:class:`experiments.figure_data.FigureData`), and one frozen config
+dataclass per mode (``"quick"`` and ``"full"``). Every parameter of an experiment is a field of that
+one dataclass, with a comment giving its meaning and unit. A figure that is one unit of work gives
+``compute(config)`` instead (arrays plus a ``"metrics"`` dict); it is then one case.
 
-Compute results are cached in ``<cache>/figures`` through :class:`defocus_cache.Cache`, keyed by
-the figure name, the figure's code ``version`` (bump it whenever compute's output changes) and the
-config's fields, as ``arrays.npz`` + ``metrics.json``.
+Each case is cached in ``<cache>/figures`` through :class:`defocus_cache.Cache`
+(:func:`experiments.cases.run_case`), keyed by :func:`cache_key` and the case, as ``arrays.npz`` +
+``metrics.json``. ``python -m repro.figures`` runs the cases (on Dask workers, :mod:`repro._runner`).
 
 Adding a figure: write ``experiments/figN_topic.py`` defining ``FIGURE = Figure(...)`` and
 ``experiments/plotting/figN.py`` defining ``plot(data, config, out_stem)``, then add the module
@@ -20,8 +23,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import importlib
-import json
-import time
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 
@@ -31,9 +32,9 @@ __all__ = [
     "FIGURES",
     "FIGURE_MODULES",
     "Figure",
-    "FigureResult",
     "cache_key",
-    "compute_cached",
+    "check_config",
+    "code_fingerprint",
     "library_versions",
     "to_jsonable",
 ]
@@ -57,27 +58,38 @@ class Figure:
         CLI name, e.g. ``"fig10"``; output files are ``<name>.png/.pdf/.metrics.json``.
     title : str
         One-line description (shown by ``repro.figures --list``).
-    compute : callable
-        ``compute(config) -> dict``: numpy arrays plus a ``"metrics"`` dict of JSON-able numbers.
     plot : str
         ``"module:function"`` of the plot function ``plot(data, config, out_stem) -> list[Path]``
-        (resolved lazily; it writes ``out_stem.png`` and ``out_stem.pdf`` atomically).
+        (resolved lazily; ``data`` is an :class:`experiments.figure_data.FigureData`; it writes
+        ``out_stem.png`` and ``out_stem.pdf`` atomically).
     configs : Mapping[str, object]
         Frozen dataclass instances for the modes ``"quick"`` and ``"full"``.
+    cases_fn : callable, optional
+        ``cases_fn(config) -> tuple[Case, ...]``: the figure's independent cases.
+    case_fn : callable, optional
+        ``case_fn(config, case, inputs) -> dict`` with ``"arrays"`` (name → ndarray), ``"metrics"``
+        (nested dict of numbers), optionally ``"groups"`` (``[(ids, metrics)]``: rows with further
+        columns) and ``"info"`` (JSON-able facts that are not numbers); ``inputs`` maps each case of
+        ``case.needs`` to its :class:`~experiments.cases.CaseOutput`.
+    compute : callable, optional
+        For a figure that is one unit of work (no ``cases_fn``): ``compute(config) -> dict`` of numpy
+        arrays plus a ``"metrics"`` dict (its numbers become the case's metrics, the whole dict its info).
     version : int
-        Code version of ``compute``; part of the cache key.
+        Code version of the computation; part of the cache key.
     sigma_convention : str
         How the figure's blur quantities relate to Gaussian σ (written to the metrics file).
     renders : bool
-        Whether compute renders with Mitsuba; if so the Mitsuba variant is part of the cache key
+        Whether it renders with Mitsuba; if so the Mitsuba variant is part of the cache key
         (variants draw different sample streams).
     """
 
     name: str
     title: str
-    compute: Callable[[object], dict]
     plot: str
     configs: Mapping[str, object]
+    cases_fn: Callable | None = None
+    case_fn: Callable | None = None
+    compute: Callable[[object], dict] | None = None
     version: int = 1
     sigma_convention: str = "line_spread: sigma = sqrt((c/4)^2 + sigma_filter^2), px"
     renders: bool = True
@@ -89,6 +101,8 @@ class Figure:
                 raise ValueError(f"figure {self.name!r}: configs[{mode!r}] must be a dataclass instance")
             if not getattr(type(cfg), "__dataclass_params__").frozen:
                 raise ValueError(f"figure {self.name!r}: config {type(cfg).__name__} must be frozen")
+        if (self.cases_fn is None) != (self.case_fn is None) or (self.case_fn is None) == (self.compute is None):
+            raise ValueError(f"figure {self.name!r}: give cases_fn and case_fn, or compute alone")
 
     def config(self, mode: str = "full"):
         """The config of ``mode`` (``"quick"`` or ``"full"``)."""
@@ -102,20 +116,38 @@ class Figure:
         module, _, func = self.plot.partition(":")
         return getattr(importlib.import_module(module), func)
 
+    @property
+    def single_unit(self) -> bool:
+        """Whether the figure is one unit of work (``compute``) rather than declared cases."""
+        return self.case_fn is None
 
-@dataclasses.dataclass(frozen=True)
-class FigureResult:
-    """A cached compute result: arrays, metrics, and whether it came from the cache."""
+    def cases(self, config) -> tuple:
+        """The cases of ``config`` (:class:`experiments.cases.Case`); a one-unit figure has one."""
+        if self.cases_fn is None:
+            from .cases import Case
 
-    arrays: dict
-    metrics: dict
-    cached: bool
-    seconds: float
-    folder: Path
+            return (Case(figure=self.name),)
+        out = tuple(self.cases_fn(config))
+        bad = [c.label for c in out if c.figure != self.name]
+        if bad:
+            raise ValueError(f"figure {self.name!r}: cases of another figure {bad}")
+        return out
 
-    def as_data(self) -> dict:
-        """The compute dict again (arrays plus ``"metrics"``), as the plot functions take it."""
-        return {**self.arrays, "metrics": self.metrics}
+    def compute_case(self, config, case, inputs) -> dict:
+        """One case's ``{"arrays", "metrics", "groups", "info"}`` (see ``case_fn``)."""
+        if self.case_fn is not None:
+            return self.case_fn(config, case, inputs)
+        data = self.compute(config)
+        if not isinstance(data, Mapping) or not isinstance(data.get("metrics"), Mapping):
+            raise TypeError(f"{self.name}.compute must return a dict with a 'metrics' dict")
+        return {"arrays": {k: v for k, v in data.items() if k != "metrics"}, "metrics": data["metrics"],
+                "info": data["metrics"]}
+
+
+def check_config(config) -> None:
+    """ValueError unless ``config`` is a frozen dataclass instance."""
+    if not dataclasses.is_dataclass(config) or isinstance(config, type) or not type(config).__dataclass_params__.frozen:
+        raise ValueError(f"config {config!r} is invalid; allowed: a frozen dataclass instance")
 
 
 class _LazyFigures(Mapping):
@@ -168,9 +200,10 @@ def to_jsonable(obj):
 
 #: Packages whose source determines every figure's numbers.
 _FINGERPRINT_PACKAGES = ("method", "scenes", "experiments")
-#: Modules that only read computed results (plots, the claim verdicts of the report): editing them must
-#: not invalidate cached figure data.
-_FINGERPRINT_EXCLUDED = ("experiments/plotting", "experiments/claims.py")
+#: Modules that only read computed results (plots, the claim verdicts of the report, the table's queries,
+#: the finished figure's views, the leaderboard's tables): editing them must not invalidate cached figure data.
+_FINGERPRINT_EXCLUDED = ("experiments/plotting", "experiments/claims", "experiments/results_query.py",
+                         "experiments/figure_data.py", "experiments/leaderboard.py")
 
 
 @functools.lru_cache(maxsize=1)
@@ -206,55 +239,6 @@ def cache_key(figure: Figure, config) -> dict:
 
         key["mitsuba"] = {"variant": select_variant()}
     return key
-
-
-def compute_cached(figure: Figure, config, *, force=False, cache_dir=None) -> FigureResult:
-    """Run ``figure.compute(config)`` unless a valid cached result exists.
-
-    Parameters
-    ----------
-    figure : Figure
-    config : dataclass instance
-        One of ``figure.configs`` (or any instance of the same frozen dataclass).
-    force : bool, keyword-only
-        Recompute even when cached.
-    cache_dir : path, optional, keyword-only
-        Cache folder (default ``<cache>/figures``).
-
-    Returns
-    -------
-    FigureResult
-    """
-    from scenes.backend import cache_root
-    from defocus_cache import Cache
-
-    if not dataclasses.is_dataclass(config) or not type(config).__dataclass_params__.frozen:
-        raise ValueError(f"config {config!r} is invalid; allowed: a frozen dataclass instance")
-    cache = Cache(Path(cache_dir) if cache_dir is not None else cache_root() / CACHE_SUBDIR)
-    key = cache_key(figure, config)
-    if force:
-        cache.invalidate(key)
-    cached = cache.is_valid(key)
-    t0 = time.perf_counter()
-
-    def build(folder: Path):
-        data = figure.compute(config)
-        if not isinstance(data, Mapping) or not isinstance(data.get("metrics"), Mapping):
-            raise TypeError(f"{figure.name}.compute must return a dict with a 'metrics' dict")
-        arrays = {k: np.asarray(v) for k, v in data.items() if k != "metrics"}
-        for k, v in arrays.items():
-            if v.dtype == object:
-                raise TypeError(f"{figure.name}.compute: array {k!r} has dtype object")
-        with open(folder / "arrays.npz", "wb") as fh:
-            np.savez_compressed(fh, **arrays)
-        (folder / "metrics.json").write_text(json.dumps(to_jsonable(data["metrics"]), indent=1, sort_keys=True))
-
-    folder = cache.get_or_build(key, build)
-    with np.load(folder / "arrays.npz", allow_pickle=False) as npz:
-        arrays = {k: npz[k] for k in npz.files}
-    metrics = json.loads((folder / "metrics.json").read_text())
-    return FigureResult(arrays=arrays, metrics=metrics, cached=cached, seconds=time.perf_counter() - t0,
-                        folder=folder)
 
 
 def library_versions() -> dict:

@@ -32,7 +32,7 @@ __all__ = ["COLUMNS", "GROUP_COLUMNS", "RESULTS_META_KEY", "SCHEMA_VERSION", "SU
            "read_results_csv", "summarise", "write_results"]
 
 #: Version of the table's columns; in every table's metadata.
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 #: Key of the JSON metadata in the Parquet schema.
 RESULTS_META_KEY = b"defocus_results"
 
@@ -49,24 +49,34 @@ class Column:
 
 #: The columns, in order.
 COLUMNS: tuple[Column, ...] = (
-    Column("evaluation_id", "string", False, "the evaluation (run) that measured the value; its folder name"),
-    Column("source", "string", False, "what was evaluated: 'procedural' (the seeded scene family), a named "
-                                      "scene set, a figure"),
-    Column("scene", "string", False, "scene name (procedural_<seed> for the procedural family)"),
+    Column("evaluation_id", "string", False, "the evaluation (run) that measured the value: an evaluation's folder name, "
+                                             "or <figure>-<mode>-<config hash> for a figure"),
+    Column("source", "string", False, "what produced the row: 'procedural' (repro.evaluate --procedural), 'scenes' "
+                                      "(repro.evaluate on named scenes), 'figures' (repro.figures), 'accuracy' "
+                                      "(repro.bench --accuracy)"),
+    Column("figure", "string", True, "the figure (or benchmark) whose case measured the value; empty for evaluations"),
+    Column("scene_set", "string", True, "scene set of the case (paper_cameras, tabletop_stress, procedural_test, …); "
+                                        "empty for a case without one (analytic images, optics)"),
+    Column("scene", "string", True, "scene (or image) name (procedural_<seed> for the procedural family); empty for "
+                                    "a case pooled over scenes or without one"),
     Column("seed", "int64", True, "scene seed of a procedural scene (empty for named scenes)"),
     Column("split", "string", True, "seed split: dev (tune here), test or fresh (report these); empty if none"),
-    Column("scene_size", "string", False, "render resolution preset: small (160x120) or full (640x480)"),
+    Column("scene_size", "string", True, "render resolution preset: small (160x120) or full (640x480); empty without "
+                                         "a render"),
     Column("camera", "string", True, "camera preset of the render (scenes.CAMERA_PRESETS)"),
     Column("lighting", "string", True, "emission (textures emitted, no lighting) or lit (area light, path traced)"),
-    Column("aperture", "float64", False, "f-number N of the render"),
-    Column("preset", "string", True, "method preset (method.PRESETS); empty for ground-truth facts"),
-    Column("estimator", "string", True, "blur estimator the preset used; empty for ground-truth facts"),
+    Column("aperture", "float64", True, "f-number N of the render; empty without one"),
+    Column("preset", "string", True, "method preset (method.PRESETS); empty for ground-truth facts and "
+                                     "preset-independent rows"),
+    Column("estimator", "string", True, "blur estimator of the row; empty when the preset's own"),
     Column("encoding", "string", True, "input encoding given to the method: srgb or linear"),
     Column("noise", "string", True, "sensor noise level of the input (scenes.display.NOISE_LEVELS)"),
+    Column("variant", "string", True, "the case's own axis within its figure (e.g. s=2 for a bias scale, nsr=0.01, "
+                                      "stage, pooled); empty if none"),
     Column("metric", "string", False, "what was measured (docs/results-schema.md lists the metrics)"),
     Column("value", "float64", True, "the number; empty when undefined (e.g. an MAE over no pixels)"),
     Column("unit", "string", False, "unit of value: 'px (σ)', 'pixels', 'fraction of pixels', 'dimensionless', "
-                                    "'relative', 'm', 'flag' (1 = yes)"),
+                                    "'relative', 'm', 'cm', 'µm', 'dB', 's', 'px²', 'flag' (1 = yes)"),
 )
 #: Columns that identify a summary group (everything but the scene, its seed and the value).
 GROUP_COLUMNS = ("evaluation_id", "source", "split", "scene_size", "aperture", "preset", "encoding", "noise", "metric")
@@ -81,29 +91,46 @@ def column_names() -> tuple[str, ...]:
     return tuple(c.name for c in COLUMNS)
 
 
+#: Names (last part of a metric path) that are yes/no facts.
+_FLAG_NAMES = ("model_fit_better", "alpha_applies", "trade_off", "visible", "meets_targets", "mae_ok", "bias_ok",
+               "outlier_scene", "sharp_kept", "blur_gained", "target_ok")
+
+
 def metric_unit(metric: str) -> str:
-    """Unit of a metric (the ``unit`` column)."""
-    if metric.endswith("_failed"):
+    """Unit of a metric (the ``unit`` column), from the last part of its path (``a/b/psnr_db`` → dB)."""
+    name = metric.rsplit("/", 1)[-1]
+    if name.endswith("_failed") or name in _FLAG_NAMES or name.endswith("_ok"):
         return "flag"
-    if metric.endswith("_n") or metric.startswith("n_") or metric.endswith("_n_in_focus") \
-            or metric.endswith("_n_blurry_estimates"):
+    if name == "n" or name.endswith("_n") or name.startswith("n_") or name.endswith("_n_in_focus") \
+            or name.endswith("_n_blurry_estimates") or name.endswith("_pixels"):
         return "pixels"
-    if "fraction" in metric:
-        return "fraction of pixels"
-    if metric.startswith("rtf_"):
+    if "psnr" in name or name.endswith("_db"):
+        return "dB"
+    if "ssim" in name or name.startswith("rtf_") or "ratio" in name or name in ("auc", "factor", "nsr"):
         return "dimensionless"
-    if metric.endswith("_m"):
+    if name.endswith("_term"):
+        return "px²"
+    if name.endswith("_s") or name.endswith("seconds") or name.startswith("seconds"):
+        return "s"
+    if "fraction" in name or name.endswith("_rate") or "above" in name:
+        return "fraction of pixels"
+    if name.endswith("_m"):
         return "m"
-    if metric.endswith("_rel_error"):
+    if name.endswith("_cm"):
+        return "cm"
+    if name.endswith("_um"):
+        return "µm"
+    if name.endswith("_rel_error") or name.endswith("rel_err") or name.startswith("rel_"):
         return "relative"
     return "px (σ)"
 
 
 def _value(v):
+    """A number as float; None and NaN as None (empty); ±inf kept (e.g. the PSNR of equal images)."""
     if v is None or isinstance(v, bool):
         return None if v is None else float(v)
     v = float(v)
-    return v if math.isfinite(v) else None
+    return None if math.isnan(v) else v
 
 
 def metric_rows(ids: Mapping, metrics: Mapping) -> list[dict]:
@@ -114,7 +141,7 @@ def metric_rows(ids: Mapping, metrics: Mapping) -> list[dict]:
     ids : mapping
         Values of every column but ``metric``, ``value`` and ``unit`` (missing ones are empty).
     metrics : mapping of str to number or None
-        Flat metric name → value (NaN and None are stored as empty).
+        Flat metric name → value (NaN and None are stored as empty; a bool as 1/0 with unit ``flag``).
 
     Raises
     ------
@@ -125,7 +152,8 @@ def metric_rows(ids: Mapping, metrics: Mapping) -> list[dict]:
     if bad:
         raise ValueError(f"unknown results column(s) {bad}; allowed: {', '.join(_TYPES)}")
     base = {c: ids.get(c) for c in column_names() if c not in ("metric", "value", "unit")}
-    return [{**base, "metric": str(k), "value": _value(v), "unit": metric_unit(str(k))} for k, v in metrics.items()]
+    return [{**base, "metric": str(k), "value": _value(v),
+             "unit": "flag" if isinstance(v, (bool, np.bool_)) else metric_unit(str(k))} for k, v in metrics.items()]
 
 
 def _arrow_table(rows: list[dict], meta: dict):
@@ -139,15 +167,14 @@ def _arrow_table(rows: list[dict], meta: dict):
 
 
 def write_results(folder, rows: list[dict], meta: dict, *, stem: str = "results") -> list[Path]:
-    """Write ``<stem>.parquet`` (metadata in the schema) and ``<stem>.csv`` atomically; return the paths.
+    """Write ``<stem>.parquet`` (metadata in the schema; when pyarrow is installed) and ``<stem>.csv``
+    atomically; return the paths (the Parquet file first).
 
     Raises
     ------
     ValueError
         A row with a column outside :data:`COLUMNS`.
     """
-    import pyarrow.parquet as pq
-
     from defocus_cache import atomic_write, atomic_write_text
 
     for r in rows:
@@ -156,21 +183,40 @@ def write_results(folder, rows: list[dict], meta: dict, *, stem: str = "results"
             raise ValueError(f"unknown results column(s) {sorted(extra)}; allowed: {', '.join(_TYPES)}")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    table = _arrow_table(rows, meta)
     parquet, csv_path = folder / f"{stem}.parquet", folder / f"{stem}.csv"
-    with atomic_write(parquet) as tmp:
-        pq.write_table(table, tmp)
+    paths = [csv_path]
+    try:
+        import pyarrow.parquet as pq
+    except ImportError:  # the sweep extra is not installed: the CSV alone (it holds the same rows)
+        pq = None
+    if pq is not None:
+        table = _arrow_table(rows, meta)
+        with atomic_write(parquet) as tmp:
+            pq.write_table(table, tmp)
+        paths.insert(0, parquet)
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=list(_TYPES), lineterminator="\n")
     w.writeheader()
     for r in rows:
         w.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in _TYPES})
     atomic_write_text(csv_path, buf.getvalue())
-    return [parquet, csv_path]
+    return paths
+
+
+def _upgrade(names, rows: list[dict], path) -> list[dict]:
+    """Rows of a table with an older column set (a subsequence of :data:`COLUMNS`), with the new columns empty."""
+    names = tuple(names)
+    it = iter(column_names())
+    if not names or not all(any(n == c for c in it) for n in names):
+        raise ValueError(f"{path} is not a results table (columns {list(names)}); allowed: a results table written by "
+                         "experiments.results_table.write_results")
+    if names == column_names():
+        return rows
+    return [{c: r.get(c) for c in column_names()} for r in rows]
 
 
 def read_results(path) -> tuple[list[dict], dict]:
-    """(rows, metadata) of a ``results.parquet``.
+    """(rows, metadata) of a ``results.parquet`` (one of an older schema version gets the new columns empty).
 
     Raises
     ------
@@ -181,10 +227,10 @@ def read_results(path) -> tuple[list[dict], dict]:
 
     table = pq.read_table(path)
     raw = (table.schema.metadata or {}).get(RESULTS_META_KEY)
-    if raw is None or tuple(table.column_names) != column_names():
-        raise ValueError(f"{path} is not a results table (columns {table.column_names}); allowed: a results.parquet "
-                         "written by experiments.results_table.write_results")
-    return table.to_pylist(), json.loads(raw)
+    if raw is None:
+        raise ValueError(f"{path} is not a results table (no {RESULTS_META_KEY.decode()} metadata); allowed: a "
+                         "results.parquet written by experiments.results_table.write_results")
+    return _upgrade(table.column_names, table.to_pylist(), path), json.loads(raw)
 
 
 def read_results_csv(path) -> list[dict]:
@@ -193,15 +239,14 @@ def read_results_csv(path) -> list[dict]:
     Raises
     ------
     ValueError
-        A file whose header is not :data:`COLUMNS`.
+        A file whose header is not :data:`COLUMNS` (or an older schema's subsequence of it).
     """
     conv = {"string": str, "int64": int, "float64": float}
     with open(path, newline="", encoding="utf-8") as fh:
         reader = csv.DictReader(fh)
-        if tuple(reader.fieldnames or ()) != column_names():
-            raise ValueError(f"{path} is not a results table (columns {reader.fieldnames}); allowed: a results.csv "
-                             "written by experiments.results_table.write_results")
-        return [{k: (None if v == "" else conv[_TYPES[k]](v)) for k, v in row.items()} for row in reader]
+        names = tuple(reader.fieldnames or ())
+        rows = [{k: (None if v == "" else conv[_TYPES[k]](v)) for k, v in row.items() if k in _TYPES} for row in reader]
+    return _upgrade(names, rows, path)
 
 
 def _interval(samples: tuple, statistic, *, confidence: float, n_resamples: int, seed: int):

@@ -1,10 +1,10 @@
 """``python -m repro.evaluate --procedural N``: the procedural scene family scored at scale, on Dask.
 
-One task per scene (:func:`experiments.procedural_eval.score_scene`: its renders at every aperture
-through the render cache, every preset on every input, scored against σ_gt), on a Dask LocalCluster
-of single-threaded workers (``--workers``, default one per core), an existing scheduler
-(``--scheduler``) — the engine of ``repro.sweep`` (:mod:`repro._sweep_engine`) — or in this process
-(``--workers 0``). Each finished scene is written at once, atomically, to
+One case per scene (:func:`experiments.procedural_eval.score_scene`: its renders at every aperture
+through the render cache, every preset on every input, scored against σ_gt), run by the case runner
+(:mod:`repro._runner`) on a Dask LocalCluster of single-threaded workers (``--workers``, default one
+per core), an existing scheduler (``--scheduler``) or in this process (``--workers 0`` or 1). Each
+finished scene is written at once, atomically, to
 ``DIR/<evaluation id>/cells/<key>.json``, so the same command after Ctrl-C, a crash or a killed worker
 reads finished scenes back. Then the long results table (:mod:`experiments.results_table`:
 ``results.parquet`` + ``results.csv``), the summary per preset and aperture with 95 % bootstrap
@@ -19,18 +19,15 @@ import dataclasses
 import datetime
 import json
 import os
-import socket
 import sys
 import time
 from pathlib import Path
-from urllib.parse import urlparse
 
 PROG = "python -m repro.evaluate"
 #: Default output root of ``--procedural`` (one folder per evaluation id; ``repro.report`` reads the newest).
 DEFAULT_ROOT = Path("report") / "evaluations"
 #: Options only ``--procedural`` takes (flag, attribute, argparse default).
-PROCEDURAL_ONLY = (("--split", "split", None), ("--scene-seed-start", "scene_seed_start", None),
-                   ("--workers", "workers", None), ("--scheduler", "scheduler", None), ("--spp", "spp", None))
+PROCEDURAL_ONLY = (("--split", "split", None), ("--scene-seed-start", "scene_seed_start", None), ("--spp", "spp", None))
 #: Options of the named-scene evaluation that ``--procedural`` does not take.
 NOT_PROCEDURAL = (("--estimator", "estimator", None), ("--scenes", "scenes", None), ("--stages", "stages", False),
                   ("--photos", "photos", None), ("--maps", "maps", None))
@@ -63,26 +60,16 @@ def add_options(p) -> None:
     p.add_argument("--scene-seed-start", type=int_type("--scene-seed-start", minimum=0), default=None, metavar="S",
                    help="with --procedural: first scene seed (default: the split's first; fresh: drawn at run time "
                         "and recorded). Not --seed: that one is a render's sampler seed")
-    p.add_argument("--workers", type=int_type("--workers", minimum=0), default=None, metavar="W",
-                   help="with --procedural: LocalCluster worker processes, one thread each (default: one per core; "
-                        "0: in this process, no Dask)")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="with --procedural: an existing Dask scheduler, e.g. tcp://10.0.0.5:8786 (workers must see "
-                        "the same $DEFOCUS_CACHE_DIR)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--workers", "--jobs", dest="workers", type=int_type("--workers", minimum=0), default=None,
+                   metavar="W", help="cases (scenes) computed in parallel: a Dask LocalCluster of W single-threaded "
+                                     "worker processes (default: one per core with --procedural, else 1; 0 or 1: in "
+                                     "this process, no Dask); --jobs is the same")
+    g.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="an existing Dask scheduler, e.g. tcp://10.0.0.5:8786 (its workers must see the same "
+                        "$DEFOCUS_CACHE_DIR)")
     p.add_argument("--spp", type=int_type("--spp"), default=None, metavar="N",
                    help="with --procedural: samples per pixel of every render (default: each scene's own)")
-
-
-def _check_scheduler(address: str) -> None:
-    """ValueError (one line) unless something accepts a TCP connection at ``tcp://HOST:PORT`` within 5 s."""
-    url = urlparse(address)
-    if url.scheme != "tcp" or not url.hostname or url.port is None:
-        raise ValueError(f"--scheduler {address!r} is invalid; allowed: an address like tcp://HOST:PORT")
-    try:
-        socket.create_connection((url.hostname, url.port), timeout=5).close()
-    except OSError as exc:
-        raise ValueError(f"--scheduler {address} is unreachable ({exc.strerror or exc}); allowed: the address of a "
-                         "running dask scheduler") from None
 
 
 def validate(args):
@@ -92,20 +79,20 @@ def validate(args):
     used = [flag for flag, attr, default in NOT_PROCEDURAL if getattr(args, attr, default) != default]
     if used:
         raise ValueError(f"--procedural does not take {', '.join(used)}; allowed with --procedural: --split, "
-                         "--scene-seed-start, --preset, --fnumber, --scene-preset, --noise, --encoding, --spp, "
+                         "--scene-seed-start, --preset, --fnumber, --scene-size, --noise, --encoding, --spp, "
                          "--workers | --scheduler, --variant, --out, --force, -q")
     if args.split is None:
         raise ValueError("--procedural needs --split; allowed: dev, test, fresh (tune on dev; report test and fresh)")
-    if args.workers is not None and args.scheduler is not None:
-        raise ValueError("--workers and --scheduler are exclusive; allowed: one of them")
     plan = plan_evaluation(args.procedural, split=args.split, start=args.scene_seed_start, presets=args.preset,
-                           f_numbers=args.fnumber, scene_size=args.scene_preset, noises=args.noise or ["none"],
+                           f_numbers=args.fnumber, scene_size=args.scene_size, noises=args.noise or ["none"],
                            encodings=args.encoding, spp=args.spp, variant=args.variant)
     root = args.out if args.out is not None else DEFAULT_ROOT
     if root.exists() and not root.is_dir():
         raise ValueError(f"--out {str(root)!r} is a file; allowed: a folder")
     if args.scheduler is not None:
-        _check_scheduler(args.scheduler)
+        from ._runner import check_scheduler
+
+        check_scheduler(args.scheduler)
     return plan, root
 
 
@@ -125,36 +112,6 @@ class EvaluationRun:
 
 def _now() -> str:
     return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
-
-
-def _engine_iter(todo, plan, eid, *, workers, scheduler, log):
-    """(seed, result) as each scene finishes on Dask; the client and cluster are closed at the end."""
-    from dask.distributed import as_completed
-
-    from experiments.procedural_eval import score_scene
-
-    from . import _sweep_engine
-
-    client, cluster = _sweep_engine._start_client(workers=workers, scheduler=scheduler)
-    try:
-        n_workers = len(client.scheduler_info()["workers"]) if scheduler else len(cluster.workers)
-        log(f"engine: {scheduler or 'LocalCluster'} with {n_workers} worker(s); dashboard: {client.dashboard_link}")
-        futs = [client.submit(score_scene, seed, plan=plan.to_dict(), evaluation_id=eid, key=f"scene-{eid}-{seed}")
-                for seed in todo]
-        seeds = {f.key: seed for f, seed in zip(futs, todo)}
-        for fut, result in as_completed(futs, with_results=True):
-            yield seeds[fut.key], result
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
-
-
-def _local_iter(todo, plan, eid):
-    from experiments.procedural_eval import score_scene
-
-    for seed in todo:
-        yield seed, score_scene(seed, plan=plan.to_dict(), evaluation_id=eid)
 
 
 def _timing_summary(records: dict) -> dict:
@@ -186,7 +143,7 @@ def run_evaluation(plan, root, *, workers=None, scheduler=None, force=False, pro
     root : path
         Output root; the evaluation's folder is created in it.
     workers : int, optional, keyword-only
-        LocalCluster size (default: one per core); 0 runs the scenes in this process.
+        LocalCluster size (default: one per core); 0 or 1 runs the scenes in this process.
     scheduler : str, optional, keyword-only
         Address of an existing Dask scheduler.
     force : bool, keyword-only
@@ -207,11 +164,10 @@ def run_evaluation(plan, root, *, workers=None, scheduler=None, force=False, pro
     1. ``run.json`` (plan, seeds, the command that reruns them) is written before anything runs.
     2. Resume keys (:func:`experiments.procedural_eval.scene_key`); scenes whose file in ``cells/``
        matches are read back.
-    3. The others run on the engine, one task per scene; each result is stored as it arrives.
+    3. The others run on the case runner (:func:`repro._runner.run_figures`), one case per scene; each
+       result is stored as it arrives.
     4. Rows in seed order; the results table, the summary and the timings, atomically.
     """
-    from tqdm import tqdm
-
     from defocus_cache import atomic_write_text, hash_key
     from experiments.procedural_eval import scene_key, summary_rows
     from experiments.registry import code_fingerprint, to_jsonable
@@ -239,17 +195,25 @@ def run_evaluation(plan, root, *, workers=None, scheduler=None, force=False, pro
         log(f"resuming: {len(resumed)} of {plan.n} scenes read back from {out / 'cells'}")
     todo = [s for s in plan.seeds if s not in records]
     if todo:
-        it = _local_iter(todo, plan, eid) if workers == 0 and scheduler is None else \
-            _engine_iter(todo, plan, eid, workers=workers, scheduler=scheduler, log=log)
-        try:
-            with tqdm(total=plan.n, initial=len(resumed), desc="evaluate", unit="scene", file=sys.stderr,
-                      disable=not progress, dynamic_ncols=True) as bar:
-                for seed, result in it:
-                    write_cell(out, ids[seed], keys[seed], result)
-                    records[seed] = {"key": keys[seed], "result": result}
-                    bar.update(1)
-        finally:
-            it.close()  # on Ctrl-C too: the engine's client and cluster are closed before the exception leaves
+        from experiments.units import PROCEDURAL
+        from scenes.library.procedural import seed_of
+
+        from ._runner import FigureJob, run_figures
+
+        todo_names = set(todo)
+        job = FigureJob(PROCEDURAL, plan, cases=tuple(c for c in PROCEDURAL.cases(plan)
+                                                      if seed_of(c.scene)[0] in todo_names))
+
+        def store(_job, output):
+            seed = seed_of(output.case.scene)[0]
+            write_cell(out, ids[seed], keys[seed], output.info)
+            records[seed] = {"key": keys[seed], "result": output.info}
+
+        n_workers = 1 if workers == 0 else workers
+        (run,) = run_figures([job], workers=n_workers, scheduler=scheduler, progress=progress, on_case=store, log=log,
+                             desc="evaluate")
+        if run.error is not None:
+            raise RuntimeError(f"a scene's task failed: {run.error}\n{run.traceback}")
     rows = [r for s in plan.seeds for r in records[s]["result"]["rows"]]
     summary = summary_rows(rows)
     timings = {"per_lighting": _timing_summary(records),

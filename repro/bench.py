@@ -18,12 +18,19 @@ dense-map issue (:func:`experiments.bench.accuracy.accuracy_report`, configurati
 :data:`experiments.bench.accuracy.ACCURACY_CONFIG`): dense-map and sparse
 edge errors per σ bin on analytic truth (dead-leaves / photo mosaics, step-edge mosaics; 8 bits +
 noise), on the rendered scenes, and the whole-pipeline speed of the presets, with pass/fail per
-target. Writes ``accuracy.json`` and ``accuracy.md`` (``--sizes`` / ``--repeat`` do not apply).
+target. Writes ``accuracy.json`` and ``accuracy.md`` (``--sizes`` / ``--repeat`` do not apply). Its
+analytic and rendered cases run on the case runner (:mod:`repro._runner`): ``--workers N`` (alias
+``--jobs``) Dask workers, default one per core, or ``--scheduler ADDRESS``; the speed runs follow alone.
 
 ``--psf NAME…`` chooses the PSFs of its lens part (:mod:`experiments.bench.lens`: texture families and
 steps blurred by a lens PSF in linear light, then a camera's noise and tone curve) and ``--full`` its
 full grid. ``python -m repro.bench --ablation`` runs the robust preset's ablation on the lens bench, the
 paper_cameras renders and the real photos (:mod:`experiments.bench.ablation`; ``ablation.md``).
+
+``python -m repro.bench --figures [--out report/bench]`` benchmarks the case runner
+(:func:`repro._figures_bench.run_figures_bench`): ``repro.figures --quick`` with every case recomputed
+(renders cached), 1 and 2 workers, the two tables compared row for row; ``figures_speed.json`` and
+``figures_speed.md`` (target: ≥ 1.3× with 2 workers on a 2-core machine).
 
 ``python -m repro.bench --sweep [--out report/bench]`` benchmarks the sweep engine
 (:func:`repro._sweep_bench.run_sweep_bench`): cells per minute for 1 and 2 workers on the small preset and the
@@ -69,13 +76,26 @@ def _previous_run(path: Path) -> dict | None:
         return None
 
 
-def run_accuracy(config: dict | None = None, *, out: Path, progress: bool = True) -> dict:
+def run_accuracy(config: dict | None = None, *, out: Path, progress: bool = True, workers: int | None = 1,
+                 scheduler: str | None = None) -> dict:
     """Measure and judge (:func:`experiments.bench.accuracy.accuracy_report`), then write
-    ``accuracy.json`` and ``accuracy.md`` to ``out`` (created; files written atomically)."""
+    ``accuracy.json`` and ``accuracy.md`` to ``out`` (created; files written atomically).
+
+    The analytic and rendered cases run on the case runner (:mod:`repro._runner`: ``workers`` Dask
+    workers, ``scheduler``, or in this process for one worker); the speed runs afterwards, alone."""
     from defocus_cache import atomic_write_text
     from experiments.bench import accuracy_markdown, accuracy_report
 
-    report = accuracy_report(config, progress=progress)
+    from ._runner import FigureJob, run_figures
+
+    def run_cases(unit, cfg):
+        (run,) = run_figures([FigureJob(unit, cfg, "accuracy")], workers=workers, scheduler=scheduler,
+                             progress=progress, desc="accuracy")
+        if run.error is not None:
+            raise RuntimeError(f"an accuracy case failed: {run.error}\n{run.traceback}")
+        return run.data.outputs
+
+    report = accuracy_report(config, progress=progress, run_cases=run_cases)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "accuracy.json", json.dumps(report, allow_nan=False, separators=(",", ":")))
     atomic_write_text(out / "accuracy.md", accuracy_markdown(report) + "\n")
@@ -131,9 +151,15 @@ def _parser():
                              f"{' '.join(LENS_CONFIG['psfs'])})")
     parser.add_argument("--full", action="store_true",
                         help="with --accuracy: the full lens grid (every PSF and noise level, JPEG 85, two seeds)")
+    from ._runner import add_engine_options
+
+    add_engine_options(parser, what="with --accuracy: the analytic and rendered cases")
     parser.add_argument("--ablation", action="store_true",
                         help="run the robust preset's ablation on the lens bench, the paper_cameras renders (full "
                              "preset, f/8 f/4 f/2) and the real photos instead (ablation.md / ablation.json)")
+    parser.add_argument("--figures", action="store_true",
+                        help="benchmark the case runner instead: repro.figures --quick (every case recomputed) with 1 "
+                             "and 2 workers, tables compared (figures_speed.md / figures_speed.json)")
     parser.add_argument("--sweep", action="store_true",
                         help="benchmark the sweep engine instead (cells/minute for 1 and 2 workers, engine overhead "
                              "per cell; sweep.md / sweep.json)")
@@ -150,7 +176,7 @@ def _parser():
 
 def main(argv=None) -> int:
     """Entry point; returns the exit status."""
-    from repro._cli import require_extras, user_input
+    from repro._cli import CLIError, require_extras, user_input
 
     args = _parser().parse_args(argv)
     if args.worker_magnify is not None:
@@ -164,8 +190,9 @@ def main(argv=None) -> int:
         print(json.dumps(time_pipeline(args.worker, args.repeat, args.worker_preset)))
         return 0
     if (args.psf or args.full) and not args.accuracy:
-        with user_input():
-            raise ValueError("--psf and --full go with --accuracy")
+        raise CLIError("--psf and --full go with --accuracy")
+    if (args.workers is not None or args.scheduler is not None) and not args.accuracy:
+        raise CLIError("--workers and --scheduler go with --accuracy; allowed: --accuracy --workers N")
     if args.accuracy:
         require_extras("render", command="repro.bench --accuracy")
         from experiments.bench import accuracy, lens_config
@@ -174,8 +201,10 @@ def main(argv=None) -> int:
         if config.get("lens") is not None and (args.psf or args.full):
             with user_input():  # --psf names
                 config["lens"] = {**lens_config(psfs=args.psf, full=args.full), "variants": config["lens"]["variants"]}
-        with user_input():  # the config's presets are checked before anything runs (too broad: the whole run)
-            run_accuracy(config, out=args.out, progress=not args.quiet)
+        from ._runner import engine_choice
+
+        workers, scheduler = engine_choice(args.workers, args.scheduler, command=f"{PROG} --accuracy")
+        run_accuracy(config, out=args.out, progress=not args.quiet, workers=workers, scheduler=scheduler)
         print((args.out / "accuracy.md").read_text(encoding="utf-8"))
         return 0
     if args.ablation:
@@ -188,6 +217,13 @@ def main(argv=None) -> int:
         atomic_write_text(args.out / "ablation.json", json.dumps(report, indent=1, allow_nan=False, default=str))
         atomic_write_text(args.out / "ablation.md", ablation_markdown(report) + "\n")
         print((args.out / "ablation.md").read_text(encoding="utf-8"))
+        return 0
+    if args.figures:
+        require_extras("sweep", "render", command="repro.bench --figures")
+        from repro._figures_bench import run_figures_bench
+
+        run_figures_bench(args.out, progress=not args.quiet)
+        print((args.out / "figures_speed.md").read_text(encoding="utf-8"))
         return 0
     if args.sweep:
         require_extras("sweep", "render", command="repro.bench --sweep")

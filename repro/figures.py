@@ -1,23 +1,29 @@
-"""Reproduce the paper's figures: compute (cached), plot, and write metrics.
+"""Reproduce the paper's figures: every case computed (cached, in parallel), plotted, and the results table written.
 
-``python -m repro.figures [NAMES...] [--list] [--quick] [--jobs N] [--out DIR] [--force] [--preset NAME ...] [-q]``
+``python -m repro.figures [NAMES...] [--list] [--quick] [--workers N | --jobs N | --scheduler ADDR] [--out DIR]
+[--force] [--preset NAME ...] [-q]``
 
-For each figure (default: all registered in :data:`experiments.registry.FIGURES`) this renders
-whatever is missing (render and compute results are cached under ``$DEFOCUS_CACHE_DIR``), runs the
-experiment, and writes ``<out>/<name>.png``, ``<name>.pdf`` and ``<name>.metrics.json`` (metrics,
-the config, the σ convention, library versions). ``--jobs N`` runs independent figures in N
-parallel processes. ``--preset robust zhuo_sim`` sets the ``presets`` field (method parameter
-presets of :data:`method.PRESETS`) of every selected figure whose config has one, to
-``("paper", "robust", "zhuo_sim")`` — ``"paper"``, the reproduction, always first; ``--preset paper``
-runs the paper alone; figures without that field ignore it. Unknown names or bad values: one line
-on stderr, exit status 2. A figure
-whose computation fails is reported (traceback, then one summary line) and the others still run;
-the exit status is then 1.
+For each figure (default: all registered in :data:`experiments.registry.FIGURES`) every case — each
+scene set × scene × method preset × aperture, or the figure's own unit (:mod:`experiments.cases`) — is
+computed through the caches (renders and case results under ``$DEFOCUS_CACHE_DIR``) by the case runner
+(:mod:`repro._runner`): on a Dask LocalCluster of ``--workers`` single-threaded processes (default one per
+core; ``--jobs`` is the same flag), an existing scheduler (``--scheduler``), or with one worker (or
+without the ``sweep`` extra) in this process. As soon as a figure's cases are done it is plotted:
+``<out>/<name>.png``, ``<name>.pdf`` (one more pair per further scene set) and ``<name>.metrics.json``
+(the config, the σ convention, library versions, the cases). Every case's numbers go to one long
+results table, ``<out>/results.parquet`` and ``results.csv`` (:mod:`experiments.results_table`; the
+rows of figures not run this time are kept), which ``repro.report`` reads.
+
+``--preset robust zhuo_sim`` sets the ``presets`` field (method parameter presets of :data:`method.PRESETS`)
+of every selected figure whose config has one, to ``("paper", "robust", "zhuo_sim")`` — ``"paper"``,
+the reproduction, always first; ``--preset paper`` runs the paper alone; figures without that field
+ignore it. Unknown names or bad values (``--workers 0``, an unreachable scheduler): one line on
+stderr, exit status 2. A figure whose computation fails is reported (traceback, then one summary
+line) and the others still run; the exit status is then 1.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import time
@@ -25,12 +31,16 @@ from pathlib import Path
 
 PROG = "python -m repro.figures"
 DEFAULT_OUT = Path("report") / "figures"
+#: Stem of the results table in the output folder.
+TABLE_STEM = "results"
 
 
-def _parser() -> argparse.ArgumentParser:
+def _parser():
     from experiments.registry import FIGURES
     from method import PRESETS
-    from repro._cli import ArgumentParser, add_force_option, add_quiet_option, add_variant_option, int_type
+    from repro._cli import ArgumentParser, add_force_option, add_quiet_option, add_variant_option
+
+    from ._runner import add_engine_options
 
     p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     add_variant_option(p)
@@ -38,16 +48,15 @@ def _parser() -> argparse.ArgumentParser:
                    help=f"figures to make (default: all registered: {', '.join(FIGURES)})")
     p.add_argument("--list", action="store_true", help="list the registered figures and exit")
     p.add_argument("--quick", action="store_true", help="quick mode: fewer points, fewer samples per pixel")
-    p.add_argument("--jobs", type=int_type("--jobs"), default=1, metavar="N", help="figures computed in parallel (processes)")
+    add_engine_options(p)
     p.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="DIR",
                    help=f"output folder (default: {DEFAULT_OUT})")
     add_force_option(p)
     add_quiet_option(p, what="no progress display")
     p.add_argument("--preset", nargs="+", default=None, metavar="NAME",
                    help=f"method parameter presets (method.PRESETS: {', '.join(PRESETS)}) for the figures whose "
-                        "config has a 'presets' field (fig6, fig7, fig11, stages); 'paper' is always kept first "
-                        "(--preset paper: the paper alone); default: each config's own; figures without the "
-                        "field ignore it")
+                        "config has a 'presets' field; 'paper' is always kept first (--preset paper: the paper "
+                        "alone); default: each config's own; figures without the field ignore it")
     return p
 
 
@@ -74,63 +83,73 @@ def figure_config(fig, mode: str, presets=None):
     return config
 
 
-def make_figure(name: str, mode: str, out_dir: str, force: bool, presets=None) -> dict:
-    """Compute (cached), plot and write the metrics of one figure; returns a summary dict.
+def write_figure(data, out_dir: Path) -> dict:
+    """Plot one finished figure and write its ``<name>.metrics.json``; returns a summary dict.
 
-    ``presets`` (tuple of str or None) replaces the config's ``presets`` field if it has one
-    (see :func:`figure_config`). Top-level so that worker processes can run it.
+    Parameters
+    ----------
+    data : experiments.figure_data.FigureData
+    out_dir : Path
     """
-    from experiments.registry import FIGURES, compute_cached, library_versions, to_jsonable
     from defocus_cache import atomic_write_text
+    from experiments.registry import library_versions, to_jsonable
 
     t0 = time.perf_counter()
-    fig = FIGURES[name]
-    config = figure_config(fig, mode, presets)
-    result = compute_cached(fig, config, force=force)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    stem = out / fig.name
-    paths = fig.plot_function()(result.as_data(), config, stem)
+    fig, config = data.figure, data.config
+    out_dir.mkdir(parents=True, exist_ok=True)
+    stem = out_dir / fig.name
+    paths = fig.plot_function()(data, config, stem)
+    n_cached = sum(o.cached for o in data.outputs.values())
     info = {
         "figure": fig.name,
         "title": fig.title,
-        "mode": mode,
-        "metrics": result.metrics,
+        "mode": data.mode,
+        "evaluation_id": data.evaluation_id,
         "config_type": type(config).__qualname__,
         "config": to_jsonable(config),
         "code_version": fig.version,
         "sigma_convention": fig.sigma_convention,
         "versions": library_versions(),
-        "cache": {"hit": result.cached, "entry": result.folder.name},
+        "cache": {"hit": n_cached == len(data.outputs), "cases": len(data.outputs), "cached_cases": n_cached},
+        "cases": [c.label for c in data.outputs],
+        "results": f"{TABLE_STEM}.parquet / {TABLE_STEM}.csv (rows with figure = {fig.name})",
         "outputs": [p.name for p in paths],
     }
-    metrics_path = out / f"{fig.name}.metrics.json"
+    metrics_path = out_dir / f"{fig.name}.metrics.json"
     atomic_write_text(metrics_path, json.dumps(to_jsonable(info), indent=1, sort_keys=True) + "\n")
-    return {"name": name, "cached": result.cached, "seconds": time.perf_counter() - t0,
-            "files": [str(p) for p in [*paths, metrics_path]], "metrics": result.metrics}
+    return {"name": fig.name, "cached": info["cache"]["hit"], "cases": len(data.outputs), "cached_cases": n_cached,
+            "plot_seconds": time.perf_counter() - t0, "files": [str(p) for p in [*paths, metrics_path]]}
 
 
-def _make_figure_safe(name: str, mode: str, out_dir: str, force: bool, presets=None) -> dict:
-    # One failing figure must not stop the others: report it and carry on.
-    try:
-        return make_figure(name, mode, out_dir, force, presets)
-    except Exception as exc:  # noqa: BLE001 - reported to the user, exit status 1
-        import traceback
+def write_table(out_dir: Path, datas) -> list[Path]:
+    """Merge the rows of the finished figures ``datas`` into ``<out>/results.{parquet,csv}``: rows of other
+    figures already there are kept, these figures' old rows replaced (under a lock; atomic writes)."""
+    from filelock import FileLock
 
-        return {"name": name, "error": f"{type(exc).__name__}: {exc}",
-                "traceback": "".join(traceback.format_exception(exc))}
+    from experiments.results_table import write_results
 
+    done = {d.figure.name for d in datas}
+    with FileLock(str(out_dir / f".{TABLE_STEM}.lock")):
+        old = []
+        if (out_dir / f"{TABLE_STEM}.csv").is_file():
+            from experiments.results_query import read_table
 
-def _headline(metrics: dict) -> str:
-    keys = [k for k in metrics if k.startswith("max_rel_err") or k.endswith("_ratio_rel_err")]
-    parts = [f"{k}={metrics[k]:.4g}" for k in keys if isinstance(metrics[k], (int, float))]
-    return ", ".join(parts)
+            try:
+                old = [r for r in read_table(out_dir) if r.get("figure") not in done]
+            except ValueError:
+                old = []
+        rows = [*old, *(r for d in datas for r in d.rows())]
+        meta = {"figures": sorted({r["figure"] for r in rows if r.get("figure")}),
+                "evaluations": sorted({r["evaluation_id"] for r in rows})}
+        return write_results(out_dir, rows, meta, stem=TABLE_STEM)
 
 
 def main(argv=None) -> int:
     """Entry point; returns the exit status."""
     args = _parser().parse_args(argv)
     from experiments.registry import FIGURES
+
+    from ._runner import FigureJob, engine_choice, run_figures
 
     if args.list:
         for name, fig in FIGURES.items():
@@ -145,6 +164,7 @@ def main(argv=None) -> int:
             raise ValueError(f"unknown figure(s) {', '.join(map(repr, unknown))}; choose from {', '.join(FIGURES)}")
         mode = "quick" if args.quick else "full"
         presets = preset_names(args.preset) if args.preset is not None else None
+    workers, scheduler = engine_choice(args.workers, args.scheduler, command=PROG)
     if args.variant:
         import os
 
@@ -152,43 +172,46 @@ def main(argv=None) -> int:
 
         select_variant(args.variant)  # fails early (one line, exit 2) if it does not work here
         os.environ[VARIANT_ENV] = args.variant  # inherited by worker processes
+    jobs = [FigureJob(FIGURES[n], figure_config(FIGURES[n], mode, presets), mode) for n in names]
+    for job in jobs:
+        job.case_list()  # a bad config (unknown scene set, preset, …) fails before anything runs
     args.out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    summaries, finished = {}, []
 
-    from tqdm import tqdm
+    def on_figure(run):
+        if run.data is None:
+            return
+        try:
+            summaries[run.job.figure.name] = write_figure(run.data, args.out)
+        except Exception as exc:  # noqa: BLE001 - a failing plot fails its figure; the others go on
+            import traceback
 
-    summaries = []
-    bar = tqdm(total=len(names), desc=f"figures ({mode})", unit="fig", file=sys.stderr, disable=args.quiet)
-    if args.jobs == 1 or len(names) == 1:
-        for name in names:
-            bar.set_postfix_str(name)
-            summaries.append(_make_figure_safe(name, mode, str(args.out), args.force, presets))
-            bar.update()
-    else:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor, as_completed
+            run.error = f"plot: {type(exc).__name__}: {exc}"
+            run.traceback = "".join(traceback.format_exception(exc))
+            return
+        finished.append(run.data)
 
-        # spawn, not fork: Dr.Jit/LLVM state does not survive a fork safely.
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=min(args.jobs, len(names)), mp_context=ctx) as pool:
-            futures = {pool.submit(_make_figure_safe, n, mode, str(args.out), args.force, presets): n
-                       for n in names}
-            for fut in as_completed(futures):
-                summaries.append(fut.result())
-                bar.set_postfix_str(futures[fut])
-                bar.update()
-    bar.close()
-    failed = []
-    for s in sorted(summaries, key=lambda s: names.index(s["name"])):
-        if "error" in s:
-            failed.append(s)
-            print(s["traceback"], file=sys.stderr)
+    runs = run_figures(jobs, workers=workers, scheduler=scheduler, force=args.force, progress=not args.quiet,
+                       on_figure=on_figure)
+    table = write_table(args.out, finished) if finished else []
+    failed = [r for r in runs if r.error is not None]
+    for r in failed:
+        print(r.traceback, file=sys.stderr)
+    for r in runs:
+        s = summaries.get(r.job.figure.name)
+        if s is None:
             continue
-        how = "cached" if s["cached"] else "computed"
-        print(f"{s['name']}: {how}, {s['seconds']:.1f} s; {_headline(s['metrics'])}")
+        how = "cached" if s["cached"] else f"computed ({s['cases'] - s['cached_cases']} of {s['cases']} cases)"
+        print(f"{s['name']}: {how}; {s['cases']} cases")
         for f in s["files"]:
             print(f"  {f}")
-    for s in failed:
-        print(f"{PROG}: {s['name']} failed: {s['error']}", file=sys.stderr)
+    for p in table:
+        print(f"results table: {p}")
+    print(f"{len(runs) - len(failed)} figure(s) in {time.perf_counter() - t0:.1f} s "
+          f"({'this process' if workers == 1 else scheduler or f'{workers} workers'})")
+    for r in failed:
+        print(f"{PROG}: {r.job.figure.name} failed: {r.error}", file=sys.stderr)
     return 1 if failed else 0
 
 

@@ -29,6 +29,38 @@ def pytest_addoption(parser):
     )
 
 
+@pytest.fixture(scope="session")
+def quick_figure():
+    """``quick_figure(name)``: every case of a quick figure (:class:`experiments.figure_data.FigureData`),
+    computed in this process through the shared figure cache once per test session (every test reads the
+    same object; another pytest worker asking for a case being computed waits for it on the cache's lock)."""
+    from tests.golden import quick_data
+
+    done: dict = {}
+
+    def get(name: str):
+        if name not in done:
+            done[name] = quick_data(name)
+        return done[name]
+
+    return get
+
+
+@pytest.fixture(scope="session")
+def quick_table(quick_figure):
+    """The rows of every claim figure's quick cases (:class:`experiments.results_query.Results`), the table
+    ``python -m repro.figures --quick`` writes. The figures are computed in an order that depends on the
+    pytest-xdist worker, so two workers building it split the work through the cache's locks."""
+    from experiments.results_query import Results
+    from tests.golden import CLAIM_FIGURES
+
+    order = list(CLAIM_FIGURES)
+    if os.environ.get("PYTEST_XDIST_WORKER", "gw0") not in ("gw0", "master"):
+        order.reverse()
+    rows = {name: quick_figure(name).rows() for name in order}
+    return Results([r for name in CLAIM_FIGURES for r in rows[name]])
+
+
 @pytest.fixture
 def goldens(request):
     """Golden-number checker (see tests/golden.py)."""

@@ -1,5 +1,10 @@
-"""Golden numbers: quick-figure metrics checked into ``tests/golden/*.json``, each with a tolerance
-derived from measured spread (``tests/golden/tolerances.json``), and the claim verdicts.
+"""Golden numbers: rows of the quick results table checked into ``tests/golden/*.json``, each with a
+tolerance derived from measured spread (``tests/golden/tolerances.json``), and the claim verdicts.
+
+A golden is keyed by table row (:func:`row_key`: the row's set id columns — scene set, scene, preset,
+aperture, encoding, noise, estimator, variant — and its metric path), so it watches every preset and
+scene set of the quick run, the procedural test split included; :data:`FIGURE_GOLDENS` says which
+metrics of each figure are watched.
 
 What is compared
 ----------------
@@ -11,7 +16,7 @@ What is compared
 How the tolerances were measured
 --------------------------------
 ``python -m tests.golden --regenerate`` computes every quick figure the goldens watch (renders
-through the render cache, figure results uncached) in four separate processes: Mitsuba variants
+through the render cache, every case uncached, in one process) in four separate processes: Mitsuba variants
 ``llvm_ad_rgb`` and ``scalar_rgb`` (different sample streams) × render seeds 0 and 1 (the seed is
 forced on every ``render_scene`` call, also for figures without a seed option). For each metric,
 ``spread`` = max − min over the four runs and ``tol = max(SPREAD_FACTOR × spread, FLOOR_ATOL +
@@ -96,73 +101,51 @@ def _as_number(x):
 
 # --- what each golden watches (shared by the tests and the spread measurement) ------------------------
 ESTIMATORS = ("model_fit", "zero_crossing", "gradient_ratio")
+#: Id columns of a row that name it in a golden (the metric follows).
+KEY_COLUMNS = ("scene_set", "scene", "preset", "aperture", "encoding", "noise", "estimator", "variant")
 
 
-def fig4_values(m):
-    keys = ("mae", "median_ae", "outlier_fraction", "bias")
-    return {
-        "rendered": {enc: {conv: {e: {k: m["rendered"]["pooled"][enc][conv][e][k] for k in keys}
-                                  for e in ESTIMATORS} for conv in ("line_spread", "erf_fit")}
-                     for enc in ("srgb", "linear")},
-        "analytic": {fam: {e: {k: m["analytic"][fam]["noisy"][e][k] for k in ("mae", "median_ae")}
-                           for e in ESTIMATORS} for fam in ("straight", "curved")},
-        "bars_noisy_median_rel": {case: {e: m["analytic"]["neighbouring"]["bar"]["noisy"][case][e]["median_rel_error"]
-                                         for e in ESTIMATORS}
-                                  for case in m["analytic"]["neighbouring"]["bar"]["noisy"]},
-        "neighbouring_edges": {case: {"model_fit_better": bool(c["model_fit_better"])}
-                               for case, c in m["claims"]["neighbouring_edges"].items()},
-    }
+def row_key(row: dict) -> str:
+    """A row's name in a golden: its set id columns joined by ``|``, then ``:`` and the metric."""
+    ids = [f"f{row[c]:g}" if c == "aperture" else str(row[c]) for c in KEY_COLUMNS if row.get(c) is not None]
+    return "|".join(ids) + ":" + row["metric"]
 
 
-def fig5_values(m):
-    return dict(m["summary"])
+def _watch(*patterns):
+    """An extractor keeping the rows whose metric matches one of ``patterns`` (regular expressions, full match)."""
+    import re
+
+    compiled = [re.compile(p) for p in patterns]
+
+    def values(rows) -> dict:
+        return {row_key(r): r["value"] for r in rows if any(p.fullmatch(r["metric"]) for p in compiled)}
+
+    return values
 
 
-def fig6_values(m):
-    keys = ("all_mae", "all_bias", "textured_mae", "textured_bias", "edges_mae", "rtf_nmse", "rtf_nmae",
-            "edge_rms_to_bm")
-    out = {}
-    for scene, per_enc in m["scenes"].items():
-        for enc, em in per_enc.items():
-            if not isinstance(em, dict):
-                continue
-            for a_key, row in em.items():
-                if a_key.startswith("alpha="):
-                    out[f"{scene}.{enc}.{a_key}"] = {k: row[k] for k in keys}
-                    if "from_sparse" in em:  # the ablation runs for the paper preset only
-                        out[f"{scene}.{enc}.no_eq3.{a_key}"] = {k: em["from_sparse"][a_key][k]
-                                                                for k in ("all_mae", "all_bias")}
-            if "map_change_px" in em:
-                out[f"{scene}.{enc}.map_change_px"] = {k: em["map_change_px"][k] for k in ("textured_mean", "all_mean")}
-            if "energy_terms" in em:
-                out[f"{scene}.{enc}.energy_terms"] = em["energy_terms"]
-    return out
+_FIG5_STAGES = "(before|after_bias|after_no_bias)"
+_FIG6_MAP = "(all_mae|all_bias|textured_mae|textured_bias|edges_mae|rtf_nmse|rtf_nmae|edge_rms_to_bm)"
+
+#: golden name -> (figure, extractor of the figure's rows); "evaluate_quick" and "claims_quick" are special
+#: (repro.evaluate rows; verdicts over CLAIM_FIGURES). Every preset and scene set of the quick run is watched.
+FIGURE_GOLDENS = {
+    "fig4_quick": ("fig4", _watch(r"(line_spread|erf_fit)/(mae|median_ae|outlier_fraction|bias)",
+                                  r"noisy/(mae|median_ae)", r"clean/median_ae", r"bar/noisy/D=[^/]+/median_rel_error")),
+    "fig5_quick": ("fig5", _watch(_FIG5_STAGES + r"/mae", _FIG5_STAGES + r"/in_focus_outliers/fraction")),
+    "fig6_quick": ("fig6", _watch(r"alpha=[^/]+/" + _FIG6_MAP, r"from_sparse/alpha=[^/]+/(all_mae|all_bias)",
+                                  r"map_change_px/(textured_mean|all_mean)", r"energy_terms/.*")),
+    "fig7_quick": ("fig7", _watch(r"maps_vs_gt_large/(k_x_gt_small_naive|map_small|k_x_map_small|map_large)/(mae|bias)",
+                                  r"image_vs_large/.*", r"k_x_map_small_vs_map_large/(mae|median_rel_error)")),
+    "fig8_quick": ("fig8", _watch(r"images_vs_d2/.*", r"deconvolution_vs_pinhole/.*", r"virtual_map_vs_gt_d2/.*",
+                                  r"sigma_t_px", r"map_floor_px")),
+    "fig11_quick": ("fig11", _watch(r"(all_mae|all_bias|textured_mae|edges_mae|rtf_nmae|map_median_px|map_p95_px|"
+                                    r"edge_fraction)")),
+}
 
 
-def fig7_values(m):
-    out = {}
-    for scene, sm in m["scenes"].items():
-        out[f"{scene}.maps"] = {k: {"mae": v["mae"], "bias": v["bias"]} for k, v in sm["maps_vs_gt_large"].items()
-                                if k != "gt_small_doubled_filter_aware"}
-        out[f"{scene}.images"] = {k: {kk: vv for kk, vv in v.items() if isinstance(vv, (int, float))}
-                                  for k, v in sm["image_vs_large"].items()}
-        if "k_x_map_small_vs_map_large" in sm:
-            d = sm["k_x_map_small_vs_map_large"]
-            out[f"{scene}.doubled_vs_map_large"] = {"mae": d["mae"], "median_rel_error": d["median_rel_error"]}
-    return out
-
-
-def fig8_values(m):
-    return {"images": m["images_vs_d2"], "deconvolution": m["deconvolution_vs_pinhole"],
-            "virtual_map": m["virtual_map_vs_gt_d2"], "sigma_t_px": m["sigma_t_px"], "map_floor_px": m["map_floor_px"]}
-
-
-def fig11_values(m):
-    keep = ("all_mae", "all_bias", "textured_mae", "edges_mae", "rtf_nmae", "map_median_px", "map_p95_px",
-            "edge_fraction")
-    out = {item: {k: v for k, v in im.items() if k in keep} for item, im in m["items"].items()}
-    out["summary"] = m["summary"]
-    return out
+def golden_values(name: str, rows) -> dict:
+    """The values golden ``name`` watches, from its figure's rows of the quick results table."""
+    return FIGURE_GOLDENS[name][1](rows)
 
 
 #: repro.evaluate run of the evaluate golden (tests/test_evaluate.py runs the same through the CLI).
@@ -175,50 +158,17 @@ def evaluate_values(rows):
     return {r["estimator"]: {c: r[c] for c in EVALUATE_COLUMNS} for r in rows}
 
 
-#: Figures whose quick metrics the claims are judged on.
+#: Figures whose quick rows the claims are judged on.
 CLAIM_FIGURES = ("fig2", "fig4", "fig5", "fig6", "fig7", "fig8", "fig10", "fig11")
 
 
-def claims_values(metrics_by_figure):
-    """``{"<preset>/<scene set>": {claim id: verdict}}`` for every (preset, scene set) of the metrics."""
+def claims_values(table) -> dict:
+    """``{"<preset>/<scene set>": {claim id: verdict}}`` for every column of the claims matrix of ``table``."""
     from experiments.claims import claim_matrix
 
-    return {f"{p}/{s or 'default'}": {c.id: v.verdict for c, v in rows}
-            for (p, s), rows in claim_matrix(metrics_by_figure).items()}
+    return {f"{p}/{s or 'default'}": {c.id: v.verdict for c, v in rows} for (p, s), rows in claim_matrix(table).items()}
 
 
-def with_presets_and_scene_sets(extract):
-    """``extract`` applied to the flat metrics, to each ``presets.<P>`` and, recursively, to each
-    ``scene_sets.<S>`` (the nesting of experiments/scene_sets.py), so every preset and scene set is watched."""
-    def values(m):
-        out = extract(m)
-        presets = m.get("presets")
-        if isinstance(presets, dict):
-            for p, pm in presets.items():
-                out[f"presets.{p}"] = extract(pm)
-        sets = m.get("scene_sets")
-        if isinstance(sets, dict):
-            for name, sm in sets.items():
-                out[f"scene_sets.{name}"] = values(sm)
-        return out
-
-    values.__name__ = f"{extract.__name__}_nested"
-    return values
-
-
-#: golden name -> (figure, extractor of the figure's metrics); "evaluate_quick" and "claims_quick" are
-#: special (repro.evaluate rows; verdicts over CLAIM_FIGURES).
-FIGURE_GOLDENS = {"fig4_quick": ("fig4", fig4_values),
-                  "fig5_quick": ("fig5", with_presets_and_scene_sets(fig5_values)),
-                  "fig6_quick": ("fig6", with_presets_and_scene_sets(fig6_values)),
-                  "fig7_quick": ("fig7", with_presets_and_scene_sets(fig7_values)),
-                  "fig8_quick": ("fig8", fig8_values),
-                  "fig11_quick": ("fig11", with_presets_and_scene_sets(fig11_values))}
-
-
-def golden_values(name: str, metrics: dict) -> dict:
-    """The values golden ``name`` watches, from its figure's (quick) metrics."""
-    return FIGURE_GOLDENS[name][1](metrics)
 RENDER_GOLDENS = (*FIGURE_GOLDENS, "evaluate_quick", "claims_quick")
 
 
@@ -256,6 +206,10 @@ def compare(name: str, flat: dict, golden: dict, tolerances: dict | None, *, rto
         if _is_nan(ref) or _is_nan(got):
             if not (_is_nan(ref) and _is_nan(got)):
                 bad.append(f"{key}: golden {ref!r}, got {got!r} (NaN must stay NaN)")
+            continue
+        if math.isinf(ref) or math.isinf(got):  # e.g. the PSNR of equal pixels: infinite must stay equal
+            if got != ref:
+                bad.append(f"{key}: golden {ref!r}, got {got!r} (an infinity must stay the same)")
             continue
         if rtol is not None or atol is not None:
             allowed = (atol or 0.0) + (rtol or 0.0) * abs(ref)
@@ -296,24 +250,30 @@ class Goldens:
 
 
 # --- computing the quick data (tests: cached; spread runs: fresh) ---------------------------------------
-def quick_metrics(figure: str, *, cached: bool = True, seed: int | None = None) -> dict:
-    """The quick config's metrics of ``figure`` (JSON-normalised as the figure cache stores them)."""
-    from experiments.registry import FIGURES, compute_cached, to_jsonable
+def quick_config(figure: str, *, seed: int | None = None):
+    """The quick config of ``figure``, with its render seed set to ``seed`` when given."""
+    from experiments.registry import FIGURES
 
-    fig = FIGURES[figure]
-    config = fig.config("quick")
+    config = FIGURES[figure].config("quick")
     if seed is not None:
         names = {f.name for f in dataclasses.fields(config)}
         for field in ("render_seed", "seed"):
             if field in names:
                 config = dataclasses.replace(config, **{field: seed})
+    return config
+
+
+def quick_data(figure: str, *, cached: bool = True, seed: int | None = None):
+    """Every case of the quick config of ``figure`` (:class:`experiments.figure_data.FigureData`), in this
+    process, through the figure cache (``cached``) or in memory."""
     import warnings
+
+    from experiments.figure_data import run_figure
+    from experiments.registry import FIGURES
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        if cached:
-            return compute_cached(fig, config).metrics
-        return json.loads(json.dumps(to_jsonable(fig.compute(config)["metrics"])))
+        return run_figure(FIGURES[figure], quick_config(figure, seed=seed), mode="quick", use_cache=cached)
 
 
 def evaluate_rows(*, cached: bool = True) -> list[dict]:
@@ -346,14 +306,14 @@ def _one_run(seed: int, out: Path) -> None:
     from tqdm import tqdm
 
     _force_seed(seed)
-    values, metrics = {}, {}
+    values, rows = {}, {}
     figures = sorted(set(CLAIM_FIGURES) | {f for f, _ in FIGURE_GOLDENS.values()})
     for fig in tqdm(figures, desc=f"{os.environ.get('DEFOCUS_MITSUBA_VARIANT')} seed {seed}", unit="figure"):
-        metrics[fig] = quick_metrics(fig, cached=False, seed=seed)
+        rows[fig] = quick_data(fig, cached=False, seed=seed).rows()
     for name, (fig, extract) in FIGURE_GOLDENS.items():
-        values[name] = flatten(extract(metrics[fig]))
+        values[name] = flatten(extract(rows[fig]))
     values["evaluate_quick"] = flatten(evaluate_values(evaluate_rows(cached=False)))
-    values["claims_quick"] = flatten(claims_values({f: {"metrics": metrics[f]} for f in CLAIM_FIGURES}))
+    values["claims_quick"] = flatten(claims_values([r for f in CLAIM_FIGURES for r in rows[f]]))
     _atomic_json(out, values)
 
 

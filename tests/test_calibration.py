@@ -91,14 +91,14 @@ def _figure_config(name):
 
 
 def _figure_data(name):
-    import warnings
+    """The quick arrays and metrics of fig10's paper-camera case or of fig2's one case."""
+    from tests.golden import quick_data
 
-    from experiments.registry import FIGURES, compute_cached
-
-    fig = FIGURES[name]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return compute_cached(fig, fig.config(MODE)).as_data()
+    fd = quick_data(name)
+    if name == "fig10":
+        out = fd.one(variant="paper")
+        return {**out.arrays(), "metrics": out.info}
+    return fd.single()
 
 
 @pytest.fixture(scope="module")

@@ -1,10 +1,11 @@
 """One evaluation per cell of the claims table: every cell names the evaluation it came from, and two
 cells of a claim share one only along an axis (preset, scene set) the claim is declared independent of.
 
-Both sides: the quick data passes the check; hand-made claims documents that share an evaluation
+Both sides: the quick table passes the check; hand-made claims documents that share an evaluation
 where the claim depends on the preset or the scene set, that evaluate a preset-independent claim
-twice, or that name another preset's evaluation, fail it. A figure computed for one preset or
-without a scene set gives "not evaluated" for the other cells, never a copy of its numbers.
+twice, or that name another preset's evaluation, fail it. A figure without rows for a preset or a
+scene set gives "not evaluated" for those cells, never a copy of other numbers. The procedural test
+split is its own evaluation of the claims computed on it, and a verdict it does not confirm is fragile.
 """
 
 from __future__ import annotations
@@ -14,7 +15,8 @@ import copy
 import pytest
 
 from experiments.claims import (ALL_PRESETS, ALL_SCENE_SETS, CLAIMS, claim_matrix, claims_document, evaluate_claims,
-                                evaluation_problems)
+                                evaluation_problems, fragile_claims)
+from tests.claims_tables import SET, fig4, fig7, fig7_scene, fig8, fig10, fig10_procedural
 
 BY_ID = {c.id: c for c in CLAIMS}
 #: Claims computed once for every preset and scene set (properties of the thin-lens optics).
@@ -111,107 +113,134 @@ def test_a_judged_cell_without_an_evaluation_fails():
 
 
 # --- figures computed for one preset / without a scene set are not copied ------------------------------
-def _fig8(psnr=24.0):
-    return {"images_vs_d2": {"unchanged_d1": {"psnr_db": 23.0, "ssim": 0.66},
-                             "refocused_estimated": {"psnr_db": psnr, "ssim": 0.70}}}
-
-
-def _fig4_analytic():
-    mf = {"model_fit": {"median_ae": 0.05}}
-    return {"straight": {"clean": mf, "noisy": mf}, "curved": {"clean": mf}}
-
-
 def test_a_figure_of_the_paper_preset_only_gives_not_evaluated_for_another_preset():
-    m = {"fig8": {"metrics": _fig8()}, "fig10": {"metrics": {"max_rel_err": 0.01, "n_points": 3}}}
-    robust = {c.id: v for c, v in evaluate_claims(m, preset="robust")}
-    assert robust["refocus"].verdict == "not evaluated" and "paper preset only" in robust["refocus"].evidence
+    table = fig8() + fig10()
+    robust = {c.id: v for c, v in evaluate_claims(table, preset="robust", scene_set=SET)}
+    assert robust["refocus"].verdict == "not evaluated" and "no rows of preset 'robust'" in robust["refocus"].evidence
     assert robust["refocus"].evaluation == ""
     assert robust["eq5"].verdict == "reproduced"  # Eq. (5) does not depend on the preset
-    paper = {c.id: v for c, v in evaluate_claims(m)}
-    assert paper["refocus"].verdict == "reproduced" and paper["refocus"].evaluation.startswith("fig8/paper/")
-    assert paper["eq5"].evaluation == robust["eq5"].evaluation == f"fig10/{ALL_PRESETS}/{ALL_SCENE_SETS}/unrecorded-config"
+    paper = {c.id: v for c, v in evaluate_claims(table, scene_set=SET)}
+    assert paper["refocus"].verdict == "reproduced" and paper["refocus"].evaluation == f"fig8/paper/{SET}/quick-0000abcd"
+    assert paper["eq5"].evaluation == robust["eq5"].evaluation == f"fig10/{ALL_PRESETS}/{ALL_SCENE_SETS}/quick-0000abcd"
 
 
-def test_a_figure_without_scene_sets_gives_not_evaluated_for_a_named_set():
-    rendered = {"pooled": {"srgb": {"line_spread": {"model_fit": {"mae": 1.0, "median_ae": 0.5},
-                                                    "zero_crossing": {"mae": 2.0, "median_ae": 0.8}}}}}
-    m = {"fig4": {"mode": "quick", "config": {"a": 1}, "metrics": {"analytic": _fig4_analytic(), "rendered": rendered}}}
-    got = {c.id: v for c, v in evaluate_claims(m, scene_set="paper_cameras")}
+def test_a_figure_without_rows_of_a_scene_set_gives_not_evaluated_for_it():
+    table = fig4()  # the pooled comparison of paper_cameras only; the analytic steps have no scene set
+    got = {c.id: v for c, v in evaluate_claims(table, scene_set="tabletop_stress")}
     assert got["model_fit_real_images"].verdict == "not evaluated"
-    assert "without a scene set" in got["model_fit_real_images"].evidence
+    assert "no rows of scene set 'tabletop_stress'" in got["model_fit_real_images"].evidence
     # the analytic claim has no scene set: evaluated, and named for all scene sets
     assert got["model_fit_accuracy"].verdict == "reproduced"
-    assert got["model_fit_accuracy"].evaluation.startswith(f"fig4/paper/{ALL_SCENE_SETS}/quick-")
+    assert got["model_fit_accuracy"].evaluation == f"fig4/paper/{ALL_SCENE_SETS}/quick-0000abcd"
 
 
-def test_the_preset_fit_is_read_under_its_own_name():
-    """The robust preset's model fit is model_fit_checked: its numbers, not the paper fit's, are judged."""
-    robust = {"fit_estimator": "model_fit_checked",
-              "analytic": {"straight": {"clean": {"model_fit_checked": {"median_ae": 0.05}},
-                                        "noisy": {"model_fit_checked": {"median_ae": 0.5}}},
-                           "curved": {"clean": {"model_fit_checked": {"median_ae": 0.05}}}}}
-    m = {"fig4": {"metrics": {"analytic": _fig4_analytic(), "presets": {"robust": robust}}}}
-    got = {c.id: v for c, v in evaluate_claims(m, preset="robust")}
-    assert got["model_fit_accuracy"].verdict == "partly reproduced"  # noisy 0.5 px > bound
-    assert "model_fit_checked" in got["model_fit_accuracy"].evidence
-    assert {c.id: v for c, v in evaluate_claims(m)}["model_fit_accuracy"].verdict == "reproduced"
+def test_the_test_split_is_its_own_evaluation_and_only_of_the_claims_computed_there():
+    table = (fig10(0.01) + fig10_procedural(0.02) + fig8() + fig8(scene_set="procedural_test")
+             + fig7() + fig7(scene_set="procedural_test"))
+    mat = claim_matrix(table)
+    assert list(mat)[-1] == ("paper", "procedural_test")
+    got = {c.id: v for c, v in mat[("paper", "procedural_test")]}
+    assert got["eq5"].evaluation.startswith("fig10/all-presets/procedural_test/")
+    assert got["doubled_map"].evaluation.startswith("fig7/paper/procedural_test/")
+    # refocus is not computed on the test split: not evaluated, whatever rows there are
+    assert got["refocus"].verdict == "not evaluated" and "not computed on the procedural test split" in got["refocus"].evidence
+    doc = claims_document(mat)
+    assert evaluation_problems(doc) == []
+    # the test split's eq5 shares nothing with the hand-built cells
+    bad = copy.deepcopy(doc)
+    bad[-1]["verdicts"]["eq5"]["evaluation"] = bad[0]["verdicts"]["eq5"]["evaluation"]
+    assert any("not of scene set 'procedural_test'" in p for p in evaluation_problems(bad))
+
+
+# --- fragile verdicts: the test split disagrees with a hand-built set ----------------------------------------
+def _fragility(test_mag, hand_mags):
+    table = fig7(fig7_scene(base=(30.0, 0.80), mag=test_mag), scene_set="procedural_test")
+    for s, mag in hand_mags.items():
+        table += fig7(fig7_scene(base=(30.0, 0.80), mag=mag), scene_set=s)
+    return fragile_claims(claim_matrix(table))
+
+
+def test_a_verdict_that_differs_on_the_test_split_is_fragile_with_both_evidences():
+    closer, same = (31.0, 0.85), (30.0, 0.80)
+    fragile = _fragility(same, {"paper_cameras": closer, "tabletop_stress": closer})
+    (f,) = [x for x in fragile if x["claim"] == "magnified_close"]
+    assert f["preset"] == "paper" and f["test"]["verdict"] == "not reproduced"
+    assert [h["verdict"] for h in f["hand_built"]] == ["reproduced", "reproduced"]
+    assert "30.0 → 30.0 dB" in f["test"]["evidence"] and "30.0 → 31.0 dB" in f["hand_built"][0]["evidence"]
+    assert f["test"]["evaluation"].startswith("fig7/paper/procedural_test/")
+    # one hand-built set agreeing is not enough: any disagreement makes the verdict fragile
+    assert [x["claim"] for x in _fragility(same, {"paper_cameras": same, "tabletop_stress": closer})
+            if x["claim"] == "magnified_close"] == ["magnified_close"]
+
+
+def test_a_verdict_the_test_split_confirms_is_not_fragile():
+    closer = (31.0, 0.85)
+    assert not [x for x in _fragility(closer, {"paper_cameras": closer, "tabletop_stress": closer})
+                if x["claim"] == "magnified_close"]
+    # without a judged verdict on the test split there is nothing to compare
+    table = fig7(fig7_scene(mag=(31.0, 0.85)))
+    assert fragile_claims(claim_matrix(table)) == []
 
 
 # --- the report shows a repeated evaluation as "=" -----------------------------------------------------
 def test_report_cells_say_all_presets_and_scene_sets_then_equals():
-    from repro.report import build_markdown, cell_texts, claims_block
+    from experiments.results_query import Results
+    from repro._report_text import cell_texts
+    from repro.report import build_markdown, claims_block
 
-    m = {"fig10": {"mode": "quick", "metrics": {"max_rel_err": 0.01, "n_points": 3}},
-         "fig8": {"mode": "quick", "metrics": {**_fig8(), "scene_set": "paper_cameras",
-                                               "presets": {"robust": _fig8(22.0)},
-                                               "scene_sets": {"tabletop_stress": {**_fig8(23.0), "presets": {
-                                                   "robust": _fig8(25.0)}}}}}}
-    matrix = claim_matrix(m)
+    table = (fig10() + fig8() + fig8((23.0, 0.66), (22.0, 0.70), preset="robust")
+             + fig8((23.0, 0.66), (23.0, 0.70), scene_set="tabletop_stress")
+             + fig8((23.0, 0.66), (25.0, 0.70), preset="robust", scene_set="tabletop_stress"))
+    table = [r for i, r in enumerate(table) if r not in table[:i]]  # rows once
+    matrix = claim_matrix(table)
     assert list(matrix) == list(COLUMNS)
     texts = cell_texts(matrix)
     eq5 = [texts[(c, "eq5")] for c in COLUMNS]
-    assert eq5[0] == ("reproduced", "all presets and scene sets") and eq5[1:] == [(None, "=")] * 3
+    # Eq. (5) is computed once for the hand-built sets (the test split would be its own evaluation)
+    assert eq5[0] == ("reproduced", "all presets and hand-built scene sets") and eq5[1:] == [(None, "=")] * 3
     refocus = [texts[(c, "refocus")][0] for c in COLUMNS]
     assert refocus == ["reproduced", "not reproduced", "partly reproduced", "reproduced"]
     assert all(texts[(c, "refocus")][1] == "" for c in COLUMNS)
     block = claims_block(matrix, report_link="r.md")
     row = [line for line in block.splitlines() if line.startswith("| " + BY_ID["eq5"].text.replace("|", "\\|"))][0]
-    assert row.endswith("| `+` reproduced (all presets and scene sets) | = | = | = |")
-    md = build_markdown(m, matrix, figures_rel="figures", bench=None)
+    assert row.endswith("| `+` reproduced (all presets and hand-built scene sets) | = | = | = |")
+    md = build_markdown({"fig8": {"mode": "quick"}}, Results(table), matrix, figures_rel="figures", bench=None)
     assert "same evaluation as *paper preset, paper_cameras*" in md
-    assert "Evaluation: `fig8/robust/tabletop_stress/quick`" in md
+    assert "Evaluation: `fig8/robust/tabletop_stress/quick-0000abcd`" in md
     doc = claims_document(matrix)
     assert evaluation_problems(doc) == []
     assert doc[1]["verdicts"]["eq5"]["same_as"] == {"preset": "paper", "scene_set": "paper_cameras"}
     assert doc[1]["verdicts"]["refocus"]["same_as"] is None
 
 
-# --- the quick data -------------------------------------------------------------------------------------
+# --- the quick table ---------------------------------------------------------------------------------------
 @pytest.mark.render
-def test_every_cell_of_the_quick_claims_table_names_its_own_evaluation():
-    from tests.golden import CLAIM_FIGURES, quick_metrics
-
-    metrics = {fig: {"metrics": quick_metrics(fig), "mode": "quick"} for fig in CLAIM_FIGURES}
-    matrix = claim_matrix(metrics)
+def test_every_cell_of_the_quick_claims_table_names_its_own_evaluation(quick_table):
+    matrix = claim_matrix(quick_table)
     columns = list(matrix)
-    assert columns == list(COLUMNS)
+    assert columns == [*COLUMNS, ("paper", "procedural_test"), ("robust", "procedural_test")]
     doc = claims_document(matrix)
     assert evaluation_problems(doc) == []
-    ids = {c.id: {entry["verdicts"][c.id]["evaluation"] for entry in doc} for c in CLAIMS}
+    hand = [e for e in doc if e["scene_set"] != "procedural_test"]
+    ids = {c.id: {entry["verdicts"][c.id]["evaluation"] for entry in hand} for c in CLAIMS}
     for c in CLAIMS:
-        assert all(entry["verdicts"][c.id]["verdict"] != "not evaluated" for entry in doc), c.id
-        expected = 1 if c.id in INDEPENDENT else 2 if c.id in PRESET_ONLY + SCENE_SET_ONLY else len(columns)
+        assert all(entry["verdicts"][c.id]["verdict"] != "not evaluated" for entry in hand), c.id
+        expected = 1 if c.id in INDEPENDENT else 2 if c.id in PRESET_ONLY + SCENE_SET_ONLY else len(COLUMNS)
         assert len(ids[c.id]) == expected, (c.id, ids[c.id])
-    assert ids["refocus"] == {f"fig8/{p}/{s}/quick" for p, s in COLUMNS}
-    assert ids["model_fit_real_images"] == {f"fig4/{p}/{s}/quick" for p, s in COLUMNS}
+    assert {i.rsplit("/", 1)[0] for i in ids["refocus"]} == {f"fig8/{p}/{s}" for p, s in COLUMNS}
+    test = [e for e in doc if e["scene_set"] == "procedural_test"]
+    for c in CLAIMS:
+        judged = {e["verdicts"][c.id]["verdict"] != "not evaluated" for e in test}
+        assert judged == {c.test_split}, c.id
     # the robust columns really are the robust preset's numbers: its own fit and its own map
-    fig4 = metrics["fig4"]["metrics"]
-    assert fig4["fit_estimator"] == "model_fit" and fig4["presets"]["robust"]["fit_estimator"] == "model_fit_checked"
-    fig8 = metrics["fig8"]["metrics"]
-    for node in (fig8, fig8["scene_sets"]["paper_cameras"]):
-        paper, robust = node["images_vs_d2"], node["presets"]["robust"]["images_vs_d2"]
-        assert paper["unchanged_d1"] == robust["unchanged_d1"]  # the same renders
-        assert paper["refocused_estimated"]["psnr_db"] != robust["refocused_estimated"]["psnr_db"]  # other maps
+    fig4 = quick_table.where(figure="fig4", variant="analytic:straight")
+    assert set(fig4.where(preset="paper").distinct("estimator")) >= {"model_fit"}
+    assert "model_fit_checked" in fig4.where(preset="robust").distinct("estimator")
+    fig8 = quick_table.where(figure="fig8")
+    for s in ("tabletop_stress", "paper_cameras"):
+        est = [fig8.value("images_vs_d2/refocused_estimated/psnr_db", scene_set=s, preset=p) for p in ("paper", "robust")]
+        assert est[0] != est[1]  # other maps; the unchanged input is one preset-independent row
+        assert len(fig8.where(scene_set=s, metric="images_vs_d2/unchanged_d1/psnr_db")) == 1
     # a tampered copy (the issue's case) fails the check
     bad = copy.deepcopy(doc)
     bad[1]["verdicts"]["refocus"]["evaluation"] = bad[0]["verdicts"]["refocus"]["evaluation"]

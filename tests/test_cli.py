@@ -197,19 +197,14 @@ def test_every_command_has_version_and_the_shared_flag_names(name, capsys):
     text = _help(name, capsys)
     assert "--version" in text and "--debug" in text
     assert "--no-cache" not in text  # one documented name: --force
-    assert "--scene-preset" not in text or name == "evaluate"  # one name for the render size: --scene-size
+    assert "--scene-preset" not in text  # one name for the render size: --scene-size
     if "--quiet" in text:
         assert "-q, --quiet" in text
     if name in CACHED:
         assert "--force" in text
 
 
-#: Tools whose flags are renamed in their own rewrite (not yet: -q, --scene-size, one default preset).
-PENDING_QUIET = ("report",)
-
-
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="flag pending"))
-                                  if n in PENDING_QUIET else n for n in AVAILABLE])
+@pytest.mark.parametrize("name", AVAILABLE)
 def test_every_tool_has_quiet(name, capsys):
     assert "-q, --quiet" in _help(name, capsys)
 
@@ -221,7 +216,7 @@ def test_preset_means_a_method_preset_with_its_default_in_the_help(capsys):
 
     from method import PRESETS
 
-    for name in ("estimate", "magnify", "sweep"):
+    for name in ("estimate", "magnify", "sweep", "evaluate"):
         text = " ".join(_help(name, capsys).split())
         m = re.search(r"--preset NAME( \[NAME ...\])? method parameter sets? \(method.PRESETS\).*?Default: (\w+)", text)
         assert m and m.group(2) in PRESETS, (name, text)

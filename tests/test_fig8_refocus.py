@@ -144,42 +144,47 @@ def test_exported_from_method():
 
 # --- experiment (renders) -----------------------------------------------------------------------
 @pytest.fixture(scope="module")
-def fig8():
-    from experiments import fig8_refocus
-    from experiments.registry import compute_cached
+def fig8(quick_figure):
+    return quick_figure("fig8")
 
-    fig = fig8_refocus.FIGURE
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        return compute_cached(fig, fig.config("quick")).as_data()
+
+def _view(fig8, set_name="tabletop_stress", preset="paper"):
+    """The arrays and metrics of one scene set and preset: its stage, map and main-λ cases merged, the λ sweep."""
+    from experiments.plotting.fig8 import _set_view
+
+    return _set_view(fig8, set_name, preset)[0]
 
 
 @pytest.mark.render
 def test_fig8_quick_arrays_and_metrics(fig8):
-    from experiments.fig8_refocus import QUICK
-
-    h, w = fig8["image_d1"].shape[:2]
+    cfg = fig8.config
+    v = _view(fig8)
+    h, w = v["image_d1"].shape[:2]
     assert (w, h) == (160, 120)
     for key in ("image_d1", "image_d2", "image_pinhole", "deconvolved_estimated", "deconvolved_oracle",
                 "refocused_estimated", "refocused_estimated_oracle_virtual", "refocused_oracle"):
-        a = fig8[key]
+        a = v[key]
         assert a.shape == (h, w, 3) and np.all(np.isfinite(a)) and a.min() >= 0 and a.max() <= 1, key
     for key in ("map_estimated", "virtual_map_estimated", "gt_d1", "gt_d2", "gt_pinhole"):
-        assert fig8[key].shape == (h, w) and np.all(np.isfinite(fig8[key])) and fig8[key].min() >= 0, key
-    m = fig8["metrics"]
-    assert m["in_focus_d2_pixels"] == int(fig8["in_focus_d2"].sum()) > 0
+        assert v[key].shape == (h, w) and np.all(np.isfinite(v[key])) and v[key].min() >= 0, key
+    m = v["metrics"]
+    assert m["in_focus_d2_pixels"] == int(v["in_focus_d2"].sum()) > 0
     assert set(m["images_vs_d2"]) == {"unchanged_d1", "refocused_estimated", "refocused_estimated_oracle_virtual",
                                       "refocused_oracle"}
-    assert len(m["nsr_sweep"]) == len(QUICK.nsr_sweep)
+    assert len(m["nsr_sweep"]) == len(cfg.nsr_sweep)
+    # one case per λ, each reading the stage and the preset's map
+    lam = fig8.find(scene_set="tabletop_stress", preset="paper")
+    assert [o.case.variant for o in lam] == ["map", *(f"nsr={x:g}" for x in cfg.nsr_sweep)]
+    assert all(len(o.case.needs) == 2 for o in lam[1:])
     # the renders share one pixel grid (sensor scaled at D2): regions sharp in both agree closely
-    both = fig8["mask"] & (fig8["gt_d2"] < 0.35) & (fig8["gt_pinhole"] < 0.35)
-    assert both.sum() > 100 and _psnr(fig8["image_d2"][both], fig8["image_pinhole"][both]) > 40
+    both = v["mask"] & (v["gt_d2"] < 0.35) & (v["gt_pinhole"] < 0.35)
+    assert both.sum() > 100 and _psnr(v["image_d2"][both], v["image_pinhole"][both]) > 40
 
 
 @pytest.mark.render
 def test_fig8_click_and_virtual_map(fig8):
     """The click lies on the D2 plane; inverting the map's ordering there brings that region toward σ ≈ floor."""
-    m = fig8["metrics"]
+    m = _view(fig8)["metrics"]
     assert m["click_depth_m"] == pytest.approx(m["focus_distance_2_m"], rel=1e-3)
     vm = m["virtual_map_vs_gt_d2"]
     assert vm["estimated"]["in_focus_d2"]["mae"] < vm["d1_map_unchanged"]["in_focus_d2"]["mae"]
@@ -188,7 +193,7 @@ def test_fig8_click_and_virtual_map(fig8):
 @pytest.mark.render
 def test_fig8_oracle_virtual_map_refocus_beats_the_input(fig8):
     """With the true D2 blur as virtual map, the refocused D1 render is closer to the real D2 render."""
-    q = fig8["metrics"]["images_vs_d2"]
+    q = _view(fig8)["metrics"]["images_vs_d2"]
     for metric in ("psnr_db", "ssim"):
         assert q["refocused_estimated_oracle_virtual"][metric] > q["unchanged_d1"][metric], metric
         assert q["refocused_estimated_oracle_virtual"][metric] > q["refocused_estimated"][metric], metric
@@ -198,39 +203,38 @@ def test_fig8_oracle_virtual_map_refocus_beats_the_input(fig8):
 def test_fig8_golden(fig8, goldens):
     from tests.golden import golden_values
 
-    goldens.check("fig8_quick", golden_values("fig8_quick", fig8["metrics"]))
+    goldens.check("fig8_quick", golden_values("fig8_quick", fig8.rows()))
 
 
 @pytest.mark.render
-def test_fig8_plot_through_cli(tmp_path):
+def test_fig8_plot_through_cli(tmp_path, fig8):
+    from experiments.results_query import read_table
+
     env = os.environ.copy()
-    proc = subprocess.run([sys.executable, "-m", "repro.figures", "fig8", "--quick", "--out", str(tmp_path)],
-                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=600, check=False)
+    proc = subprocess.run([sys.executable, "-m", "repro.figures", "fig8", "--quick", "--workers", "1", "--out",
+                           str(tmp_path)], cwd=ROOT, env=env, capture_output=True, text=True, timeout=600, check=False)
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "fig8.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert (tmp_path / "fig8.pdf").stat().st_size > 0
-    metrics = json.loads((tmp_path / "fig8.metrics.json").read_text())
-    assert "images_vs_d2" in json.dumps(metrics)
+    assert (tmp_path / "fig8.pdf").stat().st_size > 0 and (tmp_path / "fig8_paper_cameras.png").is_file()
+    info = json.loads((tmp_path / "fig8.metrics.json").read_text())
+    assert info["cache"]["hit"] is True and len(info["cases"]) == len(fig8.outputs)
+    assert read_table(tmp_path).where(figure="fig8", metric="images_vs_d2/unchanged_d1/psnr_db")
 
 
 @pytest.mark.render
 def test_fig8_every_preset_and_scene_set_is_its_own_evaluation(fig8):
     """Each preset refocuses with its own map; the paper_cameras set has its own scene, D2 and click."""
-    from experiments.fig8_refocus import QUICK
-
-    m = fig8["metrics"]
-    assert m["scene_set"] == QUICK.scene_set == "tabletop_stress" and set(m["scene_sets"]) == {"paper_cameras"}
-    pc = m["scene_sets"]["paper_cameras"]
-    overrides = dict(dict(QUICK.other_scene_sets)["paper_cameras"])
+    sets = {s: (scene, d2) for s, scene, d2, _ in fig8.config.scene_sets}
+    m, pc = _view(fig8)["metrics"], _view(fig8, "paper_cameras")["metrics"]
     # the click lands on the D2 plane of the other scene (portrait_garden: the house at 10 m)
     assert pc["click_depth_m"] == pytest.approx(pc["focus_distance_2_m"], rel=1e-3)
-    assert pc["focus_distance_2_m"] == overrides["focus_distance_2_m"] != m["focus_distance_2_m"]
-    assert fig8["paper_cameras__image_d1"].shape == fig8["image_d1"].shape
-    assert not np.array_equal(fig8["paper_cameras__image_d1"], fig8["image_d1"])
-    for node, prefix in ((m, ""), (pc, "paper_cameras__")):
-        robust = node["presets"]["robust"]
-        assert robust["images_vs_d2"]["unchanged_d1"] == node["images_vs_d2"]["unchanged_d1"]  # same renders
-        assert robust["images_vs_d2"]["refocused_oracle"] == node["images_vs_d2"]["refocused_oracle"]
-        assert robust["map_floor_px"] != node["map_floor_px"]  # its own map
-        assert not np.array_equal(fig8[f"{prefix}robust__map_estimated"], fig8[f"{prefix}map_estimated"])
-        assert robust["images_vs_d2"]["refocused_estimated"] != node["images_vs_d2"]["refocused_estimated"]
+    assert pc["focus_distance_2_m"] == sets["paper_cameras"][1] != m["focus_distance_2_m"]
+    a, b = (fig8.one(scene_set=s, variant="stage").arrays()["image_d1"] for s in ("tabletop_stress", "paper_cameras"))
+    assert a.shape == b.shape and not np.array_equal(a, b)
+    for s in ("tabletop_stress", "paper_cameras"):
+        paper, robust = _view(fig8, s)["metrics"], _view(fig8, s, "robust")["metrics"]
+        assert robust["images_vs_d2"]["unchanged_d1"] == paper["images_vs_d2"]["unchanged_d1"]  # the same stage case
+        assert robust["map_floor_px"] != paper["map_floor_px"]  # its own map
+        maps = [fig8.one(scene_set=s, preset=p, variant="map").arrays()["map_estimated"] for p in ("paper", "robust")]
+        assert not np.array_equal(*maps)
+        assert robust["images_vs_d2"]["refocused_estimated"] != paper["images_vs_d2"]["refocused_estimated"]

@@ -49,23 +49,24 @@ def _toy_figure():
                   configs={"quick": _ToyConfig(n=3), "full": _ToyConfig()}, renders=False)
 
 
-def test_compute_cached_roundtrip_and_force(tmp_path):
-    from experiments.registry import compute_cached
+def test_a_one_unit_figure_is_one_cached_case_and_force_recomputes(tmp_path):
+    from experiments.cases import run_case
 
     fig = _toy_figure()
+    (case,) = fig.cases(fig.config("full"))
     _toy_compute.calls = 0
-    a = compute_cached(fig, fig.config("full"), cache_dir=tmp_path)
-    b = compute_cached(fig, fig.config("full"), cache_dir=tmp_path)
+    a = run_case(fig, fig.config("full"), case, cache_dir=tmp_path)
+    b = run_case(fig, fig.config("full"), case, cache_dir=tmp_path)
     assert (a.cached, b.cached, _toy_compute.calls) == (False, True, 1)
-    np.testing.assert_array_equal(b.arrays["y"], [0, 1, 4, 9, 16])
-    assert b.metrics == a.metrics and b.metrics["sum"] == 30.0 and b.metrics["nan"] is None
-    c = compute_cached(fig, fig.config("quick"), cache_dir=tmp_path)  # other config → other entry
-    assert not c.cached and c.arrays["x"].size == 3
-    d = compute_cached(fig, fig.config("full"), cache_dir=tmp_path, force=True)
+    np.testing.assert_array_equal(b.arrays()["y"], [0, 1, 4, 9, 16])
+    assert b.metrics == a.metrics == {"sum": 30.0, "nan": None} and b.info == {"sum": 30.0, "nan": None}
+    c = run_case(fig, fig.config("quick"), case, cache_dir=tmp_path)  # other config → other entry
+    assert not c.cached and c.arrays()["x"].size == 3
+    d = run_case(fig, fig.config("full"), case, cache_dir=tmp_path, force=True)
     assert not d.cached and _toy_compute.calls == 3
 
 
-def test_figure_rejects_mutable_config_and_bad_mode():
+def test_figure_rejects_mutable_config_bad_mode_and_a_half_declared_unit():
     from experiments.registry import Figure
 
     @dataclasses.dataclass
@@ -76,6 +77,12 @@ def test_figure_rejects_mutable_config_and_bad_mode():
         Figure(name="x", title="x", compute=_toy_compute, plot="a:b", configs={"quick": Mutable(), "full": Mutable()})
     with pytest.raises(ValueError, match="mode"):
         _toy_figure().config("medium")
+    cfgs = {"quick": _ToyConfig(), "full": _ToyConfig()}
+    with pytest.raises(ValueError, match="cases_fn and case_fn, or compute"):
+        Figure(name="x", title="x", plot="a:b", configs=cfgs, cases_fn=lambda c: ())
+    with pytest.raises(ValueError, match="cases_fn and case_fn, or compute"):
+        Figure(name="x", title="x", plot="a:b", configs=cfgs, compute=_toy_compute, cases_fn=lambda c: (),
+               case_fn=lambda c, k, i: {})
 
 
 def test_registry_has_fig2_and_fig10_with_frozen_configs():
@@ -108,6 +115,7 @@ def test_cli_unknown_name_exits_2_with_one_line(tmp_path):
 def test_cli_bad_jobs_exits_2(tmp_path):
     proc = _cli("fig10", "--jobs", "0", "--out", tmp_path)
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
+    assert "--workers/--jobs" in proc.stderr
 
 
 @pytest.fixture(scope="module")
@@ -115,13 +123,20 @@ def fig10_quick(tmp_path_factory):
     """Two runs of ``repro.figures fig10 --quick`` against a fresh cache: outputs and both metrics files."""
     cache = tmp_path_factory.mktemp("cache")
     out = tmp_path_factory.mktemp("figures")
-    first = _cli("fig10", "--quick", "--out", out, cache_dir=cache)
+    first = _cli("fig10", "--quick", "--workers", "1", "--out", out, cache_dir=cache)
     assert first.returncode == 0, first.stderr[-3000:]
     m1 = json.loads((out / "fig10.metrics.json").read_text())
-    second = _cli("fig10", "--quick", "--out", out, cache_dir=cache)
+    t1 = read_table(out).where(figure="fig10").rows
+    second = _cli("fig10", "--quick", "--workers", "1", "--out", out, cache_dir=cache)
     assert second.returncode == 0, second.stderr[-3000:]
     m2 = json.loads((out / "fig10.metrics.json").read_text())
-    return {"out": out, "m1": m1, "m2": m2, "cache": cache}
+    return {"out": out, "m1": m1, "m2": m2, "t1": t1, "t2": read_table(out).where(figure="fig10").rows, "cache": cache}
+
+
+def read_table(folder):
+    from experiments.results_query import read_table as read
+
+    return read(folder)
 
 
 @pytest.mark.render
@@ -133,39 +148,46 @@ def test_fig10_quick_writes_outputs_and_matches_eq5(fig10_quick):
     assert (out / "fig10.pdf").read_bytes()[:5] == b"%PDF-"
     assert m["mode"] == "quick" and m["cache"]["hit"] is False
     assert m["config"]["spp"] > 0 and "sigma_convention" in m and m["versions"]["mitsuba"]
-    assert m["metrics"]["n_points"] >= 12
-    assert m["metrics"]["max_rel_err"] < tol.FIG10_MAX_REL_ERR
+    paper = read_table(out).where(figure="fig10", variant="paper")
+    assert paper.value("n_points") >= 12
+    assert paper.value("max_rel_err") < tol.FIG10_MAX_REL_ERR
+    # the held-out scenes' cameras at their own depths obey Eq. (5) as well
+    held_out = read_table(out).where(figure="fig10", scene_set="procedural_test")
+    assert len(held_out.distinct("scene")) == 2
+    assert max(r["value"] for r in held_out.where(metric="max_rel_err")) < tol.FIG10_MAX_REL_ERR
     assert not list(out.glob("*.tmp*"))
 
 
 @pytest.mark.render
 def test_fig10_second_run_uses_cache(fig10_quick):
     m1, m2 = fig10_quick["m1"], fig10_quick["m2"]
-    assert m2["cache"]["hit"] is True
-    assert m2["metrics"] == m1["metrics"]
+    assert m2["cache"]["hit"] is True and m1["cases"] == m2["cases"]
+    assert fig10_quick["t2"] == fig10_quick["t1"]
 
 
 @pytest.mark.render
-def test_fig2_and_fig10_in_parallel(fig10_quick, tmp_path):
-    """``--jobs 2``: fig2 computed in one worker while fig10 comes from the cache in another."""
+def test_fig2_and_fig10_on_two_dask_workers(fig10_quick, tmp_path):
+    """``--jobs 2`` (= ``--workers 2``): the cases on a LocalCluster of two workers; fig2 computed, fig10 from
+    the cache; the table rows of fig10 are the serial run's."""
     proc = _cli("fig2", "fig10", "--quick", "--jobs", "2", "--out", tmp_path, cache_dir=fig10_quick["cache"])
     assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "engine: LocalCluster with 2 worker(s)" in proc.stderr
     for stem in ("fig2", "fig10"):
         for ext in (".png", ".pdf", ".metrics.json"):
             assert (tmp_path / f"{stem}{ext}").is_file()
     m10 = json.loads((tmp_path / "fig10.metrics.json").read_text())
-    assert m10["cache"]["hit"] is True and m10["metrics"] == fig10_quick["m1"]["metrics"]
-    m2 = json.loads((tmp_path / "fig2.metrics.json").read_text())["metrics"]
-    assert m2["max_ratio_rel_err"] < tol.FIG2_RATIO_RTOL
+    assert m10["cache"]["hit"] is True and read_table(tmp_path).where(figure="fig10").rows == fig10_quick["t1"]
+    fig2 = read_table(tmp_path).where(figure="fig2")
+    assert fig2.value("max_ratio_rel_err") < tol.FIG2_RATIO_RTOL
     # the small sensor blurs ~3× less at the same field of view and f-number (Eq. 6)
-    assert 2.5 < m2["measured_ratio_median"] < 4.0
+    assert 2.5 < fig2.value("measured_ratio_median") < 4.0
 
 
 def test_code_fingerprint_ignores_plots_and_claims_but_not_compute_code(tmp_path, monkeypatch):
     import experiments.registry as reg
 
     for rel, text in {"method/a.py": "x = 1\n", "scenes/s.py": "v = 1\n", "experiments/fig.py": "y = 1\n",
-                      "experiments/claims.py": "z = 1\n", "experiments/plotting/p.py": "w = 1\n"}.items():
+                      "experiments/claims/rules.py": "z = 1\n", "experiments/plotting/p.py": "w = 1\n"}.items():
         (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / rel).write_text(text)
     # the fingerprint of a fake checkout: packages resolved to its folders, paths relative to its root
@@ -181,7 +203,7 @@ def test_code_fingerprint_ignores_plots_and_claims_but_not_compute_code(tmp_path
         return reg.code_fingerprint()
 
     base = fp()
-    (tmp_path / "experiments/claims.py").write_text("z = 2\n")
+    (tmp_path / "experiments/claims/rules.py").write_text("z = 2\n")
     (tmp_path / "experiments/plotting/p.py").write_text("w = 2\n")
     assert fp() == base
     (tmp_path / "method/a.py").write_text("x = 2\n")
@@ -219,22 +241,23 @@ def test_figure_config_sets_presets_only_where_the_config_has_the_field():
 
 
 def test_cli_preset_reaches_every_selected_figure(tmp_path, monkeypatch):
-    """``--preset`` is passed to every figure (the ones without a `presets` field ignore it)."""
+    """``--preset`` is set on every figure whose config has the field (the others keep theirs)."""
+    import repro._runner as runner
     import repro.figures as rf
 
     calls = []
 
-    def fake(name, mode, out_dir, force, presets=None):
-        calls.append((name, mode, presets))
-        return {"name": name, "cached": True, "seconds": 0.0, "files": [], "metrics": {}}
+    def fake(jobs, **kwargs):
+        calls.append([(j.figure.name, j.mode, getattr(j.config, "presets", None)) for j in jobs])
+        return [runner.FigureRun(job=j) for j in jobs]
 
-    monkeypatch.setattr(rf, "_make_figure_safe", fake)
-    assert rf.main(["fig6", "fig10", "--quick", "--preset", "zhuo_sim", "robust", "--out", str(tmp_path)]) == 0
-    assert calls == [("fig6", "quick", ("paper", "zhuo_sim", "robust")),
-                     ("fig10", "quick", ("paper", "zhuo_sim", "robust"))]
+    monkeypatch.setattr(runner, "run_figures", fake)
+    assert rf.main(["fig6", "fig10", "--quick", "--preset", "zhuo_sim", "robust", "--workers", "1",
+                    "--out", str(tmp_path)]) == 0
+    assert calls == [[("fig6", "quick", ("paper", "zhuo_sim", "robust")), ("fig10", "quick", None)]]
     calls.clear()
-    assert rf.main(["fig6", "--out", str(tmp_path)]) == 0
-    assert calls == [("fig6", "full", None)]
+    assert rf.main(["fig6", "--workers", "1", "--out", str(tmp_path)]) == 0
+    assert calls == [[("fig6", "full", ("paper", "robust"))]]
 
 
 def test_cli_unknown_preset_exits_2_with_one_line(tmp_path, capsys):
@@ -246,3 +269,19 @@ def test_cli_unknown_preset_exits_2_with_one_line(tmp_path, capsys):
     lines = [l for l in capsys.readouterr().err.splitlines() if l.strip()]
     assert len(lines) == 1 and "nope" in lines[0] and "'paper', 'robust', 'zhuo_sim'" in lines[0], lines
     assert not out.exists()
+
+
+def test_fig5_to_fig8_expose_at_least_16_independent_cases_at_the_full_preset():
+    """The unit of parallel work is a case (scene set × scene × preset × aperture …), not a figure: at the full
+    preset each of figs. 5–8 has at least 16 cases that do not need one another."""
+    from experiments.cases import order_cases
+    from experiments.registry import FIGURES
+
+    for name in ("fig5", "fig6", "fig7", "fig8"):
+        fig = FIGURES[name]
+        cases = order_cases(fig.cases(fig.config("full")))
+        needed = {n for c in cases for n in c.needs}
+        leaves = [c for c in cases if c not in needed]  # no other case waits for these
+        assert len(leaves) >= 16, (name, len(leaves))
+        assert len(set(cases)) == len(cases)
+        assert {c.scene_size for c in cases if c.scene} <= {"full", None}

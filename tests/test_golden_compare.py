@@ -42,6 +42,14 @@ def test_nan_must_stay_nan_and_key_sets_must_match():
     assert "new metric" in G.compare("g", {"x": 1.0, "y": 2.0}, {"x": 1.0}, {"x": {"tol": 1}})[0]
 
 
+def test_an_infinity_must_stay_the_same_infinity():
+    from tests.golden import compare
+
+    inf = float("inf")
+    assert compare("g", {"a": inf}, {"a": inf}, {"a": {"tol": 0.1}}) == []
+    assert compare("g", {"a": 1e9}, {"a": inf}, {"a": {"tol": 0.1}}) and compare("g", {"a": -inf}, {"a": inf}, {})
+
+
 def test_every_render_golden_has_its_tolerances_recorded_with_how_they_were_measured():
     doc = json.loads(G.TOLERANCE_FILE.read_text())
     for field in ("how", "rule", "command", "runs", "baseline", "library_versions", "metrics"):

@@ -63,7 +63,7 @@ def test_figures_ctrl_c_then_resume_from_cache(tmp_path):
     cache, out = tmp_path / "cache", tmp_path / "figures"
     # fig4 renders its own scenes (fig2 reuses fig10's step-edge renders and can finish before the
     # interrupt lands), so it is still running when the interrupt arrives.
-    cmd = [sys.executable, "-m", "repro.figures", "fig10", "fig4", "--quick", "--out", str(out)]
+    cmd = [sys.executable, "-m", "repro.figures", "fig10", "fig4", "--quick", "--workers", "1", "--out", str(out)]
     # A shell starts the command with SIGINT at its default; in a full test session an earlier test's
     # library can leave SIGINT ignored in this process, which a child would inherit (seen in CI-like runs).
     proc = subprocess.Popen(cmd, cwd=ROOT, env=_env(cache), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,

@@ -35,13 +35,19 @@ def test_photos_figure_is_registered_with_the_scored_presets():
 @pytest.mark.slow
 def test_photos_figure_quick_computes_scores_and_plots(tmp_path):
     """Quick config (coffee, every preset): arrays, scores equal to score_photo of the stored maps, PNG + PDF."""
+    from experiments.figS2_photos import photo_view
+    from experiments.figure_data import run_figure
+    from experiments.registry import FIGURES
+
     from experiments.photo_regions import score_photo
-    from experiments.registry import FIGURES, compute_cached
 
     fig = FIGURES["photos"]
     config = fig.config("quick")
-    res = compute_cached(fig, config, cache_dir=tmp_path / "cache")
-    data = res.as_data()
+    fd = run_figure(fig, config, cache_dir=tmp_path / "cache")
+    data = photo_view(fd)
+
+    class res:  # noqa: N801 - the view's metrics as the assertions below read them
+        metrics = data["metrics"]
     assert list(data["items"]) == ["coffee"]
     assert data["coffee__input"].shape == (400, 600, 3) and data["coffee__magnified"].shape == (400, 600, 3)
     assert data["coffee__magnified_scatter"].shape == (400, 600, 3)
@@ -57,7 +63,7 @@ def test_photos_figure_quick_computes_scores_and_plots(tmp_path):
         s = score_photo("coffee", m)
         assert s["auc"] == pytest.approx(res.metrics["photos"]["coffee"][p]["auc"], abs=1e-6)  # float32 storage
     assert set(res.metrics["summary"]) == set(config.presets)
-    paths = fig.plot_function()(data, config, tmp_path / "photos")
+    paths = fig.plot_function()(fd, config, tmp_path / "photos")
     assert [p.suffix for p in paths] == [".png", ".pdf"] and all(p.stat().st_size > 10_000 for p in paths)
 
 

@@ -197,21 +197,28 @@ def test_evaluate_photos_bad_input_is_one_line_exit_2(argv, needle, capsys, tmp_
 
 def test_evaluate_photos_writes_the_table(tmp_path, monkeypatch, capsys):
     """The CLI's table from the photos figure's metrics (its compute replaced by a hand-made result)."""
+    import repro._runner as runner
     import repro.evaluate as ev
-    from experiments import registry
+    from experiments import figS2_photos
+    from experiments.cases import CaseOutput
+    from experiments.figure_data import FigureData
 
     score = {"auc": 0.25, "in_focus_above_defocused_median": 0.5, "in_focus_median_px": 1.0,
-             "defocused_median_px": 0.5, "n_in_focus": 10, "n_defocused": 5, "meets_targets": False, "seconds": 0.1}
-    metrics = {"photos": {"coffee": {"shape": [400, 600], "robust": score}}, "presets_scored": ["robust"]}
+             "defocused_median_px": 0.5, "n_in_focus": 10, "n_defocused": 5, "meets_targets": False}
+    metrics = {"photos": {"coffee": {"shape": [400, 600], "robust": {**score, "seconds": 0.1}}},
+               "presets_scored": ["robust"]}
 
-    class Result:
-        cached = True
+    def fake_run(jobs, **kwargs):
+        (job,) = jobs
+        case = job.figure.cases(job.config)[0]
+        data = FigureData(job.figure, job.config, {case: CaseOutput(case, score, cached=True)})
+        return [runner.FigureRun(job=job, data=data)]
 
-    Result.metrics = metrics
-    monkeypatch.setattr(registry, "compute_cached", lambda fig, config, force=False: Result)
+    monkeypatch.setattr(runner, "run_figures", fake_run)
+    monkeypatch.setattr(figS2_photos, "photo_view", lambda fd: {"metrics": metrics})
     assert ev.main(["--photos", "coffee", "--preset", "robust", "--out", str(tmp_path), "-q"]) == 0
     doc = json.loads((tmp_path / "photos.json").read_text())
-    assert doc["rows"] == [{"photo": "coffee", "method_preset": "robust", **score}]
+    assert doc["rows"] == [{"photo": "coffee", "method_preset": "robust", **score, "seconds": 0.1}]
     md = (tmp_path / "photos.md").read_text()
     assert "| coffee | robust | 0.250 | 50.0 % | 1.00 | 0.50 | no |" in md
     out = capsys.readouterr().out.splitlines()

@@ -61,11 +61,13 @@ def current_scores(*, cached: bool = True) -> dict:
 
     if not cached:
         return _flat_scores(score_presets(available_photos(), SCORE_PRESETS))
-    from experiments.registry import FIGURES, compute_cached
+    from experiments.figS2_photos import photo_view
+    from experiments.figure_data import run_figure
+    from experiments.registry import FIGURES
 
     fig = FIGURES["photos"]
     config = dataclasses.replace(fig.config("full"), photos=available_photos(), presets=SCORE_PRESETS)
-    return _flat_scores(compute_cached(fig, config).metrics["photos"])
+    return _flat_scores(photo_view(run_figure(fig, config))["metrics"]["photos"])
 
 
 def compare(flat: dict, doc: dict) -> list[str]:

@@ -130,7 +130,8 @@ def _killed_then_interrupted(env, root: Path, folder_root: Path) -> dict:
             before = _cells(folder())
 
             def busy():
-                return [w for w, keys in client.processing().items() if any(str(k).startswith("scene-") for k in keys)]
+                return [w for w, keys in client.processing().items()
+                        if any(str(k).startswith("case-procedural-") for k in keys)]
 
             _wait(busy, proc, "a running scene")
             worker = busy()[0]

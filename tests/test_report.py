@@ -1,6 +1,7 @@
-"""Claims → verdicts logic, and the report builder (`python -m repro.report`).
+"""The report builder (`python -m repro.report`): it reads the results table and the figures' metrics files.
 
-The rule-by-rule tests of the claims are in tests/test_claims_rules.py."""
+The rule-by-rule tests of the claims are in tests/test_claims_rules.py, the cells in
+tests/test_claims_evaluations.py."""
 
 import json
 import subprocess
@@ -10,36 +11,42 @@ from pathlib import Path
 import pytest
 
 from experiments.claims import CLAIMS, VERDICTS, evaluate_claims
+from tests.claims_tables import SET, fig10, fig10_procedural, rows
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _verdicts(metrics):
-    return {c.id: v for c, v in evaluate_claims(metrics)}
+def _verdicts(table):
+    return {c.id: v for c, v in evaluate_claims(table, scene_set=SET)}
 
 
-def test_every_claim_is_not_evaluated_without_metrics():
-    out = _verdicts({})
+def _figures(folder: Path, table: list[dict], infos: dict) -> Path:
+    """A ``repro.figures`` output folder: the rows as results.csv and one metrics file per figure."""
+    from experiments.results_table import write_results
+
+    folder.mkdir(parents=True, exist_ok=True)
+    write_results(folder, table, {})
+    for name, info in infos.items():
+        (folder / f"{name}.metrics.json").write_text(json.dumps(info))
+    return folder
+
+
+def test_every_claim_is_not_evaluated_without_rows():
+    out = _verdicts([])
     assert set(out) == {c.id for c in CLAIMS}
-    assert all(v.verdict == "not evaluated" for v in out.values())
+    assert all(v.verdict == "not evaluated" and v.verdict in VERDICTS for v in out.values())
 
 
 @pytest.mark.parametrize("err, verdict", [(0.004, "reproduced"), (0.05, "not reproduced")])
 def test_eq5_threshold(err, verdict):
-    out = _verdicts({"fig10": {"metrics": {"max_rel_err": err, "n_points": 12}}})
+    out = _verdicts(fig10(err))
     assert out["eq5"].verdict == verdict
     assert f"{100 * err:.2f} %" in out["eq5"].evidence
 
 
-def test_verdict_labels_are_known():
-    assert all(v.verdict in VERDICTS for v in _verdicts({}).values())
-
-
 def test_report_cli_writes_markdown_html_and_json(tmp_path):
-    figs = tmp_path / "figures"
-    figs.mkdir()
-    (figs / "fig10.metrics.json").write_text(json.dumps(
-        {"title": "CoC vs distance", "mode": "quick", "metrics": {"max_rel_err": 0.001, "n_points": 3}}))
+    figs = _figures(tmp_path / "figures", fig10(0.001) + fig10_procedural(0.05),
+                    {"fig10": {"title": "CoC vs distance", "mode": "quick", "outputs": ["fig10.png"]}})
     (figs / "fig10.png").write_bytes(b"")
     out = tmp_path / "rep"
     proc = subprocess.run([sys.executable, "-m", "repro.report", "--figures", str(figs), "--out", str(out)],
@@ -49,29 +56,43 @@ def test_report_cli_writes_markdown_html_and_json(tmp_path):
     assert "**reproduced**" in md and "0.10 %" in md and "fig10.png" in md
     html = (out / "index.html").read_text()
     assert "<img src='../figures/fig10.png'" in html or "fig10.png" in html
-    claims = json.loads((out / "claims.json").read_text())["claims"]
-    assert {c["id"] for c in claims} == {c.id for c in CLAIMS}
+    doc = json.loads((out / "claims.json").read_text())
+    assert {c["id"] for c in doc["claims"]} == {c.id for c in CLAIMS}
+    # Eq. (5) holds for the paper's camera, fails for a held-out scene's: fragile, with both evidences
+    (fragile,) = doc["fragile"]
+    assert fragile["claim"] == "eq5" and fragile["test"]["verdict"] == "not reproduced"
+    assert [h["verdict"] for h in fragile["hand_built"]] == ["reproduced"]
+    assert "## Fragile verdicts" in md and "5.00 %" in md and "fragile: differs from a hand-built set" in md
+    assert "id='fragile'" in html and "fragile" in proc.stdout
     assert not list(out.glob("*.tmp"))
 
 
-def test_report_cli_missing_folder_is_one_line_exit_2(tmp_path):
+def test_report_cli_missing_folder_or_table_is_one_line_exit_2(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "repro.report", "--figures", str(tmp_path / "none"),
                            "--out", str(tmp_path / "rep")], cwd=ROOT, capture_output=True, text=True)
     assert proc.returncode == 2
     assert len(proc.stderr.strip().splitlines()) == 1 and "Traceback" not in proc.stderr
     assert not (tmp_path / "rep" / "README.md").exists()
+    figs = tmp_path / "figs"
+    figs.mkdir()
+    (figs / "fig10.metrics.json").write_text("{}")
+    from repro._cli import run_cli
+    from repro.report import main
+
+    assert run_cli(main, ["--figures", str(figs), "--out", str(tmp_path / "rep2")], prog="python -m repro.report") == 2
+    assert not (tmp_path / "rep2" / "README.md").exists()
 
 
 def test_readme_claims_block_is_refreshed_between_markers(tmp_path):
+    from experiments.claims import claim_matrix
     from repro.report import README_END, README_START, claims_block, update_readme_block
 
     readme = tmp_path / "README.md"
     readme.write_text(f"# Title\n\nbefore\n{README_START}\nstale\n{README_END}\nafter\n")
-    verdicts = evaluate_claims({"fig10": {"metrics": {"max_rel_err": 0.001, "n_points": 3}}})
-    assert update_readme_block(readme, claims_block(verdicts, report_link="report/README.md"))
+    assert update_readme_block(readme, claims_block(claim_matrix(fig10(0.001)), report_link="report/README.md"))
     text = readme.read_text()
     assert "stale" not in text and text.startswith("# Title\n\nbefore\n") and text.endswith("after\n")
-    assert text.count(README_START) == 1 and "| `+` reproduced |" in text and "report/README.md" in text
+    assert text.count(README_START) == 1 and "| `+` reproduced" in text and "report/README.md" in text
     plain = tmp_path / "plain.md"
     plain.write_text("no markers\n")
     assert not update_readme_block(plain, "x") and plain.read_text() == "no markers\n"
@@ -80,48 +101,49 @@ def test_readme_claims_block_is_refreshed_between_markers(tmp_path):
 def test_report_to_another_folder_leaves_the_project_readme_alone(tmp_path):
     readme = ROOT / "README.md"
     before = readme.read_bytes()
-    figs = tmp_path / "figures"
-    figs.mkdir()
-    (figs / "fig10.metrics.json").write_text(json.dumps({"metrics": {"max_rel_err": 0.5, "n_points": 1}}))
+    figs = _figures(tmp_path / "figures", fig10(0.5), {"fig10": {"mode": "quick"}})
     proc = subprocess.run([sys.executable, "-m", "repro.report", "--figures", str(figs), "--out", str(tmp_path / "r")],
                           cwd=ROOT, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     assert readme.read_bytes() == before
 
 
-def _stage_case(kind, mae_sparse, mae_dense, bias):
-    est = {"sparse": {"mae": mae_sparse, "bias": 0.0}, "dense_textured": {"mae": mae_dense, "bias": bias}}
-    return {"kind": kind, "paper": {"estimated": est}, "robust": {"estimated": est}}
+def _stage_rows(scene, variant, mae_sparse, mae_dense, bias, aperture=None):
+    est = {"estimated": {"sparse": {"mae": mae_sparse, "bias": 0.0}, "dense_textured": {"mae": mae_dense, "bias": bias}}}
+    return rows("stages", [({"scene": scene, "preset": p, "variant": variant, "aperture": aperture}, est)
+                           for p in ("paper", "robust")])
 
 
-def test_preset_tables_one_table_per_scene_set():
-    from repro.report import build_markdown, preset_tables
+def test_preset_tables_one_table_per_kind_of_image():
+    from experiments.results_query import Results
+    from repro._report_text import preset_tables
+    from repro.report import build_markdown
 
-    metrics = {"stages": {"mode": "quick", "metrics": {
-        "presets": ["paper", "robust"],
-        "cases": {"mosaic:dead_leaves": _stage_case("mosaic", 1.0, 0.5, -0.25),
-                  "portrait f/8": _stage_case("render", 2.0, None, None)}}}}
-    tables = preset_tables(metrics)
+    table = Results(_stage_rows("dead_leaves", "mosaic", 1.0, 0.5, -0.25)
+                    + _stage_rows("portrait", "render", 2.0, None, None, aperture=8.0))
+    tables = preset_tables(table)
     assert [t["title"].split()[0] for t in tables] == ["Analytic", "Rendered"]
     assert tables[0]["header"] == ["case", "paper: edge MAE", "paper: dense MAE (bias)",
                                    "robust: edge MAE", "robust: dense MAE (bias)"]
     assert tables[0]["rows"] == [["mosaic:dead_leaves", "1.00", "0.50 (-0.25)", "1.00", "0.50 (-0.25)"]]
-    assert tables[1]["rows"][0][2] == "–"  # a missing value is shown as missing, not as a number
-    md = build_markdown(metrics, [], figures_rel="figures", bench=None)
+    assert tables[1]["rows"][0][0] == "portrait f/8" and tables[1]["rows"][0][2] == "–"  # missing stays missing
+    md = build_markdown({"stages": {"mode": "quick"}}, table, {}, figures_rel="figures", bench=None)
     assert "## Presets side by side" in md and "| mosaic:dead_leaves | 1.00 |" in md
-    assert preset_tables({}) == [] and "Presets side by side" not in build_markdown({}, [], figures_rel="f", bench=None)
+    empty = Results([])
+    assert preset_tables(empty) == [] and "Presets side by side" not in build_markdown({}, empty, {}, figures_rel="f",
+                                                                                        bench=None)
 
 
 def test_claims_table_has_one_column_per_preset_and_scene_set():
+    from experiments.claims import Verdict
+    from experiments.results_query import Results
     from repro.report import MARKS, build_html, build_markdown, claims_block
 
-    from experiments.claims import Verdict
-
     claims = CLAIMS[:2]
-    matrix = {("paper", "paper_cameras"): [(claims[0], Verdict("reproduced", "e1", {})),
-                                           (claims[1], Verdict("not reproduced", "e2", {}))],
-              ("paper", "tabletop_stress"): [(claims[0], Verdict("partly reproduced", "e3", {})),
-                                             (claims[1], Verdict("error", "boom", {}))]}
+    matrix = {("paper", "paper_cameras"): [(claims[0], Verdict("reproduced", "e1", {}, "fig10/a/b/c")),
+                                           (claims[1], Verdict("not reproduced", "e2", {}, "fig2/a/b/c"))],
+              ("paper", "tabletop_stress"): [(claims[0], Verdict("partly reproduced", "e3", {}, "fig10/a/c/d")),
+                                             (claims[1], Verdict("error", "boom", {}, "fig2/a/e/f"))]}
     block = claims_block(matrix, report_link="r.md")
     header = [line for line in block.splitlines() if line.startswith("| claim")][0]
     assert header.count("|") == 5 and "paper preset, paper_cameras" in header and "tabletop_stress" in header
@@ -130,24 +152,27 @@ def test_claims_table_has_one_column_per_preset_and_scene_set():
     assert row0.endswith("| `+` reproduced | `~` partly reproduced |")
     assert "`!` error" in block and set(MARKS) == {"reproduced", "partly reproduced", "not reproduced",
                                                    "not evaluated", "error"}
-    md = build_markdown({}, matrix, figures_rel="figures", bench=None)
+    md = build_markdown({}, Results([]), matrix, figures_rel="figures", bench=None)
     assert md.index("paper preset, tabletop_stress") < md.index("## Scene sets") < md.index("## Figures")
     assert "### Evidence: paper preset, tabletop_stress" in md and "boom" in md
-    page = build_html({}, matrix, figures_rel="figures", bench=None)
+    page = build_html({}, Results([]), matrix, figures_rel="figures", bench=None)
     assert page.index("id='claims'") < page.index("<h2>Figures</h2>")
     assert page.count("<svg class='mark'") >= 4 + len(MARKS) and "tabletop_stress" in page
 
 
-def test_figure_files_list_the_stress_set_image_with_its_caption(tmp_path):
-    from repro.report import figure_files
+def test_figure_files_list_each_scene_set_image_with_its_caption(tmp_path):
+    from repro._report_text import figure_files
 
-    m = {"metrics": {"scene_set": "paper_cameras", "scene_sets": {"tabletop_stress": {}}}}
-    assert [s for s, _ in figure_files("fig5", m, tmp_path)] == ["fig5"]  # no stress image on disk
+    info = {"outputs": ["fig5.png", "fig5.pdf", "fig5_tabletop_stress.png", "fig5_tabletop_stress.pdf",
+                        "fig5.metrics.json"],
+            "config": {"scene_sets": [["paper_cameras", ["patio_table"]], ["tabletop_stress", ["planes"]]]}}
+    # the first image is always listed (a missing one is a broken image); a further set's only when on disk
+    assert [s for s, _ in figure_files("fig5", info, tmp_path)] == ["fig5"]
     (tmp_path / "fig5_tabletop_stress.png").write_bytes(b"x")
-    files = figure_files("fig5", m, tmp_path)
+    files = figure_files("fig5", info, tmp_path)
     assert [s for s, _ in files] == ["fig5", "fig5_tabletop_stress"]
     assert "paper_cameras (default)" in files[0][1] and "tabletop_stress (stress test)" in files[1][1]
-    assert figure_files("fig10", {"metrics": {"max_rel_err": 0.1}}, tmp_path) == [("fig10", "")]
+    assert figure_files("fig10", {"outputs": ["fig10.png"]}, None) == [("fig10", "")]
 
 
 # ------------------------------------------------------------------------------------------------
@@ -205,12 +230,14 @@ def test_leaderboard_one_row_per_entry_scene_set_and_protocol(tmp_path):
     missing, misnamed = sorted(board["problems"])
     assert missing.startswith("const: ") and names[0] in missing
     assert misnamed.startswith("exact: ") and "teapot_f8_small.npy: unknown name" in misnamed
-    md = build_markdown({}, [], figures_rel="f", bench=None, leaderboard=board)
+    from experiments.results_query import Results
+
+    md = build_markdown({}, Results([]), {}, figures_rel="f", bench=None, leaderboard=board)
     assert "## Leaderboard" in md and "| all | exact | external | 2 | 0.000 |" in md
     assert md.count("**rtf: ") == 1 and "threshold 1 px" in md
-    html = build_html({}, [], figures_rel="f", bench=None, leaderboard=board)
+    html = build_html({}, Results([]), {}, figures_rel="f", bench=None, leaderboard=board)
     assert html.count("<table class='leaderboard'>") == 4
-    assert "Leaderboard" not in build_markdown({}, [], figures_rel="f", bench=None)
+    assert "Leaderboard" not in build_markdown({}, Results([]), {}, figures_rel="f", bench=None)
 
 
 def test_report_cli_external_writes_the_leaderboard(tmp_path, capsys):
@@ -218,10 +245,7 @@ def test_report_cli_external_writes_the_leaderboard(tmp_path, capsys):
     from repro.report import main
 
     data, exact, const, _, names = _leaderboard_case(tmp_path)
-    figs = tmp_path / "figures"
-    figs.mkdir()
-    (figs / "fig10.metrics.json").write_text(json.dumps(
-        {"title": "CoC vs distance", "mode": "quick", "metrics": {"max_rel_err": 0.001, "n_points": 3}}))
+    figs = _figures(tmp_path / "figures", fig10(0.001), {"fig10": {"title": "CoC vs distance", "mode": "quick"}})
     out = tmp_path / "rep"
     status = run_cli(main, ["--figures", str(figs), "--out", str(out), "--readme", str(tmp_path / "none.md"),
                             "--external", f"exact={exact}", "--external", f"const={const}", "--dataset", str(data)],
@@ -244,9 +268,7 @@ def test_report_cli_bad_external_one_line(tmp_path, capsys, argv, fragment):
     from repro.report import main
 
     data, exact, *_ = _leaderboard_case(tmp_path)
-    figs = tmp_path / "figures"
-    figs.mkdir()
-    (figs / "fig10.metrics.json").write_text(json.dumps({"title": "t", "metrics": {"max_rel_err": 0.001}}))
+    figs = _figures(tmp_path / "figures", fig10(0.001), {"fig10": {"title": "t"}})
     argv = [str(exact) if a == "MAPS" else str(data) if a == "DATA" else a for a in argv]
     argv = [a.replace("MAPS", str(exact)) for a in argv]
     status = run_cli(main, ["--figures", str(figs), "--out", str(tmp_path / "rep"), *argv], prog="repro.report")

@@ -119,10 +119,13 @@ def test_report_opens_in_chromium_with_every_image_and_the_claims_table(committe
 
 def test_browser_check_sees_a_missing_image(tmp_path):
     """The check can fail: a figure whose PNG is missing is reported as a broken image."""
+    from experiments.results_table import write_results
+    from tests.claims_tables import fig10
+
     figs = tmp_path / "src"
     figs.mkdir()
-    (figs / "fig10.metrics.json").write_text(json.dumps(
-        {"title": "CoC vs distance", "mode": "quick", "metrics": {"max_rel_err": 0.001, "n_points": 3}}))
+    write_results(figs, fig10(0.001), {})
+    (figs / "fig10.metrics.json").write_text(json.dumps({"title": "CoC vs distance", "mode": "quick"}))
     page = _make_report(figs, tmp_path / "report")
     result = browser_check(page, tmp_path / "profile")
     assert result["broken"] == ["figures/fig10.png"]
@@ -135,8 +138,9 @@ def test_verdict_marks_are_text_or_svg_never_emoji(committed_report):
         found = _EMOJI.findall(path.read_text(encoding="utf-8"))
         assert not found, f"{path.name} has emoji {sorted(set(found))}"
     from experiments.claims import claim_matrix
-    from repro.report import claims_block, load_metrics
+    from repro.report import claims_block, load_figures
 
-    block = claims_block(claim_matrix(load_metrics(ROOT / "report" / "figures")), report_link="report/README.md")
+    _, table = load_figures(ROOT / "report" / "figures")
+    block = claims_block(claim_matrix(table), report_link="report/README.md")
     assert not _EMOJI.findall(block) and "`+` reproduced" in block
     assert "<svg class='mark'" in page.read_text(encoding="utf-8")

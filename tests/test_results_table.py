@@ -43,6 +43,48 @@ def test_units_of_the_metric_families():
     assert metric_unit("dense_textured_mae") == "px (σ)" and metric_unit("sparse_n") == "pixels"
     assert metric_unit("sparse_outlier_fraction") == "fraction of pixels" and metric_unit("rtf_nmae") == "dimensionless"
     assert metric_unit("gt_depth_max_m") == "m" and metric_unit("n_edges") == "pixels"
+    # a figure's metric paths: the unit of the last part
+    assert metric_unit("image_vs_large/magnified_estimated/psnr_in_focus_db") == "dB"
+    assert metric_unit("image_vs_large/unchanged_small/ssim") == "dimensionless"
+    assert metric_unit("energy_terms/alpha=0.5/data_term") == "px²"
+    assert metric_unit("alpha=0.5/textured_mae") == "px (σ)" and metric_unit("line_spread/n") == "pixels"
+    assert metric_unit("k_x_map_small_vs_map_large/median_rel_error") == "relative"
+    rows = metric_rows({"evaluation_id": "e", "source": "figures"}, {"a/model_fit_better": True, "b/n": 3})
+    assert [(r["value"], r["unit"]) for r in rows] == [(1.0, "flag"), (3.0, "pixels")]
+
+
+def test_a_table_of_the_first_schema_is_read_with_the_new_columns_empty(tmp_path):
+    import csv
+
+    old = [c for c in column_names() if c not in ("figure", "scene_set", "variant")]
+    with open(tmp_path / "results.csv", "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=old)
+        w.writeheader()
+        w.writerow({"evaluation_id": "e", "source": "procedural", "scene": "procedural_1", "seed": 1, "split": "dev",
+                    "scene_size": "small", "aperture": 2.0, "metric": "sparse_mae", "value": 0.5, "unit": "px (σ)"})
+    (row,) = read_results_csv(tmp_path / "results.csv")
+    assert list(row) == list(column_names()) and row["figure"] is None and row["variant"] is None
+    assert row["seed"] == 1 and row["value"] == 0.5
+    with open(tmp_path / "other.csv", "w") as fh:
+        fh.write("a,b\n1,2\n")
+    with pytest.raises(ValueError, match="not a results table"):
+        read_results_csv(tmp_path / "other.csv")
+
+
+def test_results_query_selects_groups_and_names_a_missing_value():
+    from experiments.results_query import MissingData, Results
+
+    t = Results(_rows("dev", [0.5, 1.5], eid="e1", apertures=(2.0, 4.0)))
+    assert t.where(scene="procedural_1", aperture=4.0).value("dense_textured_mae") == 0.75
+    assert t.where(aperture=(2.0, 4.0)).distinct("scene") == ["procedural_0", "procedural_1"]
+    assert list(t.group("scene", "aperture"))[:2] == [("procedural_0", 2.0), ("procedural_0", 4.0)]
+    assert t.where(scene="procedural_0", aperture=2.0).metrics() == {"dense_textured_mae": 0.5, "sparse_n": 120.0,
+                                                                     "rtf_nmae": None}
+    with pytest.raises(MissingData, match="no metric nope"):
+        t.value("nope")
+    with pytest.raises(ValueError, match="4 rows of sparse_n"):
+        t.value("sparse_n")  # the query names no single value: a harness failure, not missing data
+    assert t.get("nope", 7) == 7 and len(t.where(preset="robust")) == 0
 
 
 def test_parquet_and_csv_round_trip_the_same_typed_rows(tmp_path):
@@ -50,7 +92,7 @@ def test_parquet_and_csv_round_trip_the_same_typed_rows(tmp_path):
     paths = write_results(tmp_path, rows, {"plan": {"split": "dev"}})
     back, meta = read_results(paths[0])
     assert back == read_results_csv(paths[1])
-    assert len(back) == len(rows) and meta["plan"] == {"split": "dev"} and meta["schema_version"] == 1
+    assert len(back) == len(rows) and meta["plan"] == {"split": "dev"} and meta["schema_version"] == 2
     assert [r["value"] for r in back if r["metric"] == "dense_textured_mae"] == [0.5, None, 1.25]  # NaN -> empty
     assert back[0]["seed"] == 0 and back[0]["aperture"] == 2.0 and back[0]["unit"] == "px (σ)"
     assert not list(tmp_path.glob("*.tmp*"))
@@ -120,7 +162,9 @@ def _evaluation(root, eid, split, values, finished):
 
 def test_report_shows_the_newest_dev_and_test_side_by_side(tmp_path):
     from repro._cli import run_cli
-    from repro.report import GENERALISATION_HEADING, main
+    from repro._report_text import GENERALISATION_HEADING
+    from repro.report import main
+    from tests.claims_tables import fig10
 
     ev = tmp_path / "ev"
     _evaluation(ev, "dev-old", "dev", [9.0, 9.0], "2026-12-01T00:00:00+00:00")
@@ -129,9 +173,8 @@ def test_report_shows_the_newest_dev_and_test_side_by_side(tmp_path):
     (ev / "unfinished").mkdir()
     (ev / "unfinished" / "run.json").write_text("{}")
     figs = tmp_path / "figures"
-    figs.mkdir()
-    (figs / "fig10.metrics.json").write_text(json.dumps(
-        {"title": "CoC vs distance", "mode": "quick", "metrics": {"max_rel_err": 0.001, "n_points": 3}}))
+    write_results(figs, fig10(0.001), {})
+    (figs / "fig10.metrics.json").write_text(json.dumps({"title": "CoC vs distance", "mode": "quick"}))
     out = tmp_path / "rep"
     assert run_cli(main, ["--figures", str(figs), "--out", str(out), "--evaluations", str(ev)]) == 0
     md = (out / "README.md").read_text()

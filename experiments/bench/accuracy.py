@@ -10,6 +10,8 @@ renders, σ_gt in the line-spread convention) and the presets' whole-pipeline sp
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import math
 import os
 import statistics
@@ -21,8 +23,8 @@ from .mosaics import ANALYTIC_DATASETS, STEP_BASE_ANGLE, STEP_SEAM_BAND_PX, anal
 from .speed import machine_info, bench_image
 from .targets import judge_accuracy, targets
 
-__all__ = ["ACCURACY_CONFIG", "accuracy_report", "json_safe", "measure_accuracy", "pool", "preset_seeds",
-           "seeds_text"]
+__all__ = ["ACCURACY_CONFIG", "UNIT", "AccuracyCases", "accuracy_report", "json_safe", "measure_accuracy", "pool",
+           "preset_seeds", "seeds_text"]
 
 #: What ``--accuracy`` measures (see :func:`measure_accuracy`); tests pass a smaller dict.
 ACCURACY_CONFIG = {
@@ -106,20 +108,15 @@ def _analytic_run(dataset, noise, seed, preset, case, bins) -> dict:
             "n_edges": err["n_edges"], "seconds": time.perf_counter() - t}
 
 
-def _measure_analytic(config: dict, bar) -> dict:
-    runs = []
-    for dataset in config["datasets"]:
-        for noise in config["noise_stds"]:
-            for seed in config["seeds"]:
-                presets = [p for p in config["presets"] if seed in preset_seeds(config, p)]
-                if not presets:
-                    continue
-                case = analytic_case(dataset, config, float(noise), int(seed))
-                bins = sigma_bins(case["gt"])
-                for preset in presets:
-                    bar.set_postfix_str(f"{dataset} {noise_label(noise)} seed {seed} {preset}")
-                    runs.append(_analytic_run(dataset, noise, seed, preset, case, bins))
-                    bar.update(1)
+def _analytic_runs(config: dict, dataset, noise, seed) -> list[dict]:
+    """Every preset (that runs on ``seed``) on one analytic image."""
+    presets = [p for p in config["presets"] if seed in preset_seeds(config, p)]
+    case = analytic_case(dataset, config, float(noise), int(seed))
+    bins = sigma_bins(case["gt"])
+    return [_analytic_run(dataset, noise, seed, preset, case, bins) for preset in presets]
+
+
+def _pool_analytic(config: dict, runs: list[dict]) -> dict:
     pooled = []
     for dataset in config["datasets"]:
         for noise in config["noise_stds"]:
@@ -135,33 +132,76 @@ def _measure_analytic(config: dict, bar) -> dict:
     return {"runs": runs, "pooled": pooled}
 
 
-def _measure_rendered(config: dict, bar) -> dict:
+def _rendered_case(config: dict, scene_set: str, scene: str, f_number: float) -> dict:
+    """Every preset and every estimator (paper pipeline) on one render, through ``stage_errors``."""
     from experiments.evaluation import ground_truth_sigma, input_image
     from experiments.stage_attribution import stage_errors
     from method import DefocusParams
     from scenes import render_scene
 
-    cases = []
-    for scene_set, scene in ((k, v) for k, scenes in config["scene_sets"].items() for v in scenes):
-        for f_number in config["f_numbers"]:
-            render = render_scene(scene, preset=config["render_preset"], f_number=float(f_number), progress=False)
-            image, gt = input_image(render), ground_truth_sigma(render)
-            valid = ~render.occlusion_boundary
-            runs = [("presets", p, DefocusParams.preset(p)) for p in config["presets"]]
-            runs += [("estimators", e, DefocusParams().replace(estimator=e)) for e in config["estimators"]]
-            case = {"scene_set": scene_set, "scene": scene, "f_number": float(f_number),
-                    "shape": list(image.shape[:2]), "presets": {}, "estimators": {}}
-            for kind, name, params in runs:
-                bar.set_postfix_str(f"{scene} f/{f_number:g} {name}")
-                t = time.perf_counter()
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    est = stage_errors(image, gt, params=params, valid=valid)["estimated"]
-                case[kind][name] = {"dense_textured": _slim(est["dense_textured"]), "sparse": _slim(est["sparse"]),
-                                    "seconds": time.perf_counter() - t}
-                bar.update(1)
-            cases.append(case)
-    return {"cases": cases}
+    render = render_scene(scene, preset=config["render_preset"], f_number=float(f_number), progress=False)
+    image, gt = input_image(render), ground_truth_sigma(render)
+    valid = ~render.occlusion_boundary
+    runs = [("presets", p, DefocusParams.preset(p)) for p in config["presets"]]
+    runs += [("estimators", e, DefocusParams().replace(estimator=e)) for e in config["estimators"]]
+    case = {"scene_set": scene_set, "scene": scene, "f_number": float(f_number),
+            "shape": list(image.shape[:2]), "presets": {}, "estimators": {}}
+    for kind, name, params in runs:
+        t = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            est = stage_errors(image, gt, params=params, valid=valid)["estimated"]
+        case[kind][name] = {"dense_textured": _slim(est["dense_textured"]), "sparse": _slim(est["sparse"]),
+                            "seconds": time.perf_counter() - t}
+    return case
+
+
+@dataclasses.dataclass(frozen=True)
+class AccuracyCases:
+    """The measured part of a config as the runner's frozen config: the config dict as sorted JSON."""
+
+    config_json: str
+
+    @classmethod
+    def of(cls, config: dict) -> "AccuracyCases":
+        """The config's analytic and rendered part (``lens`` and the speed runs are measured apart)."""
+        keep = {k: v for k, v in config.items() if k not in ("lens",)}
+        return cls(json.dumps(json_safe(keep), sort_keys=True))
+
+    def config(self) -> dict:
+        """The config dict back."""
+        return json.loads(self.config_json)
+
+
+def _cases(cfg: AccuracyCases) -> tuple:
+    from experiments.cases import Case
+
+    config = cfg.config()
+    out = [Case("accuracy", scene=d, variant=f"noise={float(n)!r}/seed={int(s)}")
+           for d in config["datasets"] for n in config["noise_stds"] for s in config["seeds"]
+           if any(s in preset_seeds(config, p) for p in config["presets"])]
+    out += [Case("accuracy", scene_set=k, scene=v, aperture=float(n), scene_size=config["render_preset"])
+            for k, scenes in config["scene_sets"].items() for v in scenes for n in config["f_numbers"]]
+    return tuple(out)
+
+
+def _case(cfg: AccuracyCases, case, inputs) -> dict:
+    config = cfg.config()
+    if case.scene_set is None:
+        noise, seed = (part.split("=", 1)[1] for part in case.variant.split("/"))
+        return {"info": {"runs": _analytic_runs(config, case.scene, float(noise), int(seed))}}
+    return {"info": {"case": _rendered_case(config, case.scene_set, case.scene, case.aperture)}}
+
+
+def _run_here(unit, cfg, *, progress: bool) -> dict:
+    """The unit's cases one after another in this process (the default of :func:`measure_accuracy`)."""
+    from tqdm import tqdm
+
+    from experiments.cases import run_cases
+
+    cases = unit.cases(cfg)
+    with tqdm(total=len(cases), desc="accuracy", unit="case", disable=not progress) as bar:
+        return run_cases(unit, cfg, cases, progress=lambda c: bar.update(1))
 
 
 def _measure_speed(config: dict, bar) -> dict:
@@ -190,7 +230,7 @@ def _measure_speed(config: dict, bar) -> dict:
     return {"rows": rows}
 
 
-def measure_accuracy(config: dict, *, progress: bool = True) -> dict:
+def measure_accuracy(config: dict, *, progress: bool = True, run_cases=None) -> dict:
     """Run every measurement of ``config``; no verdicts, no files.
 
     Parameters
@@ -200,6 +240,9 @@ def measure_accuracy(config: dict, *, progress: bool = True) -> dict:
         ``speed_single`` skip that part.
     progress : bool, keyword-only
         tqdm progress bars.
+    run_cases : callable, optional, keyword-only
+        ``run_cases(unit, config) -> {Case: CaseOutput}``: how the analytic and rendered cases run
+        (``repro.bench`` passes the case runner, :mod:`repro._runner`); default one after another here.
 
     Returns
     -------
@@ -211,25 +254,27 @@ def measure_accuracy(config: dict, *, progress: bool = True) -> dict:
 
     Notes
     -----
-    1. Analytic truth, per dataset x noise x seed: the image (:func:`experiments.bench.mosaics.analytic_case`),
-       bins with one tile σ_gt each, then :func:`experiments.stage_attribution.stage_errors` for every preset.
-    2. Rendered scenes: cached renders, σ_gt in the line-spread convention, occlusion boundaries
-       excluded; every preset and every estimator (paper pipeline) through ``stage_errors``.
-    3. Speed: :func:`experiments.bench.speed.bench_image` at each size, median wall time, load averages around it.
+    1. Analytic truth, per dataset x noise x seed (one case): the image
+       (:func:`experiments.bench.mosaics.analytic_case`), bins with one tile σ_gt each, then
+       :func:`experiments.stage_attribution.stage_errors` for every preset.
+    2. Rendered scenes, per scene set x scene x f-number (one case): cached renders, σ_gt in the
+       line-spread convention, occlusion boundaries excluded; every preset and every estimator (paper
+       pipeline) through ``stage_errors``.
+    3. Speed, after every case is done (nothing else running): :func:`experiments.bench.speed.bench_image`
+       at each size, median wall time, load averages around it.
     4. Lens blur: :func:`experiments.bench.lens.measure_lens` on ``config["lens"]``.
     """
     from tqdm import tqdm
 
-    n_analytic = len(config["datasets"]) * len(config["noise_stds"]) * sum(
-        len(set(preset_seeds(config, p)) & set(config["seeds"])) for p in config["presets"])
-    n_render = sum(len(v) for v in config["scene_sets"].values()) * len(config["f_numbers"]) * (len(config["presets"]) + len(config["estimators"]))
+    cfg = AccuracyCases.of(config)
+    outputs = (run_cases or (lambda u, c: _run_here(u, c, progress=progress)))(UNIT, cfg)
+    by_case = {c: o for c, o in outputs.items()}
+    cases = UNIT.cases(cfg)
+    runs = [r for c in cases if c.scene_set is None for r in by_case[c].info["runs"]]
+    out = {"analytic": _pool_analytic(config, runs),
+           "rendered": {"cases": [by_case[c].info["case"] for c in cases if c.scene_set is not None]}}
     n_speed = (len(config["speed_presets"]) * len(config["speed_sizes"]) * config["speed_repeat"]
                + sum(len(s) for s in config["speed_single"].values()))
-    out = {}
-    with tqdm(total=n_analytic, desc="accuracy: analytic", unit="run", disable=not progress or not n_analytic) as bar:
-        out["analytic"] = _measure_analytic(config, bar) if n_analytic else {"runs": [], "pooled": []}
-    with tqdm(total=n_render, desc="accuracy: renders", unit="run", disable=not progress or not n_render) as bar:
-        out["rendered"] = _measure_rendered(config, bar) if n_render else {"cases": []}
     with tqdm(total=n_speed, desc="accuracy: speed", unit="run", disable=not progress or not n_speed) as bar:
         out["speed"] = _measure_speed(config, bar) if n_speed else {"rows": []}
     out["lens"] = measure_lens(config["lens"], progress=progress) if config.get("lens") else []
@@ -278,7 +323,7 @@ def _notes(cfg: dict, load0) -> list[str]:
              f"at end: {' / '.join(f'{x:.2f}' for x in os.getloadavg())}."]
 
 
-def accuracy_report(config: dict | None = None, *, progress: bool = True) -> dict:
+def accuracy_report(config: dict | None = None, *, progress: bool = True, run_cases=None) -> dict:
     """Measure and judge: the record written to ``accuracy.json`` (strict JSON: no inf/NaN, no tuples).
 
     Parameters
@@ -287,6 +332,8 @@ def accuracy_report(config: dict | None = None, *, progress: bool = True) -> dic
         Keys as :data:`ACCURACY_CONFIG` (the default).
     progress : bool, keyword-only
         tqdm progress bars.
+    run_cases : callable, optional, keyword-only
+        How the cases run (:func:`measure_accuracy`).
 
     Returns
     -------
@@ -311,9 +358,19 @@ def accuracy_report(config: dict | None = None, *, progress: bool = True) -> dic
         ANALYTIC_DATASETS.check_all(cfg["datasets"])
     t0 = time.perf_counter()
     load0 = os.getloadavg()
-    measured = measure_accuracy(cfg, progress=progress)
+    measured = measure_accuracy(cfg, progress=progress, run_cases=run_cases)
     report = {"config": cfg, **measured, "verdict": judge_accuracy(measured), "targets": targets(),
               "lens_verdict": judge_lens(measured["lens"]) if measured["lens"] else None,
               "notes": _notes(cfg, load0), "machine": machine_info(),
               "date": time.strftime("%Y-%m-%d %H:%M:%S"), "runtime_s": time.perf_counter() - t0}
     return json_safe(report)
+
+
+def _unit():
+    from experiments.units import CaseUnit
+
+    return CaseUnit("accuracy", _cases, _case)
+
+
+#: The analytic and rendered measurements as a case unit of the case runner (:mod:`experiments.units`).
+UNIT = _unit()

@@ -8,8 +8,19 @@ from .style import COLORS, new_figure, save_figure
 
 
 def plot(data, config, out_stem):
-    """Draw Fig. 10 from :func:`experiments.fig10_coc_vs_distance.compute`'s dict; returns the paths."""
-    fig, (ax, ax_err) = new_figure(1, 2, width_in=8.0, height_in=3.4, width_ratios=(2, 1))
+    """Draw Fig. 10 from the figure's cases; returns the paths.
+
+    Left: Eq. (5) curves and the points measured with the paper's camera; middle: their relative error;
+    right (when computed): the relative error of the points measured with each held-out procedural scene's
+    camera at its own depths, against the CoC on the film."""
+    paper = data.one(variant="paper")
+    procedural = [o for o in data.outputs.values() if o.case.scene_set is not None]
+    data = {**paper.arrays(), "metrics": paper.info}
+    fig, axes = new_figure(1, 3 if procedural else 2, width_in=11.0 if procedural else 8.0, height_in=3.4,
+                           width_ratios=(2, 1, 1) if procedural else (2, 1))
+    ax, ax_err = axes[0], axes[1]
+    if procedural:
+        _procedural_panel(axes[2], procedural)
     for k, n in enumerate(data["f_numbers"]):
         col = COLORS[k % len(COLORS)]
         ax.plot(data["curve_s_cm"], data["curve_c_cm"][k], color=col, lw=1.4, label=f"Eq. (5), N = {n:g}")
@@ -33,3 +44,20 @@ def plot(data, config, out_stem):
     ax_err.set_ylim(-lim, lim)
     ax_err.legend()
     return save_figure(fig, out_stem)
+
+
+def _procedural_panel(ax, outputs):
+    """Relative error vs Eq. (5) of every procedural scene's points, against the CoC on the film (px)."""
+    worst = 0.0
+    for i, o in enumerate(outputs):
+        a = o.arrays()
+        ax.plot(a["coc_eq5_px"], 100.0 * a["rel_err"], "o", ms=4, color=COLORS[i % len(COLORS)], label=o.case.scene)
+        worst = max(worst, float(np.nanmax(np.abs(a["rel_err"]))))
+    ax.axhline(0, color="0.5", lw=0.8)
+    ax.set_xscale("log")
+    ax.set_xlabel("Eq. (5) CoC on the film (px)")
+    ax.set_ylabel("measured / Eq. (5) − 1 (%)")
+    ax.set_title(f"held-out scenes' cameras and depths\nmax |error| {100 * worst:.2f} %")
+    lim = max(1.0, 1.2 * 100 * worst)
+    ax.set_ylim(-lim, lim)
+    ax.legend(fontsize=6)

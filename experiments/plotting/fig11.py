@@ -9,13 +9,39 @@ from .style import _RC, add_colorbar, plt, plot_scene_sets, save_figure
 
 
 def plot(data, config, out_stem):
-    """Draw the figure for the default scene set (``out_stem``) and each further set
+    """Draw the figure for the default scene set (``out_stem``, with the photos) and each further set
     (``<out_stem>_<set>``), captioned with the set (:func:`.style.plot_scene_sets`)."""
-    return plot_scene_sets(plot_one_set, data, config, out_stem)
+    first = config.scene_sets[0][0]
+    return plot_scene_sets(lambda fd, name, stem: plot_one_set(_set_view(fd, name, photos=name == first), config,
+                                                               stem), data, config, out_stem)
+
+
+def _set_view(fd, set_name, *, photos: bool) -> dict:
+    """Arrays ``<item>[__<P>]__<key>`` and metrics ``items`` / ``presets.<P>.items`` of one scene set's
+    renders (and of the photos), ``item`` = ``scene:<name>`` / ``photo:<name>``."""
+    outs = [("scene", o) for o in fd.find(scene_set=set_name)]
+    if photos:
+        outs += [("photo", o) for o in fd.find(variant="photo")]
+    view, items = {}, []
+    metrics = {"items": {}, "presets": {}, "factor": fd.config.factor}
+    for kind, o in outs:
+        item, p = f"{kind}:{o.case.scene}", o.case.preset
+        if item not in items:
+            items.append(item)
+        tag = "" if p == "paper" else f"__{p}"
+        for k, v in o.arrays().items():
+            view[f"{item}{tag if k in ('map', 'magnified', 'sparse') else ''}__{k}"] = v
+        m = {**o.nested(), **o.info}
+        if p == "paper":
+            metrics["items"][item] = m
+        else:
+            metrics["presets"].setdefault(p, {"items": {}})["items"][item] = m
+    view.update(items=np.asarray(items), metrics=metrics)
+    return view
 
 
 def plot_one_set(data, config, out_stem):
-    """Draw Fig. 11 from :func:`experiments.fig11_gallery.compute`'s dict; returns the paths.
+    """Draw Fig. 11 for one scene set from :func:`_set_view`'s dict; returns the paths.
 
     Columns: input; then for every method preset of ``config.presets`` (first ``paper``, the
     reproduction; e.g. ``robust`` beside it) its estimated defocus map (colour bar "σ (px)", one

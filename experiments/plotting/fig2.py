@@ -23,7 +23,8 @@ def _display(rgb):
 
 
 def plot(data, config, out_stem):
-    """Draw Fig. 2 from :func:`experiments.fig2_sensor_size.compute`'s dict; returns the paths."""
+    """Draw Fig. 2 from its one case (:func:`experiments.fig2_sensor_size.compute`'s dict); returns the paths."""
+    data = data.single()
     m = data["metrics"]
     fig, axes = new_figure(2, 3, width_in=10.0, height_in=5.6)
     (a_rl, a_rs, a_ratio), (a_cl, a_cs, a_fit) = axes

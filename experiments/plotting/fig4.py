@@ -31,13 +31,38 @@ def _log_ticks(ax, values):
 
 
 def plot(data, config, out_stem):
-    """Draw the figure for the default scene set (``out_stem``) and each further set
+    """Draw the figure for the default scene set (``out_stem``) and each further set with rendered scenes
     (``<out_stem>_<set>``), captioned with the set (:func:`.style.plot_scene_sets`); the paper preset."""
-    return plot_scene_sets(plot_one_set, data, config, out_stem)
+    rendered = set(data.values("scene_set", variant="pooled"))
+    sets = type("Sets", (), {"scene_sets": [(s, n) for s, n in config.scene_sets if s in rendered]})
+    return plot_scene_sets(lambda fd, name, stem: plot_one_set(*_set_view(fd, name), stem), data, sets, out_stem)
+
+
+def _set_view(fd, set_name, preset="paper"):
+    """(arrays, config) of one scene set: the showcase render's maps, the pooled curves, the analytic arrays."""
+    import dataclasses
+    import types
+
+    config = fd.config
+    showcase = dict(config.showcase).get(set_name)
+    view = dict(fd.one(scene_set=set_name, preset=preset, variant="pooled").arrays())
+    shown = fd.one(scene_set=set_name, scene=showcase, preset=preset, aperture=float(config.showcase_f_number),
+                   variant="rendered").arrays()
+    view.update({k: v for k, v in shown.items() if k.startswith("showcase_")})
+    for fam in ("straight", "curved"):
+        a = fd.one(scene_set=None, preset=preset, variant=f"analytic:{fam}").arrays()
+        view["analytic_sigmas"] = a["sigmas"]
+        view[f"analytic_{fam}_median_ae"] = a["median_ae"]
+        view[f"analytic_{fam}_failure_rate"] = a["failure_rate"]
+    view.update({k: v for k, v in fd.one(scene_set=None, preset=preset, variant="analytic:neighbouring").arrays().items()
+                 if k != "estimators"})
+    cfg = types.SimpleNamespace(**{f.name: getattr(config, f.name) for f in dataclasses.fields(config)},
+                                showcase_scene=showcase)
+    return view, cfg
 
 
 def plot_one_set(data, config, out_stem):
-    """Draw Fig. 4 for one scene set from :func:`experiments.fig4_estimators.compute`'s dict; returns the paths."""
+    """Draw Fig. 4 for one scene set from :func:`_set_view`'s arrays and config; returns the paths."""
     ests = [str(e) for e in data["estimators"]]
     encs = [str(e) for e in data["encodings"]]
     convs = [str(c) for c in data["conventions"]]

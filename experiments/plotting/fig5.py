@@ -65,11 +65,43 @@ def _sweep_panels(fig, axes_row, data, cases, config):
 def plot(data, config, out_stem):
     """Draw the figure for the default scene set (``out_stem``) and each further set
     (``<out_stem>_<set>``), captioned with the set (:func:`.style.plot_scene_sets`)."""
-    return plot_scene_sets(plot_one_set, data, config, out_stem)
+    return plot_scene_sets(lambda fd, name, stem: plot_one_set(_set_view(fd, name), config, stem), data, config,
+                           out_stem)
+
+
+def _set_view(fd, set_name) -> dict:
+    """The arrays and metrics of one scene set's cases: per case ``<scene>_f<N>`` its stage arrays and
+    metrics; the sweep curves ``sweep_<name>`` (cases × scales) and ``bias_scales``."""
+    from experiments.fig5_cross_bilateral import SWEEP_CURVES, scale_label
+
+    view, metrics, cases = {}, {}, []
+    scales = [float(s) for s in fd.config.bias_scales]
+    curves = {name: [] for name in SWEEP_CURVES}
+    for out in fd.find(scene_set=set_name, variant="stages"):
+        c = out.case
+        label = f"{c.scene}_f{c.aperture:g}"
+        cases.append(label)
+        a = out.arrays()
+        for k in ("image", "sigma_gt", "occlusion", "before", "after_bias", "after_no_bias"):
+            view[f"{label}_{k}"] = a[k]
+        metrics[label] = out.nested()
+        per_scale = {o.case.variant: o.nested() for o in fd.find(scene_set=set_name, scene=c.scene,
+                                                                aperture=c.aperture) if o.case.variant != "stages"}
+        for name, path in SWEEP_CURVES.items():
+            row = []
+            for sc in scales:
+                v = per_scale[scale_label(sc)]
+                for k in path:
+                    v = v[k]
+                row.append(np.nan if v is None else v)
+            curves[name].append(row)
+    view.update({f"sweep_{k}": np.asarray(v, dtype=np.float64) for k, v in curves.items()})
+    view.update(cases=np.asarray(cases), bias_scales=np.asarray(scales, dtype=np.float64), metrics=metrics)
+    return view
 
 
 def plot_one_set(data, config, out_stem):
-    """Draw Fig. 5 from :func:`experiments.fig5_cross_bilateral.compute`'s dict; returns the paths."""
+    """Draw Fig. 5 for one scene set from :func:`_set_view`'s dict; returns the paths."""
     cases = [str(c) for c in data["cases"]]
     m = data["metrics"]
     stages = list(_TITLES)

@@ -4,17 +4,48 @@ from __future__ import annotations
 
 import numpy as np
 
-from .style import _RC, COLORS, add_colorbar, plt, plot_scene_sets, save_figure
+from .style import _RC, COLORS, add_colorbar, plt, plot_scene_sets, save_figure, set_scenes
 
 
 def plot(data, config, out_stem):
     """Draw the figure for the default scene set (``out_stem``) and each further set
     (``<out_stem>_<set>``), captioned with the set (:func:`.style.plot_scene_sets`)."""
-    return plot_scene_sets(plot_one_set, data, config, out_stem)
+    return plot_scene_sets(lambda fd, name, stem: plot_one_set(*_set_view(fd, name), stem), data, config, out_stem)
+
+
+def _set_view(fd, set_name):
+    """(arrays and metrics, config) of one scene set: the paper preset's first scene in the plotted
+    encoding, every other preset's maps there, per-scene metrics and their means over the set's scenes."""
+    import dataclasses
+    import types
+
+    from experiments.fig6_alpha_sweep import alpha_summary
+
+    config = fd.config
+    scenes = [s for s in set_scenes(config, set_name) if fd.find(scene_set=set_name, scene=s)]
+    cfg = types.SimpleNamespace(**{f.name: getattr(config, f.name) for f in dataclasses.fields(config)},
+                                scenes=tuple(scenes))
+    enc, first = config.plot_encoding, scenes[0]
+    per = {p: {s: {e: fd.one(scene_set=set_name, scene=s, preset=p, encoding=e).nested() for e in config.encodings}
+               for s in scenes} for p in config.presets if fd.find(scene_set=set_name, preset=p)}
+    shown = fd.one(scene_set=set_name, scene=first, preset="paper", encoding=enc).arrays()
+    view = {"alphas": np.asarray(config.alphas, dtype=np.float64), "image": shown["image"],
+            "sigma_gt": shown["sigma_gt"], "occlusion": shown["occlusion"], "edges": shown["edges"],
+            "maps": shown["maps"]}
+    metrics = {"scenes": per["paper"], "presets": {},
+               "summary": alpha_summary(per["paper"], config.encodings, config.alphas,
+                                        from_sparse=config.ablation_from_sparse)}
+    for p in [p for p in per if p != "paper"]:
+        a = fd.one(scene_set=set_name, scene=first, preset=p, encoding=enc).arrays()
+        view[f"preset_{p}__maps"], view[f"preset_{p}__refined"] = a["maps"], a["refined"]
+        metrics["presets"][p] = {"scenes": per[p], "alpha_applies": bool(per[p][first][enc]["alpha_applies"]),
+                                 "summary": alpha_summary(per[p], config.encodings, config.alphas, from_sparse=False)}
+    view["metrics"] = metrics
+    return view, cfg
 
 
 def plot_one_set(data, config, out_stem):
-    """Draw Fig. 6 from :func:`experiments.fig6_alpha_sweep.compute`'s dict; returns the paths.
+    """Draw Fig. 6 for one scene set from :func:`_set_view`'s dict and config; returns the paths.
 
     Top: one row per method preset of ``config.presets`` (first ``paper``, the reproduction):
     input and σ_gt (occlusion bands grey) in the paper's row, the preset's name and its Eq. (3)

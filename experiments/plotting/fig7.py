@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .style import _RC, COLORS, add_colorbar, plt, plot_scene_sets, save_figure
+from .style import _RC, COLORS, add_colorbar, plt, plot_scene_sets, save_figure, set_scenes
 
 _MAP_LABELS = {
     "map_small": "f/8 map",
@@ -62,11 +62,46 @@ def _categories(labels, preset_keys, presets, present=None):
 def plot(data, config, out_stem):
     """Draw the figure for the default scene set (``out_stem``) and each further set
     (``<out_stem>_<set>``), captioned with the set (:func:`.style.plot_scene_sets`)."""
-    return plot_scene_sets(plot_one_set, data, config, out_stem)
+    return plot_scene_sets(lambda fd, name, stem: plot_one_set(*_set_view(fd, name), stem), data, config, out_stem)
+
+
+def _merge(a: dict, b: dict) -> dict:
+    """Nested dicts merged (``b`` adds to and overrides ``a``)."""
+    out = dict(a)
+    for k, v in b.items():
+        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+    return out
+
+
+def _set_view(fd, set_name):
+    """(arrays and metrics, config) of one scene set: per scene its stage case (renders, oracle rows)
+    merged with each preset's case (``<scene>__<key>`` for the paper, ``<scene>__<P>__<key>`` else)."""
+    import dataclasses
+    import types
+
+    config = fd.config
+    scenes = [s for s in set_scenes(config, set_name) if fd.find(scene_set=set_name, scene=s)]
+    cfg = types.SimpleNamespace(**{f.name: getattr(config, f.name) for f in dataclasses.fields(config)},
+                                scenes=tuple(scenes), factor=config.factor)
+    view, metrics = {}, {"scenes": {}, "presets": {}, "renderers": list(config.renderers)}
+    for scene in scenes:
+        stage = fd.one(scene_set=set_name, scene=scene, variant="stage")
+        view.update({f"{scene}__{k}": v for k, v in stage.arrays().items()})
+        for p in config.presets:
+            out = fd.one(scene_set=set_name, scene=scene, preset=p)
+            tag = "" if p == "paper" else f"{p}__"
+            view.update({f"{scene}__{tag}{k}": v for k, v in out.arrays().items()})
+            merged = _merge(stage.nested(), out.nested())
+            if p == "paper":
+                metrics["scenes"][scene] = merged
+            else:
+                metrics["presets"].setdefault(p, {"scenes": {}})["scenes"][scene] = merged
+    view["metrics"] = metrics
+    return view, cfg
 
 
 def plot_one_set(data, config, out_stem):
-    """Draw Fig. 7 from :func:`experiments.fig7_doubled_defocus.compute`'s dict; returns the paths.
+    """Draw Fig. 7 for one scene set from :func:`_set_view`'s dict and config; returns the paths.
 
     Per scene: an image row and a map row of the ``paper`` preset (the reproduction; maps on one
     colour scale, "σ (px)"), one row per further preset of ``config.presets`` (e.g. ``robust``):

@@ -30,11 +30,36 @@ def _q(title, q):
 def plot(data, config, out_stem):
     """Draw the figure for the default scene set (``out_stem``) and each further set
     (``<out_stem>_<set>``), captioned with the set (:func:`.style.plot_scene_sets`); the paper preset."""
-    return plot_scene_sets(plot_one_set, data, config, out_stem)
+    sets = type("Sets", (), {"scene_sets": [(s, (scene,)) for s, scene, _, _ in config.scene_sets]})
+    return plot_scene_sets(lambda fd, name, stem: plot_one_set(*_set_view(fd, name), stem), data, sets, out_stem)
+
+
+def _set_view(fd, set_name, preset="paper"):
+    """(arrays and metrics, config) of one scene set and preset: its stage, map and λ cases merged; the
+    λ sweep from every λ case."""
+    import dataclasses
+    import types
+
+    from .fig7 import _merge
+
+    config = fd.config
+    stage = fd.one(scene_set=set_name, variant="stage")
+    mcase = fd.one(scene_set=set_name, preset=preset, variant="map")
+    main = fd.one(scene_set=set_name, preset=preset, variant=f"nsr={config.nsr:g}")
+    view = {**stage.arrays(), **mcase.arrays(), **main.arrays()}
+    metrics = _merge(_merge(stage.nested(), mcase.nested()), main.nested())
+    sweep = sorted((o.nested() for o in fd.find(scene_set=set_name, preset=preset)
+                    if o.case.variant.startswith("nsr=") and float(o.case.variant[4:]) in config.nsr_sweep),
+                   key=lambda m: m["nsr"])
+    metrics["nsr_sweep"] = {f"nsr={m['nsr']:g}": m for m in sweep}
+    view["metrics"] = metrics
+    cfg = types.SimpleNamespace(**{f.name: getattr(config, f.name) for f in dataclasses.fields(config)},
+                                scene=stage.case.scene)
+    return view, cfg
 
 
 def plot_one_set(data, config, out_stem):
-    """Draw Fig. 8 from :func:`experiments.fig8_refocus.compute`'s dict; returns the paths.
+    """Draw Fig. 8 for one scene set from :func:`_set_view`'s dict and config; returns the paths.
 
     Row 1: the D1 input, the deconvolved input, the three refocused results and the real D2 render
     (PSNR/SSIM against it in the titles). Row 2: the estimated map, the estimated virtual-focus map

@@ -14,7 +14,7 @@ _REGION_COLORS = {"in_focus": "#00FF66", "defocused": "#FF33CC"}
 
 
 def plot(data, config, out_stem):
-    """Draw the figure from :func:`experiments.figS2_photos.compute`'s dict; returns the PNG + PDF paths.
+    """Draw the figure from its cases (:func:`experiments.figS2_photos.photo_view`); returns the PNG + PDF paths.
 
     One row per photo. Columns: the photo with the outlines of its in-focus (green) and defocused
     (magenta) regions; the defocus map of each scored preset (σ in px, one colour scale per row with a
@@ -23,6 +23,9 @@ def plot(data, config, out_stem):
     renderer); then the border crop (white square on the photo, :func:`experiments.figS2_photos.border_crop`)
     of the photo and of the magnified result of each renderer, with the crop's pixel coordinates.
     """
+    from experiments.figS2_photos import photo_view
+
+    data = photo_view(data)
     items = [str(s) for s in data["items"]]
     metrics = data["metrics"]
     presets = list(metrics["presets_scored"])

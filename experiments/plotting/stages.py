@@ -12,8 +12,42 @@ _LABELS = {"estimated:sparse": "sparse (edges)", "estimated:refined": "refined (
            "oracle_propagate:dense_textured": "dense, oracle → Eq. 4"}
 
 
+def stage_view(fd) -> dict:
+    """The cases of figure S1 as ``case_labels``, ``mae`` (images × presets × stages, px) and ``metrics``
+    (``cases.<label>.<preset>`` = its stage errors, ``kind``; ``ablation.<row>.<label>``; ``presets``; ``stages``)."""
+    from experiments.figS1_stages import STAGES, case_label
+
+    config = fd.config
+    presets = [p for p in config.presets if fd.find(preset=p)]
+    images = [o.case for o in fd.outputs.values() if o.case.variant in ("mosaic", "render")
+              and o.case.preset == presets[0]]
+    labels = [case_label(c) for c in images]
+    mae = np.full((len(images), len(presets), len(STAGES)), np.nan)
+    cases, ablation = {}, {}
+    for i, (c, label) in enumerate(zip(images, labels)):
+        cases[label] = {"kind": c.variant}
+        for j, p in enumerate(presets):
+            m = fd.one(scene=c.scene, aperture=c.aperture, variant=c.variant, preset=p).nested()
+            cases[label][p] = m
+            for k, (inp, st) in enumerate(STAGES):
+                v = m.get(inp, {}).get(st, {}).get("mae")
+                mae[i, j, k] = np.nan if v is None else v
+    for o in fd.outputs.values():
+        if o.case.variant.startswith("ablation:"):
+            ablation.setdefault(o.case.variant.split(":", 1)[1], {})[f"mosaic:{o.case.scene}"] = o.metrics
+    return {"case_labels": np.asarray(labels), "mae": mae,
+            "metrics": {"cases": cases, "ablation": ablation, "presets": presets,
+                        "stages": [f"{a}:{b}" for a, b in STAGES]}}
+
+
+def _bins(bins) -> list:
+    """A stage's per-bin errors (a list, or the dict of a flattened list) as a list in bin order."""
+    return [bins[k] for k in sorted(bins, key=int)] if isinstance(bins, dict) else list(bins)
+
+
 def plot(data, config, out_stem):
-    """Draw figure S1 from :func:`experiments.figS1_stages.compute`'s dict; returns the paths."""
+    """Draw figure S1 from its cases (:func:`stage_view`); returns the paths."""
+    data = stage_view(data)
     m = data["metrics"]
     presets = m["presets"]
     labels = [str(c) for c in data["case_labels"]]
@@ -39,14 +73,14 @@ def plot(data, config, out_stem):
     first = next((lab for lab in labels if lab.startswith("mosaic")), None)
     if first is not None:
         for j, pname in enumerate(presets):
-            bins = m["cases"][first][pname]["estimated"]["dense_textured"]["bins"]
+            bins = _bins(m["cases"][first][pname]["estimated"]["dense_textured"]["bins"])
             xs = [0.5 * (float(b["lo"]) + (float(b["hi"]) if np.isfinite(float(b["hi"])) else float(b["lo"]) + 2))
                   for b in bins if b["n"]]
             ys = [b["bias"] for b in bins if b["n"]]
             ax.plot(xs, ys, "o-", color=COLORS[j % len(COLORS)], label=pname)
             ob = m["cases"][first][pname].get("oracle_refine", {}).get("dense_textured")
             if ob:
-                ax.plot(xs, [b["bias"] for b in ob["bins"] if b["n"]], "x--", color=COLORS[j % len(COLORS)],
+                ax.plot(xs, [b["bias"] for b in _bins(ob["bins"]) if b["n"]], "x--", color=COLORS[j % len(COLORS)],
                         lw=0.8, label=f"{pname}, oracle → Eq. 3")
         ax.axhline(0, color="0.5", lw=0.8)
         ax.axhspan(-0.3, 0.3, color="0.9", zorder=0, label="target ±0.3 px")

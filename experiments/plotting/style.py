@@ -11,7 +11,7 @@ matplotlib.use("Agg")  # headless; must precede pyplot
 import matplotlib.pyplot as plt  # noqa: E402
 
 __all__ = ["COLORS", "DPI", "SCENE_SET_CAPTIONS", "add_colorbar", "new_figure", "plot_scene_sets", "plt",
-           "save_figure"]
+           "save_figure", "set_scenes"]
 
 from ..scene_sets import SCENE_SET_CAPTIONS  # noqa: E402  (one line per set, written under its figures)
 
@@ -71,39 +71,36 @@ def save_figure(fig, out_stem) -> list[Path]:
 
 
 def plot_scene_sets(plot_one, data, config, out_stem) -> list[Path]:
-    """Draw a figure once per scene set: the default set to ``out_stem``, each further one to
+    """Draw a figure once per scene set: the default (first) set to ``out_stem``, each further one to
     ``<out_stem>_<set>`` (e.g. ``fig5_tabletop_stress.png``), each captioned with its set.
 
     Parameters
     ----------
     plot_one : callable
-        ``plot_one(data, config, out_stem) -> list[Path]`` drawing one scene set.
-    data : dict
-        A figure's compute dict (:func:`experiments.scene_sets.compute_scene_sets`).
+        ``plot_one(data, set_name, out_stem) -> list[Path]`` drawing one scene set from the figure's cases.
+    data : experiments.figure_data.FigureData
+        The figure's finished cases.
     config : frozen dataclass
-        The figure's config (with ``scene_set`` and ``other_scene_sets``).
+        The figure's config (its ``scene_sets`` name the sets, in order).
     out_stem : Path
     """
-    import dataclasses
-
-    from ..scene_sets import set_arrays
-
     out_stem = Path(out_stem)
-    metrics = data.get("metrics", {})
-    sets = metrics.get("scene_sets", {})
-    jobs = [(set_arrays(data, None), config, out_stem, metrics.get("scene_set", getattr(config, "scene_set", None)))]
-    for name, overrides in getattr(config, "other_scene_sets", ()):
-        if name in sets:
-            cfg = dataclasses.replace(config, scene_set=name, other_scene_sets=(), **dict(overrides))
-            jobs.append((set_arrays(data, name), cfg, out_stem.with_name(f"{out_stem.name}_{name}"), name))
+    have = set(data.values("scene_set"))
+    names = [name for name, _ in config.scene_sets if name in have]
     paths = []
-    for d, cfg, stem, name in jobs:
-        _caption.append(SCENE_SET_CAPTIONS.get(name, f"scene set {name}") if name else "")
+    for i, name in enumerate(names):
+        stem = out_stem if i == 0 else out_stem.with_name(f"{out_stem.name}_{name}")
+        _caption.append(SCENE_SET_CAPTIONS.get(name, f"scene set {name}"))
         try:
-            paths += plot_one(d, cfg, stem)
+            paths += plot_one(data, name, stem)
         finally:
             _caption.pop()
     return paths
+
+
+def set_scenes(config, set_name) -> tuple[str, ...]:
+    """The scenes of ``set_name`` in a config's ``scene_sets``."""
+    return dict(config.scene_sets)[set_name]
 
 
 def _metadata(ext):

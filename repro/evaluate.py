@@ -107,7 +107,7 @@ def _parser():
                         "dataset) instead of running the method (docs/dataset.md)")
     p.add_argument("--dataset", type=Path, default=None, metavar="DIR",
                    help="with --maps: the ground truth of a repro.dataset export folder (default: the harness's "
-                        "own renders of --scenes × --fnumber × --scene-preset, matched by name)")
+                        "own renders of --scenes × --fnumber × --scene-size, matched by name)")
     p.add_argument("--protocol", nargs="+", default=["harness"], metavar="NAME",
                    help="with --maps: harness (MAE, bias, per-σ bins, textured pixels), rtf, syndof, detection "
                         "(default: harness)")

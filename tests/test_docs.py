@@ -274,7 +274,7 @@ def _documented_flags():
 
 def test_the_flag_check_finds_flags():
     found = _documented_flags()
-    assert ("README.md", ("evaluate",), "--scene-preset") in found
+    assert ("README.md", ("evaluate",), "--scene-size") in found
     assert any(tools == ("estimate", "magnify") for _, tools, _ in found)
 
 
@@ -301,9 +301,9 @@ def _ok(tool: str, flag: str) -> bool:
 
 
 def test_a_made_up_flag_is_caught():
-    assert _ok("evaluate", "--scene-preset") and not _ok("evaluate", "--no-such-flag")
+    assert _ok("evaluate", "--scene-size") and not _ok("evaluate", "--no-such-flag")
     assert not _ok("render", "--scene-seed") and _ok("render", "--scene-size")
-    assert _ok("render", "--scene-size small") and _ok("evaluate", "--scene-preset full")
+    assert _ok("render", "--scene-size small") and _ok("evaluate", "--scene-size full")
     assert _ok("magnify", "--kernel disk") and _ok("estimate", "--preset zhuo_sim")
     assert not _ok("evaluate", "--preset small") and not _ok("magnify", "--kernel box")
 

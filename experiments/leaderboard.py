@@ -23,7 +23,7 @@ import numpy as np
 
 from .external_maps import DETECTION_THRESHOLD_PX, HEADLINE, PNG_SCALE, PROTOCOLS, score_folder, score_maps
 
-__all__ = ["ALL_APERTURES", "ALL_SCENES", "GAP_METRICS", "build_leaderboard", "generalisation_gap", "generalisation_tables",
+__all__ = ["ALL_APERTURES", "ALL_SCENES", "GAP_METRICS", "build_leaderboard", "check_external", "generalisation_gap", "generalisation_tables",
            "leaderboard_intro", "leaderboard_rows", "leaderboard_tables", "preset_maps", "scene_set_of"]
 
 #: Scene-set label of the rows over every image (given when the images span more than one set).
@@ -49,6 +49,27 @@ def preset_maps(truth, preset: str):
             return estimate_defocus_map(truth.image(name), params).defocus_map, f"preset {preset}: {name}"
 
     return get
+
+
+def check_external(external: dict, *, presets=None) -> None:
+    """ValueError (one line) unless every entry of ``external`` is a folder under a name no preset has.
+
+    Parameters
+    ----------
+    external : mapping str -> path
+        Entry name -> folder of maps.
+    presets : sequence of str, optional, keyword-only
+        The preset rows' names (default: every key of :data:`method.PRESETS`).
+    """
+    from method import PRESETS
+
+    clash = sorted(set(external) & set(presets if presets is not None else PRESETS))
+    if clash:
+        raise ValueError(f"external name(s) {', '.join(map(repr, clash))} are invalid (a preset's name); "
+                         "allowed: any other name")
+    for name, folder in external.items():
+        if not Path(folder).is_dir():
+            raise ValueError(f"--external {name}={folder}: not a folder; allowed: a folder of NAME.npy|npz|exr|png maps")
 
 
 def build_leaderboard(truth, *, presets=None, external: Mapping[str, Path] | None = None, protocols=None,
@@ -82,13 +103,7 @@ def build_leaderboard(truth, *, presets=None, external: Mapping[str, Path] | Non
     protocols = PROTOCOLS.check_all(dict.fromkeys(protocols if protocols is not None else PROTOCOLS),
                                     what="protocol")
     external = dict(external or {})
-    clash = sorted(set(external) & set(presets))
-    if clash:
-        raise ValueError(f"external name(s) {', '.join(map(repr, clash))} are invalid (a preset's name); "
-                         "allowed: any other name")
-    for name, folder in external.items():
-        if not Path(folder).is_dir():
-            raise ValueError(f"--external {name}={folder}: not a folder; allowed: a folder of NAME.npy|npz|exr|png maps")
+    check_external(external, presets=presets)
     sets: dict[str, list[str]] = {}
     for image in truth.names:
         sets.setdefault(scene_set_of(truth.scene(image)), []).append(image)

@@ -132,15 +132,12 @@ def external_leaderboard(external: dict, dataset: Path | None) -> dict:
     a failure while scoring them is a bug and shows its traceback.
     """
     from experiments.external_maps import DatasetTruth, RenderTruth
-    from experiments.leaderboard import build_leaderboard
+    from experiments.leaderboard import build_leaderboard, check_external
 
     from repro._cli import user_input
 
-    with user_input():  # --external folders, --dataset
-        for name, folder in external.items():
-            if not folder.is_dir():
-                raise ValueError(f"--external {name}={folder} is not a folder; allowed: a folder of "
-                                 "NAME.npy|npz|exr|png maps")
+    with user_input():  # --external names and folders, --dataset
+        check_external(external)
         if dataset is not None:
             truth = DatasetTruth(dataset)
         else:

@@ -291,13 +291,15 @@ def test_speed_summary_judges_each_preset_on_both_sides():
     assert s["robust: meets_time_target_1mp"] and not s["paper: meets_time_target_1mp"]
 
 
-def test_accuracy_cli_rejects_an_unknown_preset(tmp_path, monkeypatch, capsys):
+def test_an_unknown_preset_in_the_accuracy_config_is_a_bug_not_a_user_error(tmp_path, monkeypatch):
+    """The benchmark's config is code, not the user's input: a bad preset there raises (a traceback),
+    before anything is computed or written."""
     monkeypatch.setattr(accuracy, "ACCURACY_CONFIG", dict(TINY, presets=("nope",)))
-    from repro._cli import run_cli
+    from repro._cli import CLIError, run_cli
 
-    assert run_cli(bench.main, ["--accuracy", "--out", str(tmp_path)], prog=bench.PROG) == 2
-    err = capsys.readouterr().err
-    assert err.startswith(f"{bench.PROG}: error: ") and "nope" in err and len(err.strip().splitlines()) == 1
+    with pytest.raises(ValueError, match="nope") as e:
+        run_cli(bench.main, ["--accuracy", "--out", str(tmp_path)], prog=bench.PROG)
+    assert not isinstance(e.value, CLIError)
     assert not (tmp_path / "accuracy.json").exists()
 
 

@@ -35,7 +35,7 @@ def test_evaluate_one_scene_writes_csv_and_json(tmp_path, capsys, goldens):
 
     out = tmp_path / "ev"
     assert _run(["--estimator", "model_fit", "zero_crossing", "gradient_ratio", "--scenes", "planes",
-                 "--fnumber", "8", "--scene-preset", "small", "--out", str(out)]) == 0
+                 "--fnumber", "8", "--scene-size", "small", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "model_fit" in printed and "gradient_ratio" in printed and "evaluate.csv" in printed
     rows, js = _read(out)
@@ -87,7 +87,8 @@ def test_registered_dummy_estimator_shows_up(tmp_path, monkeypatch):
     (["--fnumber", "-4"], "--fnumber"),
     (["--fnumber", "inf"], "--fnumber"),
     (["--scene-preset", "huge"], "--scene-preset"),
-    (["--preset", "small"], "--scene-preset"),
+    (["--preset", "small"], "--scene-size"),
+    (["--scene-size", "huge"], "--scene-size"),
     (["--preset", "nope"], "allowed"),
     (["--encoding", "raw"], "--encoding"),
 ])
@@ -134,7 +135,7 @@ def test_binned_abs_error_by_hand():
 def test_evaluate_presets_and_stages(tmp_path, capsys):
     """--preset compares presets (each with its own estimator); --stages writes the stage attribution."""
     out = tmp_path / "ev"
-    assert _run(["--preset", "paper", "robust", "--scenes", "planes", "--fnumber", "8", "--scene-preset", "small",
+    assert _run(["--preset", "paper", "robust", "--scenes", "planes", "--fnumber", "8", "--scene-size", "small",
                  "--stages", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "oracle_propagate" in printed and "stages.csv" in printed

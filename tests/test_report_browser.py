@@ -85,7 +85,7 @@ def _make_report(figures_src: Path, out: Path) -> Path:
     figs = out / "figures"
     figs.mkdir(parents=True)
     for f in figures_src.iterdir():
-        if f.suffix in (".png", ".json"):
+        if f.suffix in (".png", ".json", ".csv", ".parquet"):
             shutil.copy2(f, figs / f.name)
     proc = subprocess.run([sys.executable, "-m", "repro.report", "--figures", str(figs), "--out", str(out)],
                           cwd=ROOT, capture_output=True, text=True)

@@ -66,8 +66,9 @@ def _slim(err, nominal=None, gt=None) -> dict | None:
         return None
     out = {k: err[k] for k in ("n", "mae", "bias", "coverage")}
     if nominal is not None:
-        out["bins"] = [{"sigma": s, "sigma_gt": g, "lo": b["lo"], "hi": b["hi"], "n": b["n"], "mae": b["mae"],
-                        "bias": b["bias"]} for s, g, b in zip(nominal, gt, err["bins"])]
+        # an open upper edge is None (JSON null), here already: the case runner stores results as JSON
+        out["bins"] = [{"sigma": s, "sigma_gt": g, "lo": b["lo"], "hi": None if math.isinf(b["hi"]) else b["hi"],
+                        "n": b["n"], "mae": b["mae"], "bias": b["bias"]} for s, g, b in zip(nominal, gt, err["bins"])]
     return out
 
 

@@ -37,8 +37,20 @@ def test_cache_fingerprints_only_in_the_cache_layer():
 
 
 def test_image_checks_only_in_method_validation():
-    """No module of method/ words its own image/array check: they all call method.validation."""
+    """No module of method/ (its stage subpackages included) words its own image/array check: they all
+    call method.validation."""
+    assert _image_check_modules(ROOT / "method") == ["validation.py"]
+
+
+def _image_check_modules(root: Path) -> list[str]:
     phrases = ("must be a numpy array", "contains NaN or Inf", "must be a float array", "floating-point array")
-    where = sorted({p.relative_to(ROOT).as_posix() for p in (ROOT / "method").glob("*.py")
-                    if any(ph in p.read_text() for ph in phrases)})
-    assert where == ["method/validation.py"]
+    return sorted({p.relative_to(root).as_posix() for p in root.rglob("*.py")
+                   if any(ph in p.read_text() for ph in phrases)})
+
+
+def test_the_image_check_search_reaches_subpackages(tmp_path):
+    (tmp_path / "blur").mkdir()
+    (tmp_path / "validation.py").write_text("msg = 'image must be a numpy array'\n")
+    (tmp_path / "blur" / "own.py").write_text("msg = 'image contains NaN or Inf'\n")
+    (tmp_path / "blur" / "fine.py").write_text("from ..validation import check_image\n")
+    assert _image_check_modules(tmp_path) == ["blur/own.py", "validation.py"]

@@ -66,6 +66,7 @@ def save_figure(fig, out_stem) -> list[Path]:
             with atomic_write(path) as tmp:
                 fig.savefig(tmp, dpi=DPI, format=ext[1:], metadata=_metadata(ext))
             paths.append(path)
+            fig.set_layout_engine("none")  # the layout the first format computed serves the second
     plt.close(fig)
     return paths
 

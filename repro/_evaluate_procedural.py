@@ -3,7 +3,7 @@
 One case per scene (:func:`experiments.procedural_eval.score_scene`: its renders at every aperture
 through the render cache, every preset on every input, scored against σ_gt), run by the case runner
 (:mod:`repro._runner`) on a Dask LocalCluster of single-threaded workers (``--workers``, default one
-per core), an existing scheduler (``--scheduler``) or in this process (``--workers 0`` or 1). Each
+per core), an existing scheduler (``--scheduler``) or in this process (``--workers 1``). Each
 finished scene is written at once, atomically, to
 ``DIR/<evaluation id>/cells/<key>.json``, so the same command after Ctrl-C, a crash or a killed worker
 reads finished scenes back. Then the long results table (:mod:`experiments.results_table`:
@@ -61,10 +61,10 @@ def add_options(p) -> None:
                    help="with --procedural: first scene seed (default: the split's first; fresh: drawn at run time "
                         "and recorded). Not --seed: that one is a render's sampler seed")
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--workers", "--jobs", dest="workers", type=int_type("--workers", minimum=0), default=None,
+    g.add_argument("--workers", "--jobs", dest="workers", type=int_type("--workers"), default=None,
                    metavar="W", help="cases (scenes) computed in parallel: a Dask LocalCluster of W single-threaded "
-                                     "worker processes (default: one per core with --procedural, else 1; 0 or 1: in "
-                                     "this process, no Dask); --jobs is the same")
+                                     "worker processes (default: one per core with --procedural, else 1; 1: in this "
+                                     "process, no Dask); --jobs is the same")
     g.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="an existing Dask scheduler, e.g. tcp://10.0.0.5:8786 (its workers must see the same "
                         "$DEFOCUS_CACHE_DIR)")
@@ -143,7 +143,7 @@ def run_evaluation(plan, root, *, workers=None, scheduler=None, force=False, pro
     root : path
         Output root; the evaluation's folder is created in it.
     workers : int, optional, keyword-only
-        LocalCluster size (default: one per core); 0 or 1 runs the scenes in this process.
+        LocalCluster size (default: one per core); 1 runs the scenes in this process.
     scheduler : str, optional, keyword-only
         Address of an existing Dask scheduler.
     force : bool, keyword-only
@@ -209,8 +209,7 @@ def run_evaluation(plan, root, *, workers=None, scheduler=None, force=False, pro
             write_cell(out, ids[seed], keys[seed], output.info)
             records[seed] = {"key": keys[seed], "result": output.info}
 
-        n_workers = 1 if workers == 0 else workers
-        (run,) = run_figures([job], workers=n_workers, scheduler=scheduler, progress=progress, on_case=store, log=log,
+        (run,) = run_figures([job], workers=workers, scheduler=scheduler, progress=progress, on_case=store, log=log,
                              desc="evaluate")
         if run.error is not None:
             raise RuntimeError(f"a scene's task failed: {run.error}\n{run.traceback}")
@@ -270,7 +269,10 @@ def main_procedural(args) -> int:
         from scenes.backend import select_variant
 
         select_variant(args.variant)
-    run = run_evaluation(plan, root, workers=args.workers, scheduler=args.scheduler, force=args.force,
+    from ._runner import engine_choice
+
+    workers, scheduler = engine_choice(args.workers, args.scheduler, command="repro.evaluate --procedural")
+    run = run_evaluation(plan, root, workers=workers, scheduler=scheduler, force=args.force,
                          progress=not args.quiet, command=list(sys.argv))
     print(format_summary(run.summary))
     kinds = "; ".join(f"{k}: {v['scenes']} scene(s), {v['mean_render_built_s_per_aperture']:.1f} s per render, "

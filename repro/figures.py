@@ -139,6 +139,12 @@ def write_table(out_dir: Path, datas) -> list[Path]:
             except ValueError:
                 old = []
         rows = [*old, *(r for d in datas for r in d.rows())]
+        # figures in registry order (not the order they finished in), each in its own case order: the
+        # same results give the same file, whatever the workers did
+        from experiments.registry import FIGURES
+
+        rank = {name: i for i, name in enumerate(FIGURES)}
+        rows.sort(key=lambda r: rank.get(r.get("figure"), len(rank)))
         meta = {"figures": sorted({r["figure"] for r in rows if r.get("figure")}),
                 "evaluations": sorted({r["evaluation_id"] for r in rows})}
         return write_results(out_dir, rows, meta, stem=TABLE_STEM)

@@ -159,9 +159,9 @@ def runs(cache_env, tmp_path_factory):
     dask = _killed_then_interrupted(cache_env, tmp / "dask", tmp / "cluster")
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
-        dask["resume_status"] = _evaluate([*PLAN, "--workers", "0", "--out", str(tmp / "dask"), "-q"])
+        dask["resume_status"] = _evaluate([*PLAN, "--workers", "1", "--out", str(tmp / "dask"), "-q"])
     dask["resume_stderr"] = err.getvalue()
-    assert _evaluate([*PLAN, "--workers", "0", "--out", str(tmp / "serial"), "-q"]) == 0
+    assert _evaluate([*PLAN, "--workers", "1", "--out", str(tmp / "serial"), "-q"]) == 0
     serial = _only(tmp / "serial")
     return {"dask": dask, "serial": (serial, _table(serial))}
 
@@ -216,7 +216,7 @@ def test_dask_workers_and_serial_give_the_same_table(runs):
 def test_fresh_seeds_are_recorded_and_their_record_reruns_the_table(cache_env, tmp_path, capsys):
     from scenes.library.procedural import SPLITS
 
-    common = ["--procedural", "1", "--fnumber", "2", "--preset", "paper", "--spp", "9", "--workers", "0", "-q"]
+    common = ["--procedural", "1", "--fnumber", "2", "--preset", "paper", "--spp", "9", "--workers", "1", "-q"]
     assert _evaluate([*common, "--split", "fresh", "--out", str(tmp_path / "a")]) == 0
     err = capsys.readouterr().err
     run = json.loads((_only(tmp_path / "a") / "run.json").read_text())
@@ -246,6 +246,7 @@ def _free_port() -> int:
     (["--procedural", "2", "--split", "dev", "--scenes", "planes"], "does not take --scenes"),
     (["--procedural", "2", "--split", "dev", "--scheduler", "tcp://127.0.0.1:{port}"], "unreachable"),
     (["--procedural", "2", "--split", "dev", "--scheduler", "localhost"], "tcp://HOST:PORT"),
+    (["--procedural", "2", "--split", "dev", "--workers", "0"], "--workers"),
     (["--split", "dev"], "invalid without --procedural"),
 ])
 def test_bad_input_is_one_line_exit_2_and_nothing_written(args, needle, tmp_path, capsys, monkeypatch):

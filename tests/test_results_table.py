@@ -224,3 +224,23 @@ def test_a_method_that_raises_on_one_input_is_recorded_and_the_others_go_on(monk
     assert any(r["metric"] == "sparse_mae" for r in rows if r["preset"] == "paper")
     assert len(failures) == 1 and "robust on procedural_0 f/2" in failures[0] and "did not converge" in failures[0]
     assert set(seconds) == {"paper", "robust"}
+
+
+def test_the_figures_table_lists_figures_in_registry_order_whatever_order_they_finished_in(tmp_path):
+    """Two workers finish figures in any order; the same results must give the same results.csv."""
+    import types
+
+    from repro.figures import write_table
+
+    def data(name, value):
+        row = {"evaluation_id": f"{name}-quick-0", "source": "figures", "figure": name, "metric": "m",
+               "value": value, "unit": "px (σ)"}
+        return types.SimpleNamespace(figure=types.SimpleNamespace(name=name), rows=lambda: [row])
+
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir(), b.mkdir()
+    write_table(a, [data("fig7", 2.0), data("fig2", 1.0)])
+    write_table(b, [data("fig2", 1.0), data("fig7", 2.0)])
+    text = (a / "results.csv").read_text()
+    assert text == (b / "results.csv").read_text()
+    assert text.index("fig2-quick-0") < text.index("fig7-quick-0")

@@ -173,3 +173,20 @@ def test_bench_accuracy_engine_flags_go_with_accuracy(capsys, tmp_path):
     assert run_cli(main, ["--workers", "2", "--out", str(tmp_path / "b")], prog=PROG) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "go with --accuracy" in err
+
+
+def test_the_runner_bench_compares_tables_without_wall_clock_times(tmp_path):
+    """Two runs' tables differ in their times (unit s) always; in any other value only when a case differs."""
+    from experiments.results_table import write_results
+    from repro._figures_bench import _same_tables
+
+    def table(folder, seconds, mae):
+        rows = [{"evaluation_id": "fig7-quick-0", "source": "figures", "figure": "fig7", "metric": m, "value": v,
+                 "unit": u} for m, v, u in (("compute_seconds", seconds, "s"), ("dense/mae", mae, "px (σ)"))]
+        folder.mkdir()
+        write_results(folder, rows, {})
+        return folder
+
+    ref = table(tmp_path / "w1", 3.0, 0.5)
+    assert _same_tables(ref, table(tmp_path / "w2", 2.0, 0.5)) == (True, 1, [])
+    assert _same_tables(ref, table(tmp_path / "w3", 3.0, 0.6)) == (False, 1, ["dense/mae"])

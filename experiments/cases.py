@@ -105,15 +105,11 @@ class Case:
         return "/".join([self.figure, *parts])
 
     def matches(self, **fields) -> bool:
-        """Whether every given field equals (or, for a tuple/list/set, is in) the case's."""
-        for k, want in fields.items():
-            got = getattr(self, k)
-            if isinstance(want, (tuple, list, set, frozenset)):
-                if got not in want:
-                    return False
-            elif got != want:
-                return False
-        return True
+        """Whether every given field equals (or, for a tuple/list/set, is in) the case's
+        (:func:`experiments.results_query.matches`; an unknown field is an AttributeError)."""
+        from .results_query import matches
+
+        return matches({k: getattr(self, k) for k in fields}, fields)
 
 
 @dataclasses.dataclass(frozen=True)

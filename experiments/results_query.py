@@ -10,17 +10,21 @@ where one is expected raise ``ValueError`` (the query is wrong, a harness failur
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 
-__all__ = ["MissingData", "Results", "read_table"]
+__all__ = ["MissingData", "Results", "matches", "read_table"]
 
 
 class MissingData(LookupError):
     """A value the caller needs is not in the table."""
 
 
-def _match(row: dict, cond: dict) -> bool:
+def matches(row: Mapping, cond: Mapping) -> bool:
+    """Whether every field of ``cond`` equals (or, for a tuple/list/set, is in) ``row``'s (missing: None).
+
+    The one selection rule of the table's queries and of :meth:`experiments.cases.Case.matches`.
+    """
     for k, want in cond.items():
         got = row.get(k)
         if isinstance(want, (tuple, list, set, frozenset)):
@@ -52,7 +56,7 @@ class Results:
     # --- selection ---------------------------------------------------------------------------------
     def where(self, **cond) -> "Results":
         """The rows matching every condition."""
-        sub = [r for r in self.rows if _match(r, cond)]
+        sub = [r for r in self.rows if matches(r, cond)]
         label = "; ".join(x for x in (self._where, _describe(cond)) if x)
         return Results(sub, where=label)
 
@@ -79,7 +83,7 @@ class Results:
         ValueError
             Several rows (the query does not name one value).
         """
-        got = [r for r in self.rows if r["metric"] == metric and _match(r, cond)]
+        got = [r for r in self.rows if r["metric"] == metric and matches(r, cond)]
         if not got:
             where = "; ".join(x for x in (self._where, _describe(cond)) if x)
             raise MissingData(f"no metric {metric} ({where})")

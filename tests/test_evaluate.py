@@ -91,8 +91,16 @@ def test_registered_dummy_estimator_shows_up(tmp_path, monkeypatch):
     (["--scene-size", "huge"], "--scene-size"),
     (["--preset", "nope"], "allowed"),
     (["--encoding", "raw"], "--encoding"),
+    (["--workers", "0"], "--workers"),
+    (["--scenes", "planes", "--fnumber", "8", "--scheduler", "tcp://127.0.0.1:{port}"], "unreachable"),
 ])
 def test_bad_input_one_line_exit_2(argv, needle, capsys, tmp_path):
+    import socket
+
+    with socket.socket() as s:  # a port nobody listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    argv = [a.format(port=port) for a in argv]
     assert _run([*argv, "--out", str(tmp_path / "x")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith(f"{PROG}: error:") and needle in err

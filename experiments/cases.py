@@ -30,12 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["PATH_SEP", "Case", "CaseOutput", "case_key", "case_rows", "case_task", "task_key", "flatten", "method_presets", "nest",
-           "order_cases", "run_case", "run_cases", "single_threaded"]
+from .metric_paths import flatten, nest
 
-#: Separator of the parts of a metric path (``image_vs_large/unchanged_small/psnr_db``).
-PATH_SEP = "/"
-
+__all__ = ["Case", "CaseOutput", "case_key", "case_rows", "task_key", "method_presets", "order_cases", "run_case",
+           "run_cases", "single_threaded"]
 
 @dataclasses.dataclass(frozen=True)
 class Case:
@@ -160,48 +158,6 @@ class CaseOutput:
         return dataclasses.replace(self, memory=None) if self.memory is not None and self.folder else self
 
 
-def flatten(metrics: Mapping, prefix: str = "") -> dict:
-    """Nested metrics → ``{"a/b/c": value}``; lists and tuples by index; strings dropped.
-
-    Raises
-    ------
-    ValueError
-        A key containing ``/`` (it would make the path ambiguous) or a value that is not a number,
-        bool, None, string, mapping or sequence.
-    """
-    out = {}
-    for k, v in metrics.items():
-        k = str(k)
-        if PATH_SEP in k:
-            raise ValueError(f"metric key {k!r} is invalid; allowed: names without {PATH_SEP!r}")
-        path = f"{prefix}{k}"
-        if isinstance(v, Mapping):
-            out.update(flatten(v, path + PATH_SEP))
-        elif isinstance(v, (list, tuple)):
-            out.update(flatten({str(i): x for i, x in enumerate(v)}, path + PATH_SEP))
-        elif isinstance(v, str):
-            continue
-        elif v is None or isinstance(v, (bool, np.bool_)):
-            out[path] = None if v is None else bool(v)
-        elif isinstance(v, (int, float, np.integer, np.floating)):
-            out[path] = v.item() if isinstance(v, np.generic) else v
-        else:
-            raise ValueError(f"metric {path!r} = {v!r} is invalid; allowed: numbers, bools, None")
-    return out
-
-
-def nest(flat: Mapping) -> dict:
-    """:func:`flatten`'s inverse for mappings (list indices stay string keys)."""
-    out: dict = {}
-    for path, v in flat.items():
-        node = out
-        parts = path.split(PATH_SEP)
-        for p in parts[:-1]:
-            node = node.setdefault(p, {})
-        node[parts[-1]] = v
-    return out
-
-
 def method_presets(names) -> dict:
     """``name → DefocusParams`` of a figure's ``presets`` field, checked.
 
@@ -262,7 +218,7 @@ def order_cases(cases: Iterable[Case]) -> list[Case]:
 
 def case_key(figure, config, case: Case) -> dict:
     """The cache key of one case (see the module docstring)."""
-    from .registry import cache_key
+    from .cache_keys import cache_key
 
     return {**cache_key(figure, config), "case": case.key()}
 
@@ -282,7 +238,7 @@ def _check_output(figure, case: Case, data) -> tuple[dict, dict, tuple, dict]:
         if v.dtype == object:
             raise TypeError(f"{figure.name}.compute_case({case.label}): array {k!r} has dtype object")
     groups = tuple((dict(ids), flatten(m)) for ids, m in data.get("groups", ()))
-    from .registry import to_jsonable
+    from .cache_keys import to_jsonable
 
     return arrays, flatten(data.get("metrics", {})), groups, to_jsonable(data.get("info", {}))
 
@@ -313,7 +269,7 @@ def run_case(figure, config, case: Case, inputs: Mapping | None = None, *, force
     """
     from defocus_cache import Cache
 
-    from .registry import CACHE_SUBDIR, check_config
+    from .cache_keys import CACHE_SUBDIR, check_config
 
     check_config(config)
     use_cache = use_cache and getattr(figure, "cached", True)
@@ -366,16 +322,6 @@ def _json_numbers(obj):
 
 def _from_json(flat: dict) -> dict:
     return {k: (float(v) if isinstance(v, str) else v) for k, v in flat.items()}
-
-
-def case_task(figure_name: str, config, case: Case, *needs: CaseOutput, force: bool = False) -> CaseOutput:
-    """One case as a Dask task: :func:`run_case` of a registered figure with the outputs of ``case.needs``
-    (in that order); returns the output without in-memory arrays (they are in the cache)."""
-    from .units import unit
-
-    inputs = dict(zip(case.needs, needs))
-    out = run_case(unit(figure_name), config, case, inputs, force=force)
-    return dataclasses.replace(out, memory=None)
 
 
 def run_cases(figure, config, cases: Iterable[Case] | None = None, *, force: bool = False, progress=None,

@@ -335,7 +335,7 @@ def evaluate_case(estimator: str | None, scene: str, *, f_number: float = 8.0, p
     from scenes.render import validate_render_options
     from defocus_cache import Cache
 
-    from .registry import code_fingerprint, to_jsonable
+    from .cache_keys import code_fingerprint, to_jsonable
     from .stage_attribution import stage_errors
 
     label = method_preset or ("paper" if params is None else "custom")

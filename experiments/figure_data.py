@@ -23,7 +23,7 @@ def evaluation_id(figure, config, mode: str | None = None) -> str:
     """
     from defocus_cache import hash_key
 
-    from .registry import to_jsonable
+    from .cache_keys import to_jsonable
 
     if mode is None:
         mode = next((m for m, c in figure.configs.items() if c == config), "custom")

@@ -152,7 +152,7 @@ def plan_evaluation(n, *, split, start=None, presets=None, f_numbers=None, scene
 
 def scene_key(plan: ProceduralPlan, seed: int, *, code: str, versions: dict, variant_requested: str) -> dict:
     """Resume key of one scene's result: what it computes, the code and library versions that compute it."""
-    from experiments.registry import to_jsonable
+    from experiments.cache_keys import to_jsonable
     from method import DefocusParams
 
     return {"kind": "procedural_scene", "version": PROCEDURAL_EVAL_VERSION, "seed": int(seed), "split": plan.split,

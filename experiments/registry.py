@@ -10,7 +10,7 @@ one dataclass, with a comment giving its meaning and unit. A figure that is one 
 ``compute(config)`` instead (arrays plus a ``"metrics"`` dict); it is then one case.
 
 Each case is cached in ``<cache>/figures`` through :class:`defocus_cache.Cache`
-(:func:`experiments.cases.run_case`), keyed by :func:`cache_key` and the case, as ``arrays.npz`` +
+(:func:`experiments.cases.run_case`), keyed by :func:`experiments.cache_keys.cache_key` and the case, as ``arrays.npz`` +
 ``metrics.json``. ``python -m repro.figures`` runs the cases (on Dask workers, :mod:`repro._runner`).
 
 Adding a figure: write ``experiments/figN_topic.py`` defining ``FIGURE = Figure(...)`` and
@@ -21,32 +21,15 @@ name to :data:`FIGURE_MODULES`.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import importlib
 from collections.abc import Callable, Iterator, Mapping
-from pathlib import Path
 
-import numpy as np
-
-__all__ = [
-    "FIGURES",
-    "FIGURE_MODULES",
-    "Figure",
-    "cache_key",
-    "check_config",
-    "code_fingerprint",
-    "library_versions",
-    "to_jsonable",
-]
+__all__ = ["FIGURES", "FIGURE_MODULES", "Figure", "library_versions"]
 
 #: Modules (under ``experiments``) that each define ``FIGURE``; order = listing order.
 FIGURE_MODULES = ("fig2_sensor_size", "fig4_estimators", "fig5_cross_bilateral", "fig6_alpha_sweep",
                   "fig7_doubled_defocus", "fig8_refocus", "fig10_coc_vs_distance", "fig11_gallery",
                   "figS1_stages", "figS2_photos")
-
-#: Folder under the project cache holding figure compute results.
-CACHE_SUBDIR = "figures"
-
 
 @dataclasses.dataclass(frozen=True)
 class Figure:
@@ -144,12 +127,6 @@ class Figure:
                 "info": data["metrics"]}
 
 
-def check_config(config) -> None:
-    """ValueError unless ``config`` is a frozen dataclass instance."""
-    if not dataclasses.is_dataclass(config) or isinstance(config, type) or not type(config).__dataclass_params__.frozen:
-        raise ValueError(f"config {config!r} is invalid; allowed: a frozen dataclass instance")
-
-
 class _LazyFigures(Mapping):
     """``name → Figure``, importing the figure modules on first use (avoids import cycles)."""
 
@@ -179,66 +156,6 @@ class _LazyFigures(Mapping):
 
 #: Registered figures by name.
 FIGURES: Mapping[str, Figure] = _LazyFigures()
-
-
-def to_jsonable(obj):
-    """Recursively convert numpy scalars/arrays, tuples and dataclasses to JSON types."""
-    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return to_jsonable(dataclasses.asdict(obj))
-    if isinstance(obj, Mapping):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [to_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return to_jsonable(obj.tolist())
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, float) and not np.isfinite(obj):
-        return None if np.isnan(obj) else ("inf" if obj > 0 else "-inf")
-    return obj
-
-
-#: Packages whose source determines every figure's numbers.
-_FINGERPRINT_PACKAGES = ("method", "scenes", "experiments")
-#: Modules that only read computed results (plots, the claim verdicts of the report, the table's queries,
-#: the finished figure's views, the leaderboard's tables): editing them must not invalidate cached figure data.
-_FINGERPRINT_EXCLUDED = ("experiments/plotting", "experiments/claims", "experiments/results_query.py",
-                         "experiments/figure_data.py", "experiments/leaderboard.py")
-
-
-@functools.lru_cache(maxsize=1)
-def code_fingerprint() -> str:
-    """:func:`defocus_cache.source_fingerprint` (16 hex digits) of ``method``, ``scenes`` and ``experiments``.
-
-    Part of every figure's cache key, so an edit of the estimator, the scenes or an experiment
-    invalidates cached figure data without anyone remembering to bump a version number
-    (renders keep their own, finer cache keyed by each scene's content).
-    """
-    from defocus_cache import source_fingerprint
-
-    return source_fingerprint(*(importlib.import_module(p) for p in _FINGERPRINT_PACKAGES),
-                              exclude=_FINGERPRINT_EXCLUDED)
-
-
-def cache_key(figure: Figure, config) -> dict:
-    """JSON-able key of a compute result: figure name, code version and source fingerprint, config type and
-    fields, the versions of the numerical and rendering libraries (:data:`defocus_cache.KEY_LIBRARIES`)
-    and, for figures that render, the Mitsuba variant."""
-    from defocus_cache import library_versions
-
-    key = {
-        "figure": figure.name,
-        "version": figure.version,
-        "code": code_fingerprint(),
-        "config_type": type(config).__qualname__,
-        "config": to_jsonable(config),
-        "libraries": library_versions(),
-    }
-    if figure.renders:
-        from scenes.backend import select_variant
-
-        key["mitsuba"] = {"variant": select_variant()}
-    return key
 
 
 def library_versions() -> dict:

@@ -127,7 +127,7 @@ class Results:
 
     def nested(self, prefix: str = "") -> dict:
         """:meth:`metrics` as a nested dict (paths split at ``/``)."""
-        from .cases import nest
+        from .metric_paths import nest
 
         return nest(self.metrics(prefix))
 

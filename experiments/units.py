@@ -4,7 +4,8 @@ A :class:`CaseUnit` has what the runner (:mod:`repro._runner`, :func:`experiment
 of a figure — a name, ``cases(config)``, ``compute_case(config, case, inputs)``, a code version, whether
 it renders — and says whether its cases go through the figure cache (``cached``; the evaluations keep
 their own stores: :func:`experiments.evaluation.evaluate_case`'s cache, the procedural evaluation's
-resume files). :func:`unit` finds a figure or a unit by name (what a Dask worker does with a task's name).
+resume files). :func:`unit` finds a figure or a unit by name, and :func:`case_task` (the Dask task of one case)
+runs one of its cases by that name.
 
 * ``evaluate`` (``repro.evaluate`` on named scenes): one case per scene × aperture × encoding × noise ×
   preset × estimator of an :class:`EvaluateConfig` (:func:`experiments.evaluation.evaluate_case`).
@@ -19,7 +20,7 @@ import dataclasses
 import importlib
 from collections.abc import Callable
 
-__all__ = ["EVALUATE", "PROCEDURAL", "UNIT_MODULES", "CaseUnit", "EvaluateConfig", "unit"]
+__all__ = ["EVALUATE", "PROCEDURAL", "UNIT_MODULES", "CaseUnit", "EvaluateConfig", "case_task", "unit"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -131,3 +132,14 @@ def unit(name: str):
     if name not in known:
         raise ValueError(f"unknown figure or case unit {name!r}; allowed: {', '.join([*FIGURES, *known, *UNIT_MODULES])}")
     return known[name]
+
+
+def case_task(figure_name: str, config, case, *needs, force: bool = False):
+    """One case as a Dask task: :func:`experiments.cases.run_case` of the figure or unit called ``figure_name``
+    (:func:`unit`) with the outputs of ``case.needs`` (in that order); returns the
+    :class:`~experiments.cases.CaseOutput` without in-memory arrays (they are in the cache)."""
+    from .cases import run_case
+
+    inputs = dict(zip(case.needs, needs))
+    out = run_case(unit(figure_name), config, case, inputs, force=force)
+    return dataclasses.replace(out, memory=None)

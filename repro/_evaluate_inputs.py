@@ -77,7 +77,8 @@ def main_photos(args) -> int:
     from defocus_cache import atomic_write_text
     from experiments.figS2_photos import photo_view
     from experiments.photo_regions import TARGET_AUC, TARGET_SHARE
-    from experiments.registry import FIGURES, code_fingerprint, library_versions, to_jsonable
+    from experiments.cache_keys import code_fingerprint, to_jsonable
+    from experiments.registry import FIGURES, library_versions
 
     from ._runner import FigureJob, engine_choice, run_figures
 

@@ -170,7 +170,7 @@ def run_evaluation(plan, root, *, workers=None, scheduler=None, force=False, pro
     """
     from defocus_cache import atomic_write_text, hash_key
     from experiments.procedural_eval import scene_key, summary_rows
-    from experiments.registry import code_fingerprint, to_jsonable
+    from experiments.cache_keys import code_fingerprint, to_jsonable
     from experiments.results_table import write_results
     from scenes.backend import VARIANT_ENV
 

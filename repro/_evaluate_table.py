@@ -72,7 +72,7 @@ def format_table(rows) -> str:
 def write_csv_json(out_dir: Path, stem: str, rows, fields, doc: dict) -> list[Path]:
     """Write ``<stem>.csv`` (``fields`` of every row; None as empty) and ``<stem>.json`` (``doc``)
     atomically into ``out_dir``; returns the two paths."""
-    from experiments.registry import to_jsonable
+    from experiments.cache_keys import to_jsonable
     from defocus_cache import atomic_write_text
 
     out_dir.mkdir(parents=True, exist_ok=True)

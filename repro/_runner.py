@@ -205,7 +205,8 @@ def _run_dask(plans, runs, *, workers, scheduler, force, bar, on_figure, on_case
     """One Dask task per case (needs as futures); figures finish as their last case comes back."""
     from dask.distributed import as_completed
 
-    from experiments.cases import case_task, task_key
+    from experiments.cases import task_key
+    from experiments.units import case_task
 
     from ._sweep_engine import _start_client
 

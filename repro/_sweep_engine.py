@@ -41,7 +41,7 @@ def _versions() -> dict:
 def cell_keys(grid: Grid) -> list[dict]:
     """The resume key of every cell: inputs, full parameters, code and library versions, variant asked."""
     from experiments.evaluation import estimator_fingerprint
-    from experiments.registry import code_fingerprint, to_jsonable
+    from experiments.cache_keys import code_fingerprint, to_jsonable
     from experiments.sweep_cells import SWEEP_CELL_VERSION, cell_params
     from scenes.backend import VARIANT_ENV
 

@@ -44,7 +44,8 @@ def main(argv=None) -> int:
     from tqdm import tqdm
 
     from experiments import dataset as ds
-    from experiments.registry import code_fingerprint, library_versions
+    from experiments.cache_keys import code_fingerprint
+    from experiments.registry import library_versions
     from method.registry import Registry
     from repro._cli import CLIError, require_extras, scene_grid, user_input, version_string
     from scenes import get_scene

@@ -198,7 +198,8 @@ def main(argv=None) -> int:
 
         select_variant(args.variant)
     from experiments.evaluation import EVAL_VERSION
-    from experiments.registry import code_fingerprint, library_versions
+    from experiments.cache_keys import code_fingerprint
+    from experiments.registry import library_versions
     from experiments.results_table import write_results
 
     t0 = time.perf_counter()

@@ -92,7 +92,8 @@ def write_figure(data, out_dir: Path) -> dict:
     out_dir : Path
     """
     from defocus_cache import atomic_write_text
-    from experiments.registry import library_versions, to_jsonable
+    from experiments.cache_keys import to_jsonable
+    from experiments.registry import library_versions
 
     t0 = time.perf_counter()
     fig, config = data.figure, data.config

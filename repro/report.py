@@ -184,7 +184,7 @@ def _parser():
 
 def _write_json(path: Path, doc) -> None:
     from defocus_cache import atomic_write_text
-    from experiments.registry import to_jsonable
+    from experiments.cache_keys import to_jsonable
 
     atomic_write_text(path, json.dumps(to_jsonable(doc), indent=1, sort_keys=True, ensure_ascii=False) + "\n")
 

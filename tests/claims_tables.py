@@ -8,7 +8,7 @@ SET = "paper_cameras"
 
 def rows(figure: str, cases, *, mode: str = "quick") -> list[dict]:
     """Rows of ``figure``: ``cases`` = ``[(case ids, nested metrics)]``."""
-    from experiments.cases import flatten
+    from experiments.metric_paths import flatten
     from experiments.results_table import metric_rows
 
     out = []

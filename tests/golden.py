@@ -346,7 +346,7 @@ def measure_spread(runs=SPREAD_RUNS, *, resume: bool = False) -> tuple[dict, dic
 
     from experiments.registry import library_versions
 
-    from experiments.registry import code_fingerprint
+    from experiments.cache_keys import code_fingerprint
 
     per_run = []
     # one file per run, named by the code fingerprint: --resume reuses the runs an interrupted

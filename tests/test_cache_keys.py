@@ -98,12 +98,12 @@ def test_code_fingerprints_are_one_function():
     import method
     import scenes
     from experiments.evaluation import estimator_fingerprint
-    from experiments.registry import _FINGERPRINT_EXCLUDED, code_fingerprint
+    from experiments.cache_keys import FINGERPRINT_EXCLUDED, code_fingerprint
     from method import BLUR_ESTIMATORS
 
-    assert code_fingerprint() == source_fingerprint(method, scenes, experiments, exclude=_FINGERPRINT_EXCLUDED)
+    assert code_fingerprint() == source_fingerprint(method, scenes, experiments, exclude=FINGERPRINT_EXCLUDED)
     assert estimator_fingerprint("model_fit") == source_fingerprint(BLUR_ESTIMATORS["model_fit"])
-    for path in ("repro/estimate.py", "experiments/registry.py", "experiments/evaluation.py"):
+    for path in ("repro/estimate.py", "experiments/registry.py", "experiments/cache_keys.py", "experiments/evaluation.py"):
         text = (ROOT / path).read_text()
         assert "hashlib" not in text and "getsource" not in text, path
 
@@ -117,7 +117,8 @@ def _version_changed(monkeypatch, pkg):
 
 @pytest.mark.parametrize("pkg", ["numpy", "scikit-image", "pyamg", "numba", "drjit", "pymatting"])
 def test_figure_key_changes_with_library_version(monkeypatch, pkg):
-    from experiments.registry import FIGURES, cache_key
+    from experiments.cache_keys import cache_key
+    from experiments.registry import FIGURES
 
     fig = FIGURES["fig10"]
     cfg = fig.configs["quick"] if isinstance(fig.configs, dict) and "quick" in fig.configs else next(iter(fig.configs.values()))

@@ -184,7 +184,7 @@ def test_fig2_and_fig10_on_two_dask_workers(fig10_quick, tmp_path):
 
 
 def test_code_fingerprint_ignores_plots_and_claims_but_not_compute_code(tmp_path, monkeypatch):
-    import experiments.registry as reg
+    import experiments.cache_keys as reg
 
     for rel, text in {"method/a.py": "x = 1\n", "scenes/s.py": "v = 1\n", "experiments/fig.py": "y = 1\n",
                       "experiments/claims/rules.py": "z = 1\n", "experiments/plotting/p.py": "w = 1\n"}.items():

@@ -72,7 +72,8 @@ def test_an_edited_region_file_changes_the_cache_key(tmp_path, monkeypatch):
     import shutil
 
     from experiments import figS2_photos, photo_regions
-    from experiments.registry import FIGURES, cache_key
+    from experiments.cache_keys import cache_key
+    from experiments.registry import FIGURES
 
     before = cache_key(FIGURES["photos"], figS2_photos.PhotosConfig())
     for p in photo_regions.PHOTO_DIR.glob("*.json"):

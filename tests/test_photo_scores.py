@@ -165,7 +165,8 @@ def main(argv=None) -> int:
         spread = max(vals) - min(vals)
         tolerances[k] = {"spread": spread, "tol": max(SPREAD_FACTOR * spread, FLOOR_ATOL + FLOOR_RTOL * abs(ref)),
                          "values": vals}
-    from experiments.registry import code_fingerprint, library_versions
+    from experiments.cache_keys import code_fingerprint
+    from experiments.registry import library_versions
 
     doc = {"how": "every score computed afresh (no cache) in one process per numba/BLAS thread count; "
                   "spread = max - min over the runs",

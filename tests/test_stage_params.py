@@ -233,7 +233,7 @@ def test_dask_tokenizes_by_value():
 
 def test_json_cache_key_is_deterministic_and_holds_every_field():
     from defocus_cache import hash_key
-    from experiments.registry import to_jsonable
+    from experiments.cache_keys import to_jsonable
 
     keys = {}
     for name in PRESETS:

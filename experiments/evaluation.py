@@ -80,7 +80,7 @@ def estimator_fingerprint(name: str) -> str:
     qualified name and source).
 
     Part of the cache key, so an estimator registered at run time from outside ``method/`` (not
-    covered by :func:`experiments.registry.code_fingerprint`) still invalidates stale entries.
+    covered by :func:`experiments.cache_keys.code_fingerprint`) still invalidates stale entries.
     """
     from method import BLUR_ESTIMATORS
     from defocus_cache import source_fingerprint
@@ -326,7 +326,7 @@ def evaluate_case(estimator: str | None, scene: str, *, f_number: float = 8.0, p
     1. Validate names; render with :func:`scenes.render_scene` (its own cache).
     2. Input image (:func:`input_image`), :func:`method.estimate_defocus_map` with ``estimator``.
     3. :func:`evaluate_result`. The cache key holds every option above, the pipeline parameters,
-       :func:`experiments.registry.code_fingerprint` (source of method/scenes/experiments), the
+       :func:`experiments.cache_keys.code_fingerprint` (source of method/scenes/experiments), the
        estimator's own :func:`estimator_fingerprint`, the Mitsuba variant and :data:`EVAL_VERSION`.
     """
     from method import DefocusParams, NoEdgesWarning, estimate_defocus_map

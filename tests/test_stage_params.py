@@ -214,7 +214,7 @@ def test_value_semantics():
 
 def test_dataclass_protocol_is_flat():
     """dataclasses.fields / asdict / replace / is_dataclass see the flat fields (sweep cells, the photo
-    tool's cache key and experiments.registry.to_jsonable rely on it)."""
+    tool's cache key and experiments.cache_keys.to_jsonable rely on it)."""
     p = DefocusParams.preset("robust")
     assert dataclasses.is_dataclass(p) and dataclasses.is_dataclass(DefocusParams)
     assert dataclasses.asdict(p) == _flat(p)

@@ -8,21 +8,13 @@ import io
 import json
 from pathlib import Path
 
-__all__ = ["ID_COLUMNS", "METRIC_COLUMNS", "SHOWN", "STAGE_ID_COLUMNS", "fmt_value", "format_stage_table",
+from experiments.evaluation_columns import METRIC_COLUMNS
+
+__all__ = ["ID_COLUMNS", "SHOWN", "STAGE_ID_COLUMNS", "fmt_value", "format_stage_table",
            "format_table", "stage_table_rows", "table_rows", "write_csv_json", "write_outputs", "write_stage_outputs"]
 
-#: Identifying columns, then metric columns (flattened ``experiments.evaluation.evaluate_result`` keys).
+#: Identifying columns (the metric columns follow: :data:`experiments.evaluation_columns.METRIC_COLUMNS`).
 ID_COLUMNS = ("method_preset", "estimator", "scene", "f_number", "scene_preset", "encoding", "noise")
-METRIC_COLUMNS = (
-    "sparse_n", "sparse_mae", "sparse_median_ae", "sparse_rmse", "sparse_bias", "sparse_median_rel_error",
-    "sparse_outlier_fraction",
-    "refined_mae", "refined_median_ae", "refined_bias", "refined_outlier_fraction",
-    "dense_all_mae", "dense_all_rmse", "dense_all_bias", "dense_all_outlier_fraction",
-    "dense_edges_mae", "dense_edges_rmse", "dense_textured_n", "dense_textured_mae", "dense_textured_rmse",
-    "rtf_nmse", "rtf_nmae",
-    "in_focus_outliers_sparse_fraction", "in_focus_outliers_refined_fraction",
-    "seconds_total",
-)
 #: Columns shown in the terminal table.
 SHOWN = ("sparse_n", "sparse_mae", "sparse_median_ae", "sparse_outlier_fraction", "refined_mae",
          "dense_all_mae", "dense_textured_mae", "rtf_nmae", "in_focus_outliers_sparse_fraction")

@@ -246,8 +246,8 @@ def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | N
 
 
 def _metric_columns(flat: dict) -> dict:
-    """Metric columns: :data:`repro.evaluate.METRIC_COLUMNS` first (without timings), then the rest sorted."""
-    from repro.evaluate import METRIC_COLUMNS
+    """Metric columns: :data:`experiments.evaluation_columns.METRIC_COLUMNS` first (without timings), then the rest sorted."""
+    from experiments.evaluation_columns import METRIC_COLUMNS
 
     first = [c for c in METRIC_COLUMNS if c != "seconds_total"]
     rest = sorted(k for k in flat if k not in first and not k.startswith("timings"))

@@ -176,9 +176,9 @@ def _check_names(scenes, cameras, presets, estimators, encodings, metric, varian
     preset's own) and encodings, each without repeats, in the order given.
     """
     from experiments.evaluation import ENCODINGS, validate_estimators
+    from experiments.evaluation_columns import METRIC_COLUMNS
     from method import PRESETS
     from method.registry import Registry
-    from repro.evaluate import METRIC_COLUMNS
     from repro._cli import check_scene_names
     from scenes import CAMERA_PRESETS
     from scenes.backend import VARIANT_CANDIDATES
@@ -221,7 +221,7 @@ def build_grid(*, scenes, cameras=None, f_numbers=(8.0, 4.0), estimators=None, p
     scene_preset : {"small", "full"}, keyword-only
     encodings : sequence of {"srgb", "linear"}, keyword-only
     metric : str, keyword-only
-        Metric column of the plot and summary (:data:`repro.evaluate.METRIC_COLUMNS`).
+        Metric column of the plot and summary (:data:`experiments.evaluation_columns.METRIC_COLUMNS`).
     variant : str or None, keyword-only
         Mitsuba variant requested (None: each worker's fastest).
 

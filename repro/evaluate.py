@@ -60,15 +60,16 @@ import sys
 import time
 from pathlib import Path
 
+from experiments.evaluation_columns import METRIC_COLUMNS
 from repro import _evaluate_procedural as _procedural
 
 from ._evaluate_inputs import MAPS_ONLY, MAP_ID_COLUMNS, PHOTO_COLUMNS, main_maps, main_photos, photo_names, photo_rows, used
-from ._evaluate_table import (ID_COLUMNS, METRIC_COLUMNS, SHOWN, STAGE_ID_COLUMNS, format_stage_table, format_table,
+from ._evaluate_table import (ID_COLUMNS, SHOWN, STAGE_ID_COLUMNS, format_stage_table, format_table,
                               stage_table_rows, table_rows, write_csv_json, write_outputs, write_stage_outputs)
 
 PROG = "python -m repro.evaluate"
 DEFAULT_OUT = Path("report") / "evaluate"
-__all__ = ["DEFAULT_OUT", "ID_COLUMNS", "MAP_ID_COLUMNS", "METRIC_COLUMNS", "PHOTO_COLUMNS", "PROG", "SHOWN",
+__all__ = ["DEFAULT_OUT", "ID_COLUMNS", "MAP_ID_COLUMNS", "PHOTO_COLUMNS", "PROG", "SHOWN",
            "STAGE_ID_COLUMNS", "format_stage_table", "format_table", "main", "main_maps", "main_photos", "photo_rows",
            "stage_table_rows", "table_rows", "write_csv_json", "write_outputs", "write_stage_outputs"]
 

@@ -31,7 +31,8 @@ def _read(out):
 
 @pytest.mark.render
 def test_evaluate_one_scene_writes_csv_and_json(tmp_path, capsys, goldens):
-    from repro.evaluate import ID_COLUMNS, METRIC_COLUMNS
+    from experiments.evaluation_columns import METRIC_COLUMNS
+    from repro.evaluate import ID_COLUMNS
 
     out = tmp_path / "ev"
     assert _run(["--estimator", "model_fit", "zero_crossing", "gradient_ratio", "--scenes", "planes",

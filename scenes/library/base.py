@@ -28,6 +28,7 @@ __all__ = [
     "EMISSION_ONLY_INTEGRATOR",
     "PATH_INTEGRATOR",
     "PRESETS",
+    "REF_WIDTH_PX",
     "SAMPLER",
     "SceneDefinition",
     "ambient_light",
@@ -43,6 +44,9 @@ __all__ = [
 
 #: Resolution presets (width, height) in pixels: ``small`` for CI, ``full`` for the figures.
 PRESETS: Mapping[str, tuple[int, int]] = MappingProxyType({"small": (160, 120), "full": (640, 480)})
+#: Image width (px) of the ``full`` preset: the reference width of the procedural scenes' defocus draw
+#: and texture scales (:mod:`scenes.library.procedural`).
+REF_WIDTH_PX = PRESETS["full"][0]
 #: The paper's Fig. 7 pair of apertures: f/8 photograph and f/4 photograph.
 DEFAULT_F_NUMBERS = (8.0, 4.0)
 #: Mitsuba sampler used for every render. Multi-jittered samples converge much faster than

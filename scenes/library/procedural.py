@@ -43,7 +43,7 @@ from types import MappingProxyType
 import numpy as np
 
 from ..camera import PAPER_CAMERAS
-from .base import EMISSION_ONLY_INTEGRATOR, PATH_INTEGRATOR, SceneDefinition, spp_per_preset
+from .base import EMISSION_ONLY_INTEGRATOR, PATH_INTEGRATOR, REF_WIDTH_PX, SceneDefinition, spp_per_preset
 
 __all__ = [
     "CAMERA_FOCUS_RANGES_M",
@@ -54,7 +54,6 @@ __all__ = [
     "PROCEDURAL_F_NUMBERS",
     "PROCEDURAL_PREFIX",
     "REF_F_NUMBER",
-    "REF_WIDTH_PX",
     "SPLITS",
     "SeedSplit",
     "check_seed_range",
@@ -95,8 +94,8 @@ _CAMERA_WEIGHTS = (0.5, 0.25, 0.25)
 NEAR_COC_PX = (36.0, 64.0)
 #: Largest |CoC| (px, full preset, f/2) of the other objects in front of the subject.
 _MAX_FRONT_COC_PX = 64.0
-#: Reference of the defocus draw: f-number and image width (px, the ``full`` preset).
-REF_F_NUMBER, REF_WIDTH_PX = 2.0, 640
+#: Reference f-number of the defocus draw (its image width: :data:`scenes.library.base.REF_WIDTH_PX`).
+REF_F_NUMBER = 2.0
 #: Texture families and their probabilities (dead leaves and photos most often, as in natural images).
 _FAMILY_WEIGHTS = MappingProxyType({"dead_leaves": 0.25, "photo": 0.15, "checker": 0.08, "stripes": 0.08,
                                     "text": 0.1, "brick": 0.1, "flat_patches": 0.12, "shading": 0.12})

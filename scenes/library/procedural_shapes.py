@@ -18,8 +18,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from .base import image_extent
-from .procedural import REF_WIDTH_PX
+from .base import REF_WIDTH_PX, image_extent
 
 __all__ = ["layout_shapes"]
 

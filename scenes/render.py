@@ -150,9 +150,8 @@ def scene_content_hash(sdef: SceneDefinition, *, variant: str) -> str:
     """
     import hashlib
 
-    import scenes
-
-    memo = {"scene": sdef.name, "source": source_fingerprint(scenes, sdef.shapes), "variant": variant,
+    package = Path(__file__).resolve().parent  # the scenes package (every .py below it)
+    memo = {"scene": sdef.name, "source": source_fingerprint(package, sdef.shapes), "variant": variant,
             "libraries": library_versions()}
     mkey = hash_key(memo)
     # Only library scenes are memoised: their builders are determined by the scenes package's source.

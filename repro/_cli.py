@@ -72,7 +72,6 @@ from repro._cli_checks import (check_output_path, check_scene_names, float_type,
                                scene_grid)
 from repro._cli_errors import (COMMAND_EXTRAS, EXTRAS, INSTALL_HINT, USER_ERRORS, CLIError, MissingExtraError,
                                extra_message, missing_extra, require_extras, user_input)
-from repro._cli_errors import _installed  # noqa: F401 - read by the tests of the extras
 
 __all__ = [
     "COMMANDS",

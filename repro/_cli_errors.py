@@ -97,7 +97,7 @@ COMMAND_EXTRAS: dict[str, tuple[str, ...]] = {
 INSTALL_HINT = "pip install -e '.[{extra}]'"
 
 
-def _installed(module: str) -> bool:
+def module_installed(module: str) -> bool:
     """True when the top-level ``module`` can be imported (found on the path; not imported here)."""
     import importlib.util
 
@@ -141,5 +141,5 @@ def require_extras(*extras: str, command: str) -> None:
         if extra not in EXTRAS:
             raise ValueError(f"unknown extra {extra!r}; allowed: {', '.join(EXTRAS)}")
         for module in EXTRAS[extra]:
-            if not _installed(module):
+            if not module_installed(module):
                 raise MissingExtraError(extra_message(command, extra, module))

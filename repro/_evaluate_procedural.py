@@ -174,7 +174,7 @@ def run_evaluation(plan, root, *, workers=None, scheduler=None, force=False, pro
     from experiments.results_table import write_results
     from scenes.backend import VARIANT_ENV
 
-    from ._sweep_engine import _versions, read_cell, write_cell
+    from ._sweep_engine import key_versions, read_cell, write_cell
 
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     t0, eid = time.perf_counter(), plan.evaluation_id
@@ -185,7 +185,7 @@ def run_evaluation(plan, root, *, workers=None, scheduler=None, force=False, pro
                 "rerun": " ".join(rerun), "command": command, "started_utc": _now()}
     atomic_write_text(out / "run.json", json.dumps(run_info, indent=1, sort_keys=True) + "\n")
     log(f"evaluation {eid}: {plan.n} {plan.split} scene(s), seeds {plan.start}..{plan.start + plan.n - 1} -> {out}")
-    code, versions = code_fingerprint(), _versions()
+    code, versions = code_fingerprint(), key_versions()
     asked = plan.variant or os.environ.get(VARIANT_ENV) or "auto"
     keys = {seed: scene_key(plan, seed, code=code, versions=versions, variant_requested=asked) for seed in plan.seeds}
     ids = {seed: f"{seed}-{hash_key(k)[:12]}" for seed, k in keys.items()}

@@ -24,7 +24,7 @@ from ._sweep_grid import Grid
 __all__ = ["SweepRun", "cell_keys", "read_cell", "run_sweep", "write_cell"]
 
 
-def _versions() -> dict:
+def key_versions() -> dict:
     from importlib.metadata import PackageNotFoundError, version
 
     from experiments.registry import library_versions
@@ -45,7 +45,7 @@ def cell_keys(grid: Grid) -> list[dict]:
     from experiments.sweep_cells import SWEEP_CELL_VERSION, cell_params
     from scenes.backend import VARIANT_ENV
 
-    code, versions = code_fingerprint(), _versions()
+    code, versions = code_fingerprint(), key_versions()
     asked = grid.variant or os.environ.get(VARIANT_ENV) or "auto"
     est_code = {}
     keys = []

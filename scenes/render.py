@@ -31,7 +31,7 @@ from .ground_truth import camera_space_depth, ground_truth_from_depth
 from .library import SceneDefinition, get_scene
 from .library.base import SAMPLER
 from defocus_cache import Cache, atomic_write_text, hash_key, library_versions, source_fingerprint
-from .render_files import _UNITS, EXR_NAME, Render, load_render, sidecar_path
+from .render_files import CHANNEL_UNITS, EXR_NAME, Render, load_render, sidecar_path
 from .thin_lens import BOX_FILTER_SIGMA_PX, SIGMA_CONVENTIONS
 
 __all__ = [
@@ -281,7 +281,7 @@ def _compute(sdef, camera, *, spp, seed, mi, variant, sigma_convention, progress
         "sigma_convention": sigma_convention,
         "filter_sigma_px": FILTER_SIGMA_PX,
         "depth_method": "lens-centre ray through each pixel centre; z = (p - camera position) . forward; inf on miss",
-        "channels": _UNITS,
+        "channels": CHANNEL_UNITS,
         "load_time_s": t_load,
         "render_time_s": t_render,
         "ground_truth_time_s": t_gt,

@@ -25,7 +25,7 @@ __all__ = ["EXR_NAME", "Render", "load_render", "sidecar_path"]
 EXR_NAME = "render.exr"
 
 _CHANNELS = {"rgb": "RGB", "depth": "Z", "coc_px": "coc", "sigma_px": "sigma", "occlusion_boundary": "occlusion_boundary"}
-_UNITS = {
+CHANNEL_UNITS = {
     "RGB": "linear radiance (float32, unclamped)",
     "Z": "camera-space depth z, metres; inf = the pixel-centre lens-centre ray missed",
     "coc": "circle-of-confusion diameter, px (Eq. 5 / pixel pitch)",

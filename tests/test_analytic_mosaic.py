@@ -60,8 +60,8 @@ def test_supersampled_disc_matches_analytic_blur(sigma):
     big = (shape[0] + 2 * pad, shape[1] + 2 * pad)
     center = (pad + 31.3, pad + 32.6)  # sub-pixel, fine-lattice-incommensurate
     fine = _render_fine_disc(big, s, center, 18.7)
-    stages = L._blur_stages(sigma, s)
-    img = L._apply_stages_2d(fine, stages, (pad * s, pad * s), shape)
+    stages = L.blur_stages(sigma, s)
+    img = L.apply_stages_2d(fine, stages, (pad * s, pad * s), shape)
     c = (center[0] - pad, center[1] - pad)
     fit = _fit_sigma(lambda v: blurred_disk(shape, sigma=v, radius=18.7, center=c, inside=1.0,
                                             outside=0.0).image, img)
@@ -78,7 +78,7 @@ def test_supersampled_straight_edge_matches_step_edge(sigma):
     # centre of the huge disc on the dark side, so the edge passes `offset` px from the image centre
     center = (mid[0] - (radius - offset) * np.sin(angle), mid[1] - (radius - offset) * np.cos(angle))
     fine = _render_fine_disc(big, s, center, radius)  # inside = the side the normal points away from
-    img = L._apply_stages_2d(fine, L._blur_stages(sigma, s), (pad * s, pad * s), shape)
+    img = L.apply_stages_2d(fine, L.blur_stages(sigma, s), (pad * s, pad * s), shape)
     fit = _fit_sigma(lambda v: 1.0 - step_edge(shape, sigma=v, angle=angle, offset=offset,
                                                low=0.0, high=1.0).image, img)
     assert abs(fit - sigma) < BLUR_FIT_TOL_PX, (sigma, fit)
@@ -88,10 +88,10 @@ def test_supersampled_straight_edge_matches_step_edge(sigma):
 def test_decimating_blur_is_gaussian_filter_point_sampled(sigma):
     s = 4
     f = (np.random.default_rng(3).random((420, 410)) > 0.5).astype(np.float64)
-    stages = L._blur_stages(sigma, s)
-    rad = L._stages_support(stages)
+    stages = L.blur_stages(sigma, s)
+    rad = L.stages_support(stages)
     n = ((f.shape[0] - 1 - 2 * rad) // s, (f.shape[1] - 1 - 2 * rad) // s)
-    out = L._apply_stages_2d(f, stages, (rad, rad), n)
+    out = L.apply_stages_2d(f, stages, (rad, rad), n)
     ref = gaussian_filter(f, sigma * s, mode="reflect")[rad:rad + s * n[0]:s, rad:rad + s * n[1]:s]
     tol = ONE_STAGE_ATOL if len(stages) == 1 else CASCADE_ATOL
     assert np.abs(out - ref).max() < tol
@@ -128,7 +128,7 @@ def test_skimage_tile_interior_is_the_discrete_gaussian_of_the_sharp_tile():
     kw = dict(tile=48, cols=2, rng=2, texture="skimage", color=False)
     sharp = texture_mosaic(sigmas=(0.0, 0.0), **kw)
     mos = texture_mosaic(sigmas=(0.0, 2.0), **kw)
-    k = L._discrete_gaussian(2.0)
+    k = L.discrete_gaussian(2.0)
     ref = correlate1d(correlate1d(sharp.image, k, axis=0, mode="reflect"), k, axis=1, mode="reflect")
     m = 16  # > kernel radius 12 from the seam and from the (mirrored) canvas border
     assert np.abs(mos.image[m:-m, 48 + m:-m] - ref[m:-m, 48 + m:-m]).max() < LAYER_ATOL
@@ -137,7 +137,7 @@ def test_skimage_tile_interior_is_the_discrete_gaussian_of_the_sharp_tile():
 
 @pytest.mark.parametrize("sigma", [0.5, 1.0, 2.0, 8.0])
 def test_discrete_gaussian_has_the_claimed_variance(sigma):
-    k = L._discrete_gaussian(sigma)
+    k = L.discrete_gaussian(sigma)
     n = np.arange(k.size) - (k.size - 1) // 2
     assert abs(k.sum() - 1) < 1e-12
     assert abs(np.sum(k * n * n) / sigma ** 2 - 1) < DISCRETE_VAR_RTOL

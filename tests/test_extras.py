@@ -23,6 +23,7 @@ import pytest
 
 from repro import _cli
 from repro._cli import COMMAND_EXTRAS, EXTRAS, MissingExtraError, console_main, require_extras, run_cli
+from repro._cli_errors import module_installed
 
 ROOT = Path(__file__).resolve().parents[1]
 PYPROJECT = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
@@ -148,7 +149,7 @@ def test_an_extra_module_missing_later_is_one_line_other_modules_propagate(capsy
 
 def test_require_extras_both_sides(monkeypatch):
     for extra, modules in EXTRAS.items():
-        if all(_cli._installed(m) for m in modules):
+        if all(module_installed(m) for m in modules):
             require_extras(extra, command="x")  # installed: no error
     monkeypatch.setitem(sys.modules, "pyarrow", None)
     with pytest.raises(MissingExtraError, match=r"^x needs the 'sweep' extra \(pyarrow is not installed\)"):
@@ -165,7 +166,7 @@ def test_require_extras_both_sides(monkeypatch):
 def test_require_mitsuba_names_the_render_extra(monkeypatch):
     from scenes.backend import require_mitsuba
 
-    if _cli._installed("mitsuba") and _cli._installed("drjit"):
+    if module_installed("mitsuba") and module_installed("drjit"):
         require_mitsuba()  # installed: no error
     for missing in ("mitsuba", "drjit"):
         with monkeypatch.context() as m:

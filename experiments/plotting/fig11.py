@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .style import _RC, add_colorbar, plt, plot_scene_sets, save_figure
+from .style import RC, add_colorbar, plt, plot_scene_sets, save_figure
 
 
 def plot(data, config, out_stem):
@@ -54,7 +54,7 @@ def plot_one_set(data, config, out_stem):
     k = metrics["factor"]
     presets = ["paper", *[p for p in getattr(config, "presets", ("paper",))[1:] if p in metrics.get("presets", {})]]
     ncols = 2 + 2 * len(presets)
-    with plt.rc_context(_RC):
+    with plt.rc_context(RC):
         fig = plt.figure(figsize=(2.6 * ncols + 0.6, 2.2 * len(items)), layout="constrained")
         subs = np.atleast_1d(fig.subfigures(len(items), 1))
         for sub, item in zip(subs, items):

@@ -7,7 +7,7 @@ import numpy as np
 from .style import COLORS, add_colorbar, new_figure, plot_scene_sets, plt, save_figure
 
 
-def _dots(sigma, radius=1):
+def dots(sigma, radius=1):
     """Sparse σ map (NaN off edges) with each estimate spread to its (2r+1)² neighbours (nearest)."""
     from scipy.ndimage import distance_transform_edt
 
@@ -78,7 +78,7 @@ def plot_one_set(data, config, out_stem):
     im = top[1].imshow(np.where(data["showcase_occlusion"], np.nan, gt), cmap=cmap, vmin=0, vmax=vmax)
     top[1].set_title("ground truth σ")
     for i, e in enumerate(ests):
-        top[2 + i].imshow(_dots(data["showcase_estimates"][i].astype(np.float64), radius=max(1, gt.shape[1] // 200)), cmap=cmap, vmin=0, vmax=vmax)
+        top[2 + i].imshow(dots(data["showcase_estimates"][i].astype(np.float64), radius=max(1, gt.shape[1] // 200)), cmap=cmap, vmin=0, vmax=vmax)
         top[2 + i].set_title(e)
     for ax in top[:n_maps]:
         ax.set_xticks([])

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from .fig4 import _dots
+from .fig4 import dots
 from .style import COLORS, add_colorbar, new_figure, plt, plot_scene_sets, save_figure
 
 _TITLES = {"before": "before (BM)", "after_bias": "after bCBF (bias)", "after_no_bias": "after CBF (no bias)"}
@@ -120,7 +120,7 @@ def plot_one_set(data, config, out_stem):
         im = row[1].imshow(np.where(data[f"{case}_occlusion"], np.nan, gt), cmap=cmap, vmin=0, vmax=vmax)
         row[1].set_title("ground truth σ\n(occlusion grey)", fontsize=7)
         for j, stage in enumerate(stages):
-            row[2 + j].imshow(_dots(data[f"{case}_{stage}"].astype(np.float64), radius=max(1, gt.shape[1] // 200)), cmap=cmap, vmin=0, vmax=vmax)
+            row[2 + j].imshow(dots(data[f"{case}_{stage}"].astype(np.float64), radius=max(1, gt.shape[1] // 200)), cmap=cmap, vmin=0, vmax=vmax)
             s = m[case][stage]
             frac = s["in_focus_outliers"]["fraction"]
             frac_txt = "n/a" if frac is None else f"{100 * frac:.1f} %"

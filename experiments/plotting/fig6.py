@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .style import _RC, COLORS, add_colorbar, plt, plot_scene_sets, save_figure, set_scenes
+from .style import RC, COLORS, add_colorbar, plt, plot_scene_sets, save_figure, set_scenes
 
 
 def plot(data, config, out_stem):
@@ -59,7 +59,7 @@ def plot_one_set(data, config, out_stem):
     others = [p for p in getattr(config, "presets", ("paper",))[1:] if f"preset_{p}__maps" in data]
     k = len(alphas)
     ncols = k + 2
-    with plt.rc_context(_RC):
+    with plt.rc_context(RC):
         fig = plt.figure(figsize=(2.3 * ncols, 2.1 * (1 + len(others)) + 2.9), layout="constrained")
         top, bottom = fig.subfigures(2, 1, height_ratios=(2.1 * (1 + len(others)), 2.9))
         axes_top = np.atleast_2d(top.subplots(1 + len(others), ncols))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .style import _RC, COLORS, add_colorbar, plt, plot_scene_sets, save_figure, set_scenes
+from .style import RC, COLORS, add_colorbar, plt, plot_scene_sets, save_figure, set_scenes
 
 _MAP_LABELS = {
     "map_small": "f/8 map",
@@ -65,11 +65,11 @@ def plot(data, config, out_stem):
     return plot_scene_sets(lambda fd, name, stem: plot_one_set(*_set_view(fd, name), stem), data, config, out_stem)
 
 
-def _merge(a: dict, b: dict) -> dict:
+def merge_nested(a: dict, b: dict) -> dict:
     """Nested dicts merged (``b`` adds to and overrides ``a``)."""
     out = dict(a)
     for k, v in b.items():
-        out[k] = _merge(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
+        out[k] = merge_nested(out[k], v) if isinstance(v, dict) and isinstance(out.get(k), dict) else v
     return out
 
 
@@ -91,7 +91,7 @@ def _set_view(fd, set_name):
             out = fd.one(scene_set=set_name, scene=scene, preset=p)
             tag = "" if p == "paper" else f"{p}__"
             view.update({f"{scene}__{tag}{k}": v for k, v in out.arrays().items()})
-            merged = _merge(stage.nested(), out.nested())
+            merged = merge_nested(stage.nested(), out.nested())
             if p == "paper":
                 metrics["scenes"][scene] = merged
             else:
@@ -119,7 +119,7 @@ def plot_one_set(data, config, out_stem):
     nl, ns = config.f_number_large_aperture, config.f_number_small_aperture
     others = _others(data, config)
     rows = 2 + len(others) + len(_renderers(data, config))
-    with plt.rc_context(_RC):
+    with plt.rc_context(RC):
         fig = plt.figure(figsize=(13.5, 2.3 * rows * len(scenes) + 6.0 + 0.6 * len(others)), layout="constrained")
         subs = fig.subfigures(len(scenes) + 1, 1,
                               height_ratios=[float(rows)] * len(scenes) + [2.6 + 0.3 * len(others)])

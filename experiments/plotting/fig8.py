@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .style import _RC, COLORS, add_colorbar, plot_scene_sets, plt, save_figure
+from .style import RC, COLORS, add_colorbar, plot_scene_sets, plt, save_figure
 
 _SWEEP_LABELS = {
     "refocused_estimated_psnr_db": "refocused, estimated maps (vs D2)",
@@ -40,14 +40,14 @@ def _set_view(fd, set_name, preset="paper"):
     import dataclasses
     import types
 
-    from .fig7 import _merge
+    from .fig7 import merge_nested
 
     config = fd.config
     stage = fd.one(scene_set=set_name, variant="stage")
     mcase = fd.one(scene_set=set_name, preset=preset, variant="map")
     main = fd.one(scene_set=set_name, preset=preset, variant=f"nsr={config.nsr:g}")
     view = {**stage.arrays(), **mcase.arrays(), **main.arrays()}
-    metrics = _merge(_merge(stage.nested(), mcase.nested()), main.nested())
+    metrics = merge_nested(merge_nested(stage.nested(), mcase.nested()), main.nested())
     sweep = sorted((o.nested() for o in fd.find(scene_set=set_name, preset=preset)
                     if o.case.variant.startswith("nsr=") and float(o.case.variant[4:]) in config.nsr_sweep),
                    key=lambda m: m["nsr"])
@@ -71,7 +71,7 @@ def plot_one_set(data, config, out_stem):
     dq = m["deconvolution_vs_pinhole"]
     d1, d2 = m["focus_distance_1_m"], m["focus_distance_2_m"]
     n = config.f_number
-    with plt.rc_context(_RC):
+    with plt.rc_context(RC):
         fig = plt.figure(figsize=(15.5, 8.8), layout="constrained")
         top, mid, bottom = fig.subfigures(3, 1, height_ratios=[1.1, 0.95, 1.0])
         axes = top.subplots(1, 6)

@@ -7,7 +7,7 @@ import numpy as np
 
 from matplotlib.patches import Rectangle
 
-from .style import _RC, add_colorbar, plt, save_figure
+from .style import RC, add_colorbar, plt, save_figure
 
 #: Outline colours of the regions (in focus, defocused).
 _REGION_COLORS = {"in_focus": "#00FF66", "defocused": "#FF33CC"}
@@ -30,7 +30,7 @@ def plot(data, config, out_stem):
     metrics = data["metrics"]
     presets = list(metrics["presets_scored"])
     ncols = 3 + len(presets) + len(metrics.get("renderers", ["gather"]))
-    with plt.rc_context(_RC):
+    with plt.rc_context(RC):
         fig = plt.figure(figsize=(2.9 * ncols + 0.6, 2.5 * len(items) + 0.3), layout="constrained")
         subs = np.atleast_1d(fig.subfigures(len(items), 1))
         for sub, name in zip(subs, items):

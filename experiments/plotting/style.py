@@ -22,7 +22,7 @@ DPI = 150
 #: Line colours (colour-blind-safe Okabe–Ito subset), used in order.
 COLORS = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9")
 
-_RC = {
+RC = {
     "font.size": 9,
     "axes.titlesize": 9,
     "axes.labelsize": 9,
@@ -38,7 +38,7 @@ _RC = {
 
 def new_figure(nrows=1, ncols=1, *, width_in=6.5, height_in=3.5, **kwargs):
     """A figure and axes with the project style (sizes in inches)."""
-    with plt.rc_context(_RC):
+    with plt.rc_context(RC):
         fig, axes = plt.subplots(nrows, ncols, figsize=(width_in, height_in), **kwargs)
     fig.set_layout_engine("constrained")
     return fig, axes
@@ -60,7 +60,7 @@ def save_figure(fig, out_stem) -> list[Path]:
     if _caption:
         fig.text(0.5, 0.0, _caption[-1], ha="center", va="top", fontsize=8, style="italic")
     paths = []
-    with plt.rc_context(_RC):
+    with plt.rc_context(RC):
         for ext in (".png", ".pdf"):
             path = out_stem.with_name(out_stem.name + ext)
             with atomic_write(path) as tmp:

@@ -24,11 +24,11 @@ OUTPUT_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".exr")
 JPEG_QUALITY = 95
 JPEG_SUBSAMPLING = 0
 
-_EXR_MAGIC = b"\x76\x2f\x31\x01"
-_PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
-_TIFF_MAGICS = (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+")
-_JPEG_MAGIC = b"\xff\xd8\xff"
-_ORIENTATION_TAG = 0x0112
+EXR_MAGIC = b"\x76\x2f\x31\x01"
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+TIFF_MAGICS = (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+")
+JPEG_MAGIC = b"\xff\xd8\xff"
+ORIENTATION_TAG = 0x0112
 
 
 class PhotoError(ValueError):

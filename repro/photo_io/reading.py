@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .formats import (_EXR_MAGIC, _JPEG_MAGIC, _ORIENTATION_TAG, _PNG_MAGIC, _TIFF_MAGICS, DEFAULT_MAX_PIXELS, Photo,
+from .formats import (EXR_MAGIC, JPEG_MAGIC, ORIENTATION_TAG, PNG_MAGIC, TIFF_MAGICS, DEFAULT_MAX_PIXELS, Photo,
                       PhotoError, PhotoHeader)
 
 __all__ = ["apply_orientation", "probe_photo", "read_photo"]
@@ -36,13 +36,13 @@ def _check_file(path) -> Path:
 def _sniff(path: Path) -> str | None:
     with open(path, "rb") as fh:
         head = fh.read(16)
-    if head.startswith(_EXR_MAGIC):
+    if head.startswith(EXR_MAGIC):
         return "EXR"
-    if head.startswith(_PNG_MAGIC):
+    if head.startswith(PNG_MAGIC):
         return "PNG"
-    if head.startswith(_JPEG_MAGIC):
+    if head.startswith(JPEG_MAGIC):
         return "JPEG"
-    if any(head.startswith(m) for m in _TIFF_MAGICS):
+    if any(head.startswith(m) for m in TIFF_MAGICS):
         return "TIFF"
     return None
 
@@ -167,11 +167,11 @@ def _exif_of(im) -> tuple[int, bytes | None]:
         exif = im.getexif()
     except Exception:  # malformed EXIF must not stop us from reading the pixels
         return 1, None
-    orientation = int(exif.get(_ORIENTATION_TAG, 1) or 1)
+    orientation = int(exif.get(ORIENTATION_TAG, 1) or 1)
     if not len(exif):
         return orientation, None
-    if _ORIENTATION_TAG in exif:
-        exif[_ORIENTATION_TAG] = 1
+    if ORIENTATION_TAG in exif:
+        exif[ORIENTATION_TAG] = 1
     try:
         return orientation, exif.tobytes()
     except Exception:

@@ -7,7 +7,7 @@ import numpy as np
 __all__ = ["degrade"]
 
 
-def _check_shape(shape):
+def check_shape(shape):
     try:
         h, w = (int(v) for v in shape)
     except (TypeError, ValueError) as exc:
@@ -17,12 +17,12 @@ def _check_shape(shape):
     return h, w
 
 
-def _check_levels(low, high):
+def check_levels(low, high):
     if not (0.0 <= low <= 1.0 and 0.0 <= high <= 1.0 and low != high):
         raise ValueError(f"low={low!r}, high={high!r} invalid; allowed: distinct values in [0, 1]")
 
 
-def _check_sigma(sigma):
+def check_sigma(sigma):
     s = float(sigma)
     if not (s >= 0 and np.isfinite(s)):
         raise ValueError(f"sigma={sigma!r} is invalid; allowed: finite σ >= 0 px")
@@ -64,7 +64,7 @@ def degrade(image, *, noise_std=0.0, quantize_bits=None, rng=None):
     return out
 
 
-def _seed_entropy(rng, name="rng"):
+def seed_entropy(rng, name="rng"):
     """A non-negative integer seed from a Generator, an int seed or None (seed 0)."""
     if isinstance(rng, np.random.Generator):
         return int(rng.integers(0, 2 ** 63))
@@ -75,14 +75,14 @@ def _seed_entropy(rng, name="rng"):
     return int(rng)
 
 
-def _check_supersample(supersample):
+def check_supersample(supersample):
     if isinstance(supersample, (bool, np.bool_)) or not isinstance(supersample, (int, np.integer)) \
             or not 1 <= supersample <= 16:
         raise ValueError(f"supersample={supersample!r} is invalid; allowed: an int in 1..16")
     return int(supersample)
 
 
-def _check_radius_range(radius_range, supersample):
+def check_radius_range(radius_range, supersample):
     try:
         r_min, r_max = (float(v) for v in radius_range)
     except (TypeError, ValueError) as exc:
@@ -94,7 +94,7 @@ def _check_radius_range(radius_range, supersample):
     return r_min, r_max
 
 
-def _check_value_range(value_range):
+def check_value_range(value_range):
     bad = f"value_range={value_range!r} is invalid; allowed: (lo, hi) with 0 <= lo < hi <= 1"
     try:
         lo, hi = (float(v) for v in value_range)
@@ -105,7 +105,7 @@ def _check_value_range(value_range):
     return lo, hi
 
 
-def _check_n_levels(n_levels):
+def check_n_levels(n_levels):
     if n_levels is None:
         return None
     if isinstance(n_levels, (bool, np.bool_)) or not isinstance(n_levels, (int, np.integer)) or n_levels < 2:
@@ -113,13 +113,13 @@ def _check_n_levels(n_levels):
     return int(n_levels)
 
 
-def _check_bool(value, name):
+def check_bool(value, name):
     if not isinstance(value, (bool, np.bool_)):
         raise ValueError(f"{name}={value!r} is invalid; allowed: True, False")
     return bool(value)
 
 
-def _check_sigmas(sigmas):
+def check_sigmas(sigmas):
     bad = f"sigmas={sigmas!r} is invalid; allowed: a non-empty sequence of finite σ >= 0 px"
     try:
         vals = tuple(float(v) for v in sigmas)
@@ -130,13 +130,13 @@ def _check_sigmas(sigmas):
     return vals
 
 
-def _check_int(value, name, minimum):
+def check_int(value, name, minimum):
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < minimum:
         raise ValueError(f"{name}={value!r} is invalid; allowed: an int >= {minimum}")
     return int(value)
 
 
-def _check_band(boundary_band):
+def check_band(boundary_band):
     """``boundary_band`` as a float (None stays None); ValueError unless finite and >= 0 px."""
     if boundary_band is None:
         return None
@@ -150,7 +150,7 @@ def _check_band(boundary_band):
     return band_val
 
 
-def _check_degrade(noise_std, quantize_bits):
+def check_degrade(noise_std, quantize_bits):
     """ValueError unless ``noise_std`` >= 0 and ``quantize_bits`` is None or 1..16 (see :func:`degrade`)."""
     if not noise_std >= 0:
         raise ValueError(f"noise_std={noise_std!r} is invalid; allowed: >= 0")

@@ -19,7 +19,7 @@ def _sampled_gaussian(sigma):
     return w / w.sum()
 
 
-def _discrete_gaussian(sigma):
+def discrete_gaussian(sigma):
     """Lindeberg's discrete Gaussian T(n; t = σ²) = e^{−t} I_n(t): variance exactly σ² before the
     truncation at |n| ≤ int(5σ + ½) + 2 (renormalised; the truncation lowers the variance by
     < 1e−5 relative), unlike the sampled Gaussian (std 0.464 for σ = 0.5)."""
@@ -55,13 +55,13 @@ def _decimating_blur_1d(a, w, start, step, n_out, axis=0):
     return out
 
 
-#: Blurs with σ >= this (px) on a supersampled grid run as a cascade (see _blur_stages).
+#: Blurs with σ >= this (px) on a supersampled grid run as a cascade (see blur_stages).
 _CASCADE_MIN_SIGMA = 2.0
 #: First-stage σ (px) of the cascade, applied on the fine grid before decimation.
 _CASCADE_FIRST_SIGMA = 1.0
 
 
-def _blur_stages(sigma, supersample):
+def blur_stages(sigma, supersample):
     """The blur G_σ (σ in output px) on a grid ``supersample`` times finer, evaluated at the
     output pixel centres, as a list of (1-D kernel, decimation step) applied in order.
 
@@ -80,14 +80,14 @@ def _blur_stages(sigma, supersample):
     return [(_sampled_gaussian(_CASCADE_FIRST_SIGMA * s), s), (_sampled_gaussian(rest), 1)]
 
 
-def _stages_support(stages):
+def stages_support(stages):
     """Fine samples the stages need on each side of the first/last output centre."""
     (k0, s), rest = stages[0], stages[1:]
     return (k0.size - 1) // 2 + s * sum((k.size - 1) // 2 for k, _ in rest)
 
 
-def _apply_stages_1d(a, stages, start, n_out, axis=0):
-    """Apply :func:`_blur_stages` along ``axis``; output i at fine index start + s·i."""
+def apply_stages_1d(a, stages, start, n_out, axis=0):
+    """Apply :func:`blur_stages` along ``axis``; output i at fine index start + s·i."""
     (k0, s), rest = stages[0], stages[1:]
     extra = sum((k.size - 1) // 2 for k, _ in rest)
     out = _decimating_blur_1d(a, k0, start - s * extra, s, n_out + 2 * extra, axis)
@@ -97,6 +97,6 @@ def _apply_stages_1d(a, stages, start, n_out, axis=0):
     return out
 
 
-def _apply_stages_2d(a, stages, start, n_out):
-    """Separable :func:`_apply_stages_1d` on axes 0 and 1 of a 2-D array."""
-    return _apply_stages_1d(_apply_stages_1d(a, stages, start[0], n_out[0], 0), stages, start[1], n_out[1], 1)
+def apply_stages_2d(a, stages, start, n_out):
+    """Separable :func:`apply_stages_1d` on axes 0 and 1 of a 2-D array."""
+    return apply_stages_1d(apply_stages_1d(a, stages, start[0], n_out[0], 0), stages, start[1], n_out[1], 1)

@@ -18,7 +18,7 @@ import dataclasses
 import numpy as np
 from scipy.special import chndtr, ndtr
 
-from ._common import _check_levels, _check_shape, _check_sigma, degrade
+from ._common import check_levels, check_shape, check_sigma, degrade
 
 __all__ = ["AnalyticImage", "blurred_disk", "parallel_edges", "step_edge"]
 
@@ -62,7 +62,7 @@ def _grid(h, w, center):
     return x - cx, y - cy
 
 
-def _mask(dist, normal):
+def edge_pixels(dist, normal):
     half = 0.5 * np.maximum(np.abs(np.cos(normal)), np.abs(np.sin(normal)))
     return (dist >= -half) & (dist < half)
 
@@ -99,9 +99,9 @@ def step_edge(shape, *, sigma, angle=0.0, offset=0.0, center=None, low=0.2, high
     2. I = low + (high − low)·Φ(t/σ).
     3. Optional noise and quantisation (:func:`degrade`).
     """
-    h, w = _check_shape(shape)
-    s = _check_sigma(sigma)
-    _check_levels(low, high)
+    h, w = check_shape(shape)
+    s = check_sigma(sigma)
+    check_levels(low, high)
     x, y = _grid(h, w, center)
     t = x * np.cos(angle) + y * np.sin(angle) - offset
     img = low + (high - low) * _profile(t, s)
@@ -110,7 +110,7 @@ def step_edge(shape, *, sigma, angle=0.0, offset=0.0, center=None, low=0.2, high
     if high < low:
         normal = np.arctan2(-np.sin(normal), -np.cos(normal))
     dist = t if high > low else -t
-    return AnalyticImage(image=img, sigma=s, edge_distance=dist, edge_mask=_mask(dist, normal), normal=normal)
+    return AnalyticImage(image=img, sigma=s, edge_distance=dist, edge_mask=edge_pixels(dist, normal), normal=normal)
 
 
 def blurred_disk(shape, *, sigma, radius, center=None, inside=0.8, outside=0.2,
@@ -145,9 +145,9 @@ def blurred_disk(shape, *, sigma, radius, center=None, inside=0.8, outside=0.2,
        (elsewhere it is 0 or 1 to double precision).
     3. Optional noise and quantisation.
     """
-    h, w = _check_shape(shape)
-    s = _check_sigma(sigma)
-    _check_levels(inside, outside)
+    h, w = check_shape(shape)
+    s = check_sigma(sigma)
+    check_levels(inside, outside)
     r = float(radius)
     if not r > 0:
         raise ValueError(f"radius={radius!r} is invalid; allowed: > 0 px")
@@ -166,7 +166,7 @@ def blurred_disk(shape, *, sigma, radius, center=None, inside=0.8, outside=0.2,
         normal, dist = inward, r - rho
     else:
         normal, dist = np.arctan2(y, x), rho - r
-    return AnalyticImage(image=img, sigma=s, edge_distance=dist, edge_mask=_mask(dist, normal), normal=normal)
+    return AnalyticImage(image=img, sigma=s, edge_distance=dist, edge_mask=edge_pixels(dist, normal), normal=normal)
 
 
 def parallel_edges(shape, *, sigma, spacing, angle=0.0, offset=0.0, kind="bar", center=None,
@@ -207,9 +207,9 @@ def parallel_edges(shape, *, sigma, spacing, angle=0.0, offset=0.0, kind="bar", 
     2. bar: I = low + (high − low)(Φ((t + D/2)/σ) − Φ((t − D/2)/σ));
        staircase: I = low + (high − low)/2·(Φ((t + D/2)/σ) + Φ((t − D/2)/σ)).
     """
-    h, w = _check_shape(shape)
-    s = _check_sigma(sigma)
-    _check_levels(low, high)
+    h, w = check_shape(shape)
+    s = check_sigma(sigma)
+    check_levels(low, high)
     if not spacing > 0:
         raise ValueError(f"spacing={spacing!r} is invalid; allowed: > 0 px")
     if kind not in ("bar", "staircase"):
@@ -235,4 +235,4 @@ def parallel_edges(shape, *, sigma, spacing, angle=0.0, offset=0.0, kind="bar", 
     if high < low:
         dist = -dist
         normal = np.arctan2(-np.sin(normal), -np.cos(normal))
-    return AnalyticImage(image=img, sigma=s, edge_distance=dist, edge_mask=_mask(dist, normal), normal=normal)
+    return AnalyticImage(image=img, sigma=s, edge_distance=dist, edge_mask=edge_pixels(dist, normal), normal=normal)

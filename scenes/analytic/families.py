@@ -28,7 +28,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from .leaves import _leaves_labels
+from .leaves import leaves_labels
 from .mosaics import SKIMAGE_IMAGES, SKIMAGE_NATIVE_SIGMA_PX
 
 __all__ = ["PHOTO_INTRINSIC_SIGMA_PX", "PHOTO_SUPERSAMPLE", "TEXTURE_FAMILIES", "TextureFamily", "check_family",
@@ -93,7 +93,7 @@ def _rotated(y, x, angle):
 
 
 def _dead_leaves(size, *, s, seed, key, origin):
-    labels, colours = _leaves_labels(int(seed), tuple(key), origin, size, s, (2.0, 32.0), 3, None, (0.1, 0.9))
+    labels, colours = leaves_labels(int(seed), tuple(key), origin, size, s, (2.0, 32.0), 3, None, (0.1, 0.9))
     return colours[labels]
 
 

@@ -8,9 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import (_check_bool, _check_n_levels, _check_radius_range, _check_shape, _check_sigma,
-                      _check_supersample, _check_value_range, _seed_entropy)
-from ._lattice import _apply_stages_2d, _blur_stages, _stages_support
+from ._common import (check_bool, check_n_levels, check_radius_range, check_shape, check_sigma,
+                      check_supersample, check_value_range, seed_entropy)
+from ._lattice import apply_stages_2d, blur_stages, stages_support
 
 __all__ = ["dead_leaves"]
 
@@ -79,7 +79,7 @@ def _touches_uncovered(unc, shape, cy, cx, r, block=8):
     return (sat[by1, bx1] - sat[by0, bx1] - sat[by1, bx0] + sat[by0, bx0]) > 0
 
 
-def _leaves_labels(entropy, key, origin, size, supersample, radius_range, n_channels, n_levels,
+def leaves_labels(entropy, key, origin, size, supersample, radius_range, n_channels, n_levels,
                    value_range):
     """Dead-leaves labels and colours on a window of the fine lattice (spacing 1/supersample px).
 
@@ -193,23 +193,23 @@ def dead_leaves(shape, *, sigma=0.0, rng=None, radius_range=(2.0, 32.0), color=F
        closed forms of :func:`blurred_disk` / :func:`step_edge`): fitted σ within 0.002 px of σ for
        σ = 0.5–4 at s = 4 (0.008 px at s = 2), per-pixel error up to ≈ 0.05/σ of the edge contrast
        (0.09 at σ = 0.5, 0.04 at σ = 1, 0.013 at σ = 2). For σ >= 2 px the blur is the two-stage
-       cascade of :func:`_blur_stages` (equal to the one-stage filter to <= 1e−5).
+       cascade of :func:`blur_stages` (equal to the one-stage filter to <= 1e−5).
     Cost: ~0.7 s for 512 x 512 grey at s = 4 and σ <= 4 (2 cores), mostly the disc coverage.
     """
-    h, w = _check_shape(shape)
-    s_blur = _check_sigma(sigma)
-    s = _check_supersample(supersample)
-    r_range = _check_radius_range(radius_range, s)
-    color = _check_bool(color, "color")
-    n_levels = _check_n_levels(n_levels)
-    v_range = _check_value_range(value_range)
-    entropy = _seed_entropy(rng)
-    stages = _blur_stages(s_blur, s)
-    pad = -(-_stages_support(stages) // s)  # ⌈R/s⌉ output px
+    h, w = check_shape(shape)
+    s_blur = check_sigma(sigma)
+    s = check_supersample(supersample)
+    r_range = check_radius_range(radius_range, s)
+    color = check_bool(color, "color")
+    n_levels = check_n_levels(n_levels)
+    v_range = check_value_range(value_range)
+    entropy = seed_entropy(rng)
+    stages = blur_stages(s_blur, s)
+    pad = -(-stages_support(stages) // s)  # ⌈R/s⌉ output px
     size = ((h - 1 + 2 * pad) * s + 1, (w - 1 + 2 * pad) * s + 1)
-    labels, colours = _leaves_labels(entropy, (), (-pad * s, -pad * s), size, s, r_range,
+    labels, colours = leaves_labels(entropy, (), (-pad * s, -pad * s), size, s, r_range,
                                      3 if color else 1, n_levels, v_range)
-    out = np.stack([_apply_stages_2d(colours[labels, c], stages, (pad * s, pad * s), (h, w))
+    out = np.stack([apply_stages_2d(colours[labels, c], stages, (pad * s, pad * s), (h, w))
                     for c in range(colours.shape[1])], axis=-1)
     out = np.clip(out, 0.0, 1.0)
     return out if color else out[..., 0]

@@ -24,10 +24,10 @@ import dataclasses
 import numpy as np
 from scipy.signal import fftconvolve
 
-from ._common import _check_band, _check_int, _check_levels, _check_shape, _check_sigmas, _seed_entropy
-from .edges import AnalyticImage, _mask
+from ._common import check_band, check_int, check_levels, check_shape, check_sigmas, seed_entropy
+from .edges import AnalyticImage, edge_pixels
 from .families import TEXTURE_FAMILIES, check_family, family_texture
-from .mosaics import _boundary_mask, _tile_layout
+from .mosaics import boundary_mask, tile_layout
 from .psfs import check_psf, psf_kernel
 from ..display import camera_image, check_noise_level, srgb_to_linear
 
@@ -141,8 +141,8 @@ def lens_step_edge(shape, *, sigma, psf="disk", angle=0.0, offset=0.0, low=0.2, 
     3. ``light="linear"``: the two levels are decoded from sRGB first and the result encoded after
        (:func:`scenes.display.camera_image`); ``"display"``: the display values are blurred.
     """
-    h, w = _check_shape(shape)
-    _check_levels(low, high)
+    h, w = check_shape(shape)
+    check_levels(low, high)
     _check_light(light)
     s = _check_supersample(supersample)
     check_noise_level(noise)
@@ -174,7 +174,7 @@ def lens_step_edge(shape, *, sigma, psf="disk", angle=0.0, offset=0.0, low=0.2, 
     if high < low:
         normal = np.arctan2(-np.sin(normal), -np.cos(normal))
     dist = tc if high > low else -tc
-    return AnalyticImage(image=img, sigma=float(sigma), edge_distance=dist, edge_mask=_mask(dist, normal),
+    return AnalyticImage(image=img, sigma=float(sigma), edge_distance=dist, edge_mask=edge_pixels(dist, normal),
                          normal=normal)
 
 
@@ -251,14 +251,14 @@ def lens_mosaic(*, family="dead_leaves", psf="disk", sigmas=(0.5, 1.0, 1.5, 2.0,
     check_psf(psf)
     _check_light(light)
     s = _check_supersample(supersample)
-    sig = _check_sigmas(sigmas)
-    tile = _check_int(tile, "tile", 16)
-    cols = _check_int(cols, "cols", 1)
-    band_val = _check_band(boundary_band)
+    sig = check_sigmas(sigmas)
+    tile = check_int(tile, "tile", 16)
+    cols = check_int(cols, "cols", 1)
+    band_val = check_band(boundary_band)
     noise_ab = check_noise_level(noise)
-    entropy = _seed_entropy(rng)
+    entropy = seed_entropy(rng)
     kernels = [psf_kernel(psf, sigma=v, supersample=s) for v in sig]  # validates σ >= 1/√12
-    rects, (h, w) = _tile_layout(len(sig), tile, cols)
+    rects, (h, w) = tile_layout(len(sig), tile, cols)
     num = np.zeros((h, w, 3))
     den = np.zeros((h, w))
     for t, (rect, kernel) in enumerate(zip(rects, kernels)):
@@ -276,6 +276,6 @@ def lens_mosaic(*, family="dead_leaves", psf="disk", sigmas=(0.5, 1.0, 1.5, 2.0,
     gt = np.sqrt(np.asarray(sig) ** 2 + sigma0 ** 2)
     band = (lambda a, b: band_val) if band_val is not None else (lambda a, b: np.ceil(3.0 * max(gt[a], gt[b])) + 2.0)
     return LensMosaic(image=image, linear=linear, sigma=gt[tile_index], tile_index=tile_index,
-                      boundary=_boundary_mask(rects, (h, w), band), sigmas=sig, family=fam, psf=psf, light=light,
+                      boundary=boundary_mask(rects, (h, w), band), sigmas=sig, family=fam, psf=psf, light=light,
                       noise={"a": noise_ab[0], "b": noise_ab[1]}, intrinsic_sigma=float(sigma0))
 

@@ -14,10 +14,10 @@ import dataclasses
 
 import numpy as np
 
-from ._common import (_check_band, _check_bool, _check_degrade, _check_int, _check_radius_range, _check_sigmas,
-                      _check_supersample, _seed_entropy, degrade)
-from ._lattice import _apply_stages_1d, _apply_stages_2d, _blur_stages, _discrete_gaussian, _stages_support
-from .leaves import _leaves_labels
+from ._common import (check_band, check_bool, check_degrade, check_int, check_radius_range, check_sigmas,
+                      check_supersample, seed_entropy, degrade)
+from ._lattice import apply_stages_1d, apply_stages_2d, blur_stages, discrete_gaussian, stages_support
+from .leaves import leaves_labels
 
 __all__ = ["SKIMAGE_DOWNSAMPLE", "SKIMAGE_IMAGES", "SKIMAGE_INTRINSIC_SIGMA_PX", "SKIMAGE_NATIVE_SIGMA_PX",
            "TEXTURES", "TextureMosaic", "texture_mosaic"]
@@ -114,7 +114,7 @@ def _skimage_sources(color):
     return out
 
 
-def _tile_layout(n, tile, cols):
+def tile_layout(n, tile, cols):
     """Tile rectangles (r0, r1, c0, c1) in output px, row-major, and the canvas (H, W)."""
     cols = min(cols, n)
     rows = -(-n // cols)
@@ -127,7 +127,7 @@ def _tile_layout(n, tile, cols):
     return rects, (h, w)
 
 
-def _boundary_mask(rects, shape, band_of):
+def boundary_mask(rects, shape, band_of):
     """Pixels whose centre is closer than band_of(t, u) px (Euclidean) to another tile u's extent."""
     h, w = shape
     out = np.zeros((h, w), dtype=bool)
@@ -219,13 +219,13 @@ def _add_layer(num, den, sharp, stages, win: _LayerWindows, s):
     start, n_out = (a0 * s - fy0, b0 * s - fx0), (a1 - a0, b1 - b0)
     for c in range(num.shape[2]):
         window[ty0 - fy0:ty1 - fy0, tx0 - fx0:tx1 - fx0] = sharp[..., c]
-        num[a0:a1, b0:b1, c] += _apply_stages_2d(window, stages, start, n_out)
+        num[a0:a1, b0:b1, c] += apply_stages_2d(window, stages, start, n_out)
     my = np.zeros(fy1 - fy0)
     my[ty0 - fy0:ty1 - fy0] = 1.0
     mx = np.zeros(fx1 - fx0)
     mx[tx0 - fx0:tx1 - fx0] = 1.0
-    den[a0:a1, b0:b1] += np.outer(_apply_stages_1d(my, stages, start[0], n_out[0]),
-                                  _apply_stages_1d(mx, stages, start[1], n_out[1]))
+    den[a0:a1, b0:b1] += np.outer(apply_stages_1d(my, stages, start[0], n_out[0]),
+                                  apply_stages_1d(mx, stages, start[1], n_out[1]))
 
 
 def texture_mosaic(*, sigmas=(0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0), tile=96, cols=4,
@@ -295,34 +295,34 @@ def texture_mosaic(*, sigmas=(0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0), tile=96, 
        tile's extent; ``sigma`` and ``tile_index`` are those of the pixel's own tile.
     6. Optional noise, clipping and quantisation (:func:`degrade`) on the final image.
     """
-    sig = _check_sigmas(sigmas)
-    tile = _check_int(tile, "tile", 16)
-    cols = _check_int(cols, "cols", 1)
+    sig = check_sigmas(sigmas)
+    tile = check_int(tile, "tile", 16)
+    cols = check_int(cols, "cols", 1)
     if texture not in TEXTURES:
         raise ValueError(f"texture={texture!r} is invalid; allowed: {', '.join(repr(t) for t in TEXTURES)}")
-    color = _check_bool(color, "color")
-    band_val = _check_band(boundary_band)
-    s = _check_supersample(supersample) if texture == "dead_leaves" else 1
-    r_range = _check_radius_range(radius_range, s) if texture == "dead_leaves" else None
-    _check_degrade(noise_std, quantize_bits)
-    entropy = _seed_entropy(rng)
+    color = check_bool(color, "color")
+    band_val = check_band(boundary_band)
+    s = check_supersample(supersample) if texture == "dead_leaves" else 1
+    r_range = check_radius_range(radius_range, s) if texture == "dead_leaves" else None
+    check_degrade(noise_std, quantize_bits)
+    entropy = seed_entropy(rng)
     n_ch = 3 if color else 1
-    rects, (h, w) = _tile_layout(len(sig), tile, cols)
+    rects, (h, w) = tile_layout(len(sig), tile, cols)
 
     if texture == "dead_leaves":
-        sigma0, plans = 0.0, [_blur_stages(v, s) for v in sig]
+        sigma0, plans = 0.0, [blur_stages(v, s) for v in sig]
     else:
-        sigma0, plans = SKIMAGE_INTRINSIC_SIGMA_PX, [[(_discrete_gaussian(v), 1)] for v in sig]
+        sigma0, plans = SKIMAGE_INTRINSIC_SIGMA_PX, [[(discrete_gaussian(v), 1)] for v in sig]
         sources = _skimage_sources(color)
         pick = np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(1,)))
         order = pick.permutation(len(sources))  # tile t uses source order[t mod n]
     num = np.zeros((h, w, n_ch))
     den = np.zeros((h, w))
     for t, (rect, stages) in enumerate(zip(rects, plans)):
-        win = _layer_windows(rect, (h, w), _stages_support(stages), s)
+        win = _layer_windows(rect, (h, w), stages_support(stages), s)
         ty0, ty1, tx0, tx1 = win.mask
         if texture == "dead_leaves":
-            labels, colours = _leaves_labels(entropy, (t,), (ty0, tx0), (ty1 - ty0, tx1 - tx0), s,
+            labels, colours = leaves_labels(entropy, (t,), (ty0, tx0), (ty1 - ty0, tx1 - tx0), s,
                                              r_range, n_ch, None, (0.1, 0.9))
             sharp = colours[labels]
         else:
@@ -342,5 +342,5 @@ def texture_mosaic(*, sigmas=(0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0), tile=96, 
     else:
         band_of = lambda t, u: band_val  # noqa: E731
     return TextureMosaic(image=image, sigma=gt[tile_index], tile_index=tile_index,
-                         boundary=_boundary_mask(rects, (h, w), band_of), sigmas=sig,
+                         boundary=boundary_mask(rects, (h, w), band_of), sigmas=sig,
                          texture=texture, intrinsic_sigma=float(sigma0))

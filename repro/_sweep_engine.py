@@ -99,38 +99,6 @@ class SweepRun:
     dashboard: str | None
 
 
-def _start_client(*, workers: int | None, scheduler: str | None):
-    """A Dask client on a new LocalCluster (``workers`` single-threaded processes) or an existing scheduler."""
-    import logging
-
-    from dask.distributed import Client, LocalCluster
-
-    from repro._cli_errors import CLIError
-
-    if scheduler:
-        client = Client(scheduler, timeout="20s")
-        try:
-            client.wait_for_workers(1, timeout=60)
-        except (TimeoutError, OSError):
-            client.close()
-            raise CLIError(f"--scheduler {scheduler}: no worker connected within 60 s; "
-                             "allowed: a scheduler with workers (dask worker ADDRESS)") from None
-        return client, None
-    n = workers or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
-    import dask
-
-    # Dask's nanny sets MALLOC_TRIM_THRESHOLD_ in its workers to hand freed memory back at once; setting it
-    # switches off glibc's adaptive mmap threshold, so every large numpy array is mapped and faulted in
-    # afresh (measured: a third of the workers' CPU time spent in the kernel). The workers keep glibc's
-    # defaults; the single-thread BLAS/OpenMP settings stay.
-    environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()
-               if k != "MALLOC_TRIM_THRESHOLD_"}
-    dask.config.set({"distributed.nanny.pre-spawn-environ": environ})
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
-    return Client(cluster), cluster
-
-
 def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | None = None,
               progress: bool = True, log=None) -> SweepRun:
     """Run (or resume) a sweep and write its outputs.
@@ -187,7 +155,9 @@ def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | N
 
         from experiments.sweep_cells import cell_task, render_task
 
-        client, cluster = _start_client(workers=workers, scheduler=scheduler)
+        from ._runner import start_client
+
+        client, cluster = start_client(workers=workers, scheduler=scheduler)
         try:
             dashboard = client.dashboard_link
             n_workers = len(client.scheduler_info()["workers"]) if scheduler else len(cluster.workers)

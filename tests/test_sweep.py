@@ -311,10 +311,10 @@ def test_ctrl_c_then_resume_reads_finished_cells_back(serial, env, tmp_path):
     (["--scenes", "planes", "--workers", "0"], "--workers"),
 ])
 def test_bad_grid_one_line_exit_2_before_anything_starts(args, needle, tmp_path, monkeypatch, capsys):
-    from repro import _sweep_engine, sweep as mod
+    from repro import _runner, sweep as mod
     from repro._cli import run_cli
 
-    monkeypatch.setattr(_sweep_engine, "_start_client", lambda **k: pytest.fail("an engine was started for a bad grid"))
+    monkeypatch.setattr(_runner, "start_client", lambda **k: pytest.fail("an engine was started for a bad grid"))
     out = tmp_path / "out"
     rc = run_cli(mod.main, [*args, "--out", str(out)], prog=mod.PROG)
     err = capsys.readouterr().err

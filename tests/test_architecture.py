@@ -3,7 +3,8 @@
 repro may import everything; experiments imports method and scenes; method and scenes never import
 each other, experiments or repro; nothing imports repro; method imports no renderer, plotting or
 file-I/O library. defocus_cache (atomic writes, caches, cache keys) imports no project package and is used by
-every layer but method.
+every layer but method. No two files import each other, directly or not (function-local imports count),
+and no module imports another module's private (``_name``) names, in any package.
 """
 
 import ast
@@ -76,33 +77,152 @@ def test_the_checker_sees_imports(tmp_path):
 METHOD_SUBPACKAGES = ("edges", "blur", "refine", "propagation", "magnify")
 
 
-def _private_imports(path: Path) -> list[str]:
-    """``from <a method module> import _name`` in ``path``: another module's private name."""
-    pkg = path.relative_to(ROOT).with_suffix("").parts[:-1]
-    found = []
+#: The project's packages: every module of these is a node of the import graph.
+PROJECT_PACKAGES = ("method", "scenes", "experiments", "repro", "defocus_cache")
+
+
+def _modules(root: Path, packages=PROJECT_PACKAGES) -> dict[str, Path]:
+    """Dotted module name → file of every ``.py`` under ``root/<package>`` (a package is its ``__init__``)."""
+    out = {}
+    for package in packages:
+        for path in sorted((root / package).rglob("*.py")):
+            parts = path.relative_to(root).with_suffix("").parts
+            out[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return out
+
+
+def _import_statements(name: str, path: Path):
+    """``(line, module, names)`` of every import statement of module ``name`` (function-local ones too),
+    relative imports resolved: ``import a.b`` → ``(n, "a.b", ())``; ``from .x import y`` → ``(n, "<pkg>.x", ("y",))``."""
+    package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(node, ast.ImportFrom):
-            module = (".".join(pkg[:len(pkg) - node.level + 1] + ((node.module,) if node.module else ()))
-                      if node.level else node.module or "")
-            found += [f"{module}.{a.name}" for a in node.names
-                      if module.split(".")[0] == "method" and a.name.startswith("_") and not a.name.startswith("__")]
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield node.lineno, alias.name, ()
+        elif isinstance(node, ast.ImportFrom):
+            base = package[:len(package) - node.level + 1] if node.level else []
+            module = ".".join([*base, *([node.module] if node.module else [])])
+            yield node.lineno, module, tuple(a.name for a in node.names)
+
+
+def _owner(dotted: str, modules) -> str | None:
+    """The project module ``dotted`` names, or the innermost one holding it (None: not a project module)."""
+    while dotted and dotted not in modules:
+        dotted = dotted.rpartition(".")[0]
+    return dotted or None
+
+
+def import_graph(root: Path, packages=PROJECT_PACKAGES) -> dict[str, set[str]]:
+    """Module → the project modules it imports, from every import statement (function-local ones too):
+    ``from p import m`` of a submodule ``m`` is an edge to ``p.m``, of a name to ``p``. The packages
+    a submodule's import passes through are not edges (they are run first, but import nothing back)."""
+    modules = _modules(root, packages)
+    graph = {}
+    for name, path in modules.items():
+        targets = set()
+        for _, module, names in _import_statements(name, path):
+            for n in names or (None,):
+                target = f"{module}.{n}" if n is not None and f"{module}.{n}" in modules else _owner(module, modules)
+                if target is not None:
+                    targets.add(target)
+        graph[name] = targets
+    return graph
+
+
+def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The import cycles of ``graph``: its strongly connected components of more than one module, and the
+    modules that import themselves (Tarjan's algorithm), each sorted."""
+    index, low, stack, on_stack, cycles = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1 or v in graph.get(v, ()):
+                cycles.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return sorted(cycles)
+
+
+def private_imports(root: Path, packages=PROJECT_PACKAGES) -> list[str]:
+    """``"file:line: from m import _name"`` for every import of another module's private name (a leading
+    underscore, dunders excepted) in ``packages``. A private module (``repro/_runner.py``) may be imported;
+    its private names may not."""
+    modules = _modules(root, packages)
+    found = []
+    for name, path in modules.items():
+        for line, module, names in _import_statements(name, path):
+            if _owner(module, modules) is None:
+                continue
+            found += [f"{path.relative_to(root).as_posix()}:{line}: from {module} import {n}" for n in names
+                      if n.startswith("_") and not n.startswith("__") and f"{module}.{n}" not in modules]
     return found
 
 
-def test_method_modules_import_no_private_names():
-    bad = {str(p.relative_to(ROOT)): _private_imports(p) for pkg in ("method", "experiments", "repro")
-           for p in sorted((ROOT / pkg).rglob("*.py")) if _private_imports(p)}
-    assert not bad, f"imports of another module's private names: {bad}"
+def test_no_import_cycles_between_files():
+    """No module imports one that imports it back, directly or not, counting function-local imports
+    (which hide a cycle at import time but still tie the files together)."""
+    cycles = import_cycles(import_graph(ROOT))
+    assert not cycles, "import cycles (break each with a leaf module): " + "; ".join(" <-> ".join(c) for c in cycles)
 
 
-def test_private_import_checker_sees_relative_and_absolute(tmp_path):
-    folder = ROOT / "method" / "blur"
-    probe = folder / "_probe_private_import.py"
-    probe.write_text("from .model_fit import _x, y\nfrom ..edges.canny import _z\nfrom method.luma import _w\n")
-    try:
-        assert _private_imports(probe) == ["method.blur.model_fit._x", "method.edges.canny._z", "method.luma._w"]
-    finally:
-        probe.unlink()
+def _fake_package(root: Path, files: dict[str, str]) -> Path:
+    for rel, text in files.items():
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        (root / rel).write_text(text)
+    return root
+
+
+def test_cycle_checker_finds_cycles_through_local_and_relative_imports(tmp_path):
+    files = {"pkg/__init__.py": "from .a import f\n", "pkg/a.py": "def f():\n    from .sub.b import g\n",
+             "pkg/sub/__init__.py": "", "pkg/sub/b.py": "from ..c import h\n", "pkg/c.py": "import pkg.a\n",
+             "pkg/d.py": "from pkg.d import x\n", "pkg/e.py": "import os\nfrom pkg import c\n"}
+    root = _fake_package(tmp_path, files)
+    graph = import_graph(root, ("pkg",))
+    assert graph["pkg.a"] == {"pkg.sub.b"} and graph["pkg.sub.b"] == {"pkg.c"} and graph["pkg.e"] == {"pkg.c"}
+    assert import_cycles(graph) == [["pkg.a", "pkg.c", "pkg.sub.b"], ["pkg.d"]]
+
+
+def test_cycle_checker_passes_a_package_without_cycles(tmp_path):
+    files = {"pkg/__init__.py": "from .a import f\n", "pkg/a.py": "def f():\n    from .sub.b import g\n",
+             "pkg/sub/__init__.py": "", "pkg/sub/b.py": "from ..c import h\n", "pkg/c.py": "import numpy\nh = 1\n"}
+    assert import_cycles(import_graph(_fake_package(tmp_path, files), ("pkg",))) == []
+
+
+def test_no_module_imports_another_modules_private_names():
+    bad = private_imports(ROOT)
+    assert not bad, "imports of another module's private names (make them public or move them): " + "; ".join(bad)
+
+
+def test_private_import_checker_sees_private_names_only(tmp_path):
+    files = {"pkg/__init__.py": "", "pkg/_runner.py": "def run():\n    pass\n_x = 1\n",
+             "pkg/sub/__init__.py": "",
+             "pkg/sub/a.py": ("from .. import _runner\nfrom .._runner import run\nfrom pkg._runner import __doc__\n"
+                              "from os import _exit\ndef f():\n    from ..b import _y, z\n"),
+             "pkg/b.py": "from ._runner import _x\n_y = z = 2\n"}
+    root = _fake_package(tmp_path, files)
+    assert private_imports(root, ("pkg",)) == ["pkg/b.py:1: from pkg._runner import _x",
+                                               "pkg/sub/a.py:6: from pkg.b import _y"]
+    (root / "pkg/b.py").write_text("from ._runner import run\n_y = z = 2\n")
+    (root / "pkg/sub/a.py").write_text("from .. import _runner\nfrom ..b import z\n")
+    assert private_imports(root, ("pkg",)) == []
 
 
 @pytest.mark.parametrize("name", METHOD_SUBPACKAGES)

@@ -1,6 +1,6 @@
 """Benchmark suite: per-stage and whole-pipeline wall time and peak memory of the method.
 
-``python -m repro.bench [--sizes 256 512 1024] [--presets paper robust] [--repeat 3] [--out report/bench]``
+``python -m repro.bench [--sizes 256 512 1024] [--preset paper robust] [--repeat 3] [--out report/bench]``
 
 Each (preset, size) runs in a fresh subprocess (so its peak resident memory, ``ru_maxrss``, is its
 own) on a textured photo-like image (``skimage.data.astronaut`` resized, shipped with scikit-image),
@@ -113,13 +113,13 @@ def _speed_bench(args) -> None:
 
     from repro._cli import user_input
 
-    with user_input():  # --presets, --magnify-renderers
-        PRESETS.check_all(args.presets)
+    with user_input():  # --preset, --magnify-renderers
+        PRESETS.check_all(args.preset)
         renderers = [] if args.magnify_renderers == ["none"] else args.magnify_renderers
         for r in renderers:
             MAGNIFICATION_RENDERERS.check(r, what="--magnify-renderers")
     before = _previous_run(args.out / "bench.json")
-    jobs = [(p, s) for p in args.presets for s in args.sizes]
+    jobs = [(p, s) for p in args.preset for s in args.sizes]
     rows = [_run_size(s, args.repeat, p) for p, s in tqdm(jobs, desc="bench runs", unit="run", disable=args.quiet)]
     magnify_rows = [_run_magnify(r) for r in tqdm(renderers, desc="12-MP magnification", unit="run",
                                                    disable=args.quiet)]
@@ -134,9 +134,8 @@ def _speed_bench(args) -> None:
 def _parser():
     from experiments.bench import BENCH_PRESETS, LENS_CONFIG
     from experiments.bench.speed import MAGNIFY_BENCH_RENDERERS
-    from method import PRESETS
     from scenes.analytic.psfs import PSFS
-    from repro._cli import ArgumentParser, add_quiet_option, int_type
+    from repro._cli import ArgumentParser, add_preset_option, add_quiet_option, hidden_alias, int_type
 
     parser = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int_type("--sizes", minimum=16), nargs="+", default=[256, 512, 1024],
@@ -163,8 +162,8 @@ def _parser():
     parser.add_argument("--sweep", action="store_true",
                         help="benchmark the sweep engine instead (cells/minute for 1 and 2 workers, engine overhead "
                              "per cell; sweep.md / sweep.json)")
-    parser.add_argument("--presets", nargs="+", default=list(BENCH_PRESETS),
-                        help=f"presets to time ({PRESETS.describe()}; default: {' '.join(BENCH_PRESETS)})")
+    add_preset_option(parser, default=tuple(BENCH_PRESETS), many=True, extra="the presets timed")
+    hidden_alias(parser, "--presets", dest="preset", nargs="+", metavar="NAME")
     parser.add_argument("--magnify-renderers", nargs="+", default=list(MAGNIFY_BENCH_RENDERERS), metavar="NAME",
                         help="renderers whose magnification step alone is timed on a 12-MP photo with its map "
                              f"given (default: {' '.join(MAGNIFY_BENCH_RENDERERS)}; 'none' to skip)")

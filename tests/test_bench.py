@@ -268,7 +268,7 @@ def test_plain_bench_unchanged_without_the_flag(tmp_path, monkeypatch):
     assert first["rows"][0]["size"] == 16
     assert [r["preset"] for r in first["rows"]] == list(speed.BENCH_PRESETS) and first["before"] is None
     # a second run keeps the first as "before", in the JSON and the Markdown
-    assert bench.main(["--sizes", "16", "--repeat", "1", "--presets", "robust", "--out", str(tmp_path)]) == 0
+    assert bench.main(["--sizes", "16", "--repeat", "1", "--preset", "robust", "--out", str(tmp_path)]) == 0
     second = _strict_json(tmp_path / "bench.json")
     assert second["before"]["rows"] == first["rows"] and [r["preset"] for r in second["rows"]] == ["robust"]
     assert "## Before" in (tmp_path / "bench.md").read_text(encoding="utf-8")

@@ -216,7 +216,7 @@ def test_preset_means_a_method_preset_with_its_default_in_the_help(capsys):
 
     from method import PRESETS
 
-    for name in ("estimate", "magnify", "sweep", "evaluate"):
+    for name in ("estimate", "magnify", "sweep", "evaluate", "bench"):
         text = " ".join(_help(name, capsys).split())
         m = re.search(r"--preset NAME( \[NAME ...\])? method parameter sets? \(method.PRESETS\).*?Default: (\w+)", text)
         assert m and m.group(2) in PRESETS, (name, text)
@@ -295,3 +295,17 @@ def test_old_flag_names_still_work_hidden():
     assert sweep._parser().parse_args(["--out", "x", "--no-progress"]).quiet is True
     assert sweep._parser().parse_args(["--out", "x", "-q"]).quiet is True
     assert sweep._parser().parse_args(["--out", "x"]).preset == ["paper"]
+
+
+def test_bench_presets_is_a_hidden_alias_of_preset(capsys):
+    """``repro.bench --preset`` like every tool; ``--presets`` (its earlier name) parses the same, unshown."""
+    from experiments.bench import BENCH_PRESETS
+    from repro import bench
+
+    parse = bench._parser().parse_args
+    assert parse([]).preset == list(BENCH_PRESETS)
+    assert parse(["--preset", "robust", "zhuo_sim"]).preset == ["robust", "zhuo_sim"]
+    assert parse(["--presets", "robust", "zhuo_sim"]).preset == ["robust", "zhuo_sim"]
+    text = _help("bench", capsys)
+    assert "--preset NAME [NAME ...]" in text and "--presets" not in text
+

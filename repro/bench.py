@@ -142,7 +142,8 @@ def _parser():
                         help="image sides, px (>= 16)")
     parser.add_argument("--repeat", type=int_type("--repeat"), default=3, help="runs per size; the fastest counts")
     add_quiet_option(parser, what="no progress display")
-    parser.add_argument("--out", type=Path, default=Path("report") / "bench", help="output folder")
+    parser.add_argument("--out", type=Path, default=Path("report") / "bench", metavar="DIR",
+                        help="output folder (default: report/bench)")
     parser.add_argument("--accuracy", action="store_true",
                         help="record the dense-map accuracy targets (accuracy.md / accuracy.json) instead")
     parser.add_argument("--psf", nargs="+", metavar="NAME",

@@ -4,10 +4,10 @@ Examples
 --------
 python -m repro.render --list
 python -m repro.render planes --scene-size small --fnumber 4
-python -m repro.render portrait --resolution 320x240 --spp 64 --out portrait.exr
+python -m repro.render portrait --resolution 320x240 --spp 64 -o portrait.exr
 
 Bad input (unknown scene or camera, f-number <= 0, focus distance <= focal length, bad sensor size
-or resolution, spp <= 0, unwritable --out) prints one line on stderr and exits with status 2
+or resolution, spp <= 0, unwritable -o/--output) prints one line on stderr and exits with status 2
 before anything is rendered or written.
 """
 
@@ -24,6 +24,7 @@ from repro._cli import (
     add_variant_option,
     check_output_path,
     float_type,
+    hidden_alias,
     int_type,
     parse_resolution,
     run_cli,
@@ -67,7 +68,8 @@ def _parser() -> ArgumentParser:
     add_variant_option(p)
     p.add_argument("--sigma-convention", default="line_spread", choices=sorted(SIGMA_CONVENTIONS),
                    help="CoC to sigma: line_spread (c/4, default) or erf_fit (0.273 c)")
-    p.add_argument("--out", default=None, metavar="PATH", help="also write the EXR here (+ .json sidecar)")
+    p.add_argument("-o", "--output", default=None, metavar="FILE", help="also write the EXR here (+ .json sidecar)")
+    hidden_alias(p, "--out", dest="output")
     add_force_option(p, what="re-render even when the render is cached (the new render replaces it)")
     add_quiet_option(p, what="no progress bar")
     return p
@@ -162,7 +164,7 @@ def _validated(args):
                              **changes)
         validate_render_options(sdef, camera, preset=preset, spp=args.spp, seed=args.seed,
                                 sigma_convention=args.sigma_convention)
-    out = check_output_path(args.out) if args.out else None
+    out = check_output_path(args.output, flag="--output") if args.output else None
     return sdef, camera, preset, out
 
 

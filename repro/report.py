@@ -165,7 +165,7 @@ def _parser():
     parser = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     parser.add_argument("--figures", type=Path, default=Path("report") / "figures",
                         help="folder with results.parquet|csv and <fig>.png/.pdf/.metrics.json (default: report/figures)")
-    parser.add_argument("--out", type=Path, default=Path("report"), help="output folder (default: report)")
+    parser.add_argument("--out", type=Path, default=Path("report"), metavar="DIR", help="output folder (default: report)")
     parser.add_argument("--readme", type=Path, default=None,
                         help="README whose marked claims block is refreshed (default: the project's "
                              "README.md, and only when --out is the project's report/ folder)")

@@ -26,7 +26,7 @@ def test_bogus_variant_env_is_a_clear_error():
 
 
 def test_bogus_variant_env_in_cli_is_one_line_exit_2(tmp_path):
-    p = subprocess.run([sys.executable, "-m", "repro.render", "planes", "--quiet", "--out", str(tmp_path / "x.exr")],
+    p = subprocess.run([sys.executable, "-m", "repro.render", "planes", "--quiet", "-o", str(tmp_path / "x.exr")],
                        cwd=ROOT, capture_output=True, text=True, timeout=120,
                        env=_env(DEFOCUS_MITSUBA_VARIANT="bogus"))
     assert p.returncode == 2

@@ -309,3 +309,21 @@ def test_bench_presets_is_a_hidden_alias_of_preset(capsys):
     text = _help("bench", capsys)
     assert "--preset NAME [NAME ...]" in text and "--presets" not in text
 
+
+def test_single_output_files_are_o_output_and_folders_out(capsys):
+    """``-o/--output FILE`` names a single output file, ``--out DIR`` a folder; ``repro.render --out FILE``
+    (its earlier name) parses the same and is not shown."""
+    import re
+
+    from repro import render
+
+    parse = render._parser().parse_args
+    for flag in ("-o", "--output", "--out"):
+        assert parse(["planes", flag, "x.exr"]).output == "x.exr"
+    assert parse(["planes"]).output is None
+    for name in ("render", "estimate", "magnify"):
+        text = _help(name, capsys)
+        assert re.search(r"-o (\w+), --output \1", text) and not re.search(r"--out\b(?!put)", text), name
+    for name in ("figures", "evaluate", "report", "bench", "sweep", "dataset"):
+        text = _help(name, capsys)
+        assert "--out DIR" in text and "--output" not in text, name

@@ -76,7 +76,7 @@ def test_list(env):
 @pytest.mark.render
 def test_render_to_out(env, tmp_path):
     out = tmp_path / "planes.exr"
-    p = run(["planes", "--preset", "small", "--spp", "16", "--fnumber", "4", "--out", str(out), "--quiet"], env)
+    p = run(["planes", "--preset", "small", "--spp", "16", "--fnumber", "4", "-o", str(out), "--quiet"], env)
     assert p.returncode == 0, p.stderr
     assert out.is_file() and out.with_suffix(".json").is_file()
     assert str(out) in p.stdout and "sigma_gt" in p.stdout
@@ -108,9 +108,9 @@ BAD = [
     (["planes", "--spp", "-5"], "-5"),
     (["planes", "--spp", "many"], "many"),
     (["planes", "--sigma-convention", "fwhm"], "fwhm"),
-    (["planes", "--out", "/nonexistent-dir/x.exr"], "/nonexistent-dir/x.exr"),
-    (["planes", "--out", "{tmp}/not-a-folder.txt/x.exr"], "not-a-folder.txt"),
-    (["planes", "--out", "{tmp}"], "{tmp}"),
+    (["planes", "--output", "/nonexistent-dir/x.exr"], "/nonexistent-dir/x.exr"),
+    (["planes", "-o", "{tmp}/not-a-folder.txt/x.exr"], "not-a-folder.txt"),
+    (["planes", "--output", "{tmp}"], "{tmp}"),
     (["planes", "--out", "{tmp}/x.png"], "x.png"),
     ([], "SCENE"),
 ]

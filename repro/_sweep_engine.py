@@ -100,7 +100,7 @@ class SweepRun:
 
 
 def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | None = None,
-              progress: bool = True, log=None) -> SweepRun:
+              progress: bool = True, log=None, force: bool = False) -> SweepRun:
     """Run (or resume) a sweep and write its outputs.
 
     Parameters
@@ -117,6 +117,9 @@ def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | N
         tqdm bar of cells done / total with ETA.
     log : callable, optional, keyword-only
         Where one-line messages go (default: print to stderr).
+    force : bool, keyword-only
+        Recompute every cell even when ``out/cells`` holds it (each new cell file replaces the old; the
+        renders keep their own cache).
 
     Returns
     -------
@@ -124,7 +127,8 @@ def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | N
 
     Notes
     -----
-    1. Resume keys (:func:`cell_keys`); cells whose file in ``out/cells`` matches are read back.
+    1. Resume keys (:func:`cell_keys`); cells whose file in ``out/cells`` matches are read back
+       (none with ``force``).
     2. If any remain: start the engine; submit one render task per distinct render they need
        (``key="render-<id>"``) and one cell task per cell (``key="cell-<id>"``) taking the render's
        future, so it waits for that task only; as each cell comes back its file is written.
@@ -140,7 +144,7 @@ def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | N
     ids = [hash_key(k) for k in keys]
     records: dict[str, dict] = {}
     for cid, key in zip(ids, keys):
-        rec = read_cell(out, cid, key)
+        rec = None if force else read_cell(out, cid, key)
         if rec is not None:
             records[cid] = rec
     resumed = set(records)

@@ -2,8 +2,8 @@
 
 ``python -m repro.sweep [--scenes NAME ...] [--camera PRESET ...] [--fnumber 8 4] [--estimator NAME ...]
 [--preset NAME ...] [--param FIELD=V1,V2 ...] [--seeds 0 1] [--scene-size small|full]
-[--encoding srgb linear] [--workers N | --scheduler tcp://HOST:PORT] [--metric COLUMN] [--variant V] [-q]
---out DIR``
+[--encoding srgb linear] [--workers N | --scheduler tcp://HOST:PORT] [--metric COLUMN] [--variant V] [--force]
+[-q] --out DIR``
 
 The grid is the product scenes × cameras × f-numbers × seeds (one *render* each) × method presets ×
 estimators × parameter values × encodings (one *cell* each). Every cell renders through the render
@@ -17,7 +17,7 @@ with ``dask scheduler`` / ``dask worker``; its workers must see the same ``$DEFO
 Progress: cells done / total with an ETA (tqdm). Each finished cell is written at once, atomically,
 to ``DIR/cells/<cell id>.json``, keyed by its inputs, the code fingerprint of method/scenes/experiments,
 the estimator's source and the library versions; the same command again (after Ctrl-C, a crash or a
-killed worker) reads finished cells back instead of recomputing them. A worker that dies mid-task has
+killed worker) reads finished cells back instead of recomputing them (``--force`` recomputes them). A worker that dies mid-task has
 its tasks rerun elsewhere by the scheduler.
 
 Outputs (atomic): ``DIR/results.parquet`` (one row per cell: every input, the method variant label,
@@ -80,8 +80,8 @@ def _parser():
     from method import BLUR_ESTIMATORS
     from scenes import CAMERA_PRESETS, SCENES
 
-    from ._cli import (ArgumentParser, add_preset_option, add_quiet_option, add_scene_size_option, add_variant_option,
-                       float_type, hidden_alias, int_type)
+    from ._cli import (ArgumentParser, add_force_option, add_preset_option, add_quiet_option, add_scene_size_option,
+                       add_variant_option, float_type, hidden_alias, int_type)
 
     p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     add_variant_option(p)
@@ -110,6 +110,7 @@ def _parser():
     p.add_argument("--metric", default=DEFAULT_METRIC, metavar="COLUMN",
                    help=f"metric of the plot and summary (default {DEFAULT_METRIC})")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
+    add_force_option(p, what="recompute every cell even when the output folder holds it (the new cell replaces it)")
     add_quiet_option(p, what="no progress bar")
     hidden_alias(p, "--no-progress", dest="quiet", action="store_true")
     return p
@@ -133,7 +134,8 @@ def main(argv=None) -> int:
                           metric=args.metric, variant=args.variant)
     if not args.quiet:
         print(f"sweep: {len(grid.cells)} cells, {len(grid.renders)} distinct renders -> {args.out}", file=sys.stderr)
-    run = run_sweep(grid, args.out, workers=args.workers, scheduler=args.scheduler, progress=not args.quiet)
+    run = run_sweep(grid, args.out, workers=args.workers, scheduler=args.scheduler, progress=not args.quiet,
+                    force=args.force)
     print(format_summary(run.rows, grid.metric))
     variants = sorted({r["mitsuba_variant"] for r in run.rows})
     print(f"cells: {run.n_cells} ({run.n_resumed} read back, {run.n_cells - run.n_resumed} computed; "

@@ -405,3 +405,45 @@ def test_procedural_scene_names_are_accepted_by_every_scene_axis():
         check_scene_names(["nope", "procedural_2"])
     with pytest.raises(ValueError, match="no scene"):
         check_scene_names([])
+
+
+# --------------------------------------------------------------------------------------------------
+# --force: every cell recomputed, none read back
+
+
+def _stored_sweep(tmp_path):
+    """A one-render, two-cell grid whose cell files are already in ``tmp_path`` (hand-made results)."""
+    from repro._sweep_engine import cell_keys, write_cell
+    from repro._sweep_grid import build_grid
+    from defocus_cache import hash_key
+
+    grid = build_grid(scenes=["planes"], f_numbers=[8.0], estimators=["zero_crossing"],
+                      params=[("alpha", (0.5, 2.0))])
+    for key in cell_keys(grid):
+        write_cell(tmp_path, hash_key(key), key, {"variant": "scalar_rgb", "metrics": {"dense_textured_mae": 0.25}})
+    return grid
+
+
+class _EngineStarted(Exception):
+    pass
+
+
+def test_force_recomputes_every_stored_cell(tmp_path, monkeypatch):
+    from repro import _runner, sweep as mod
+    from repro._sweep_engine import run_sweep
+
+    def refuse(**kw):
+        raise _EngineStarted
+
+    monkeypatch.setattr(_runner, "start_client", refuse)
+    grid = _stored_sweep(tmp_path)
+    said = []
+    run = run_sweep(grid, tmp_path, progress=False, log=said.append)  # every cell read back: no engine
+    assert run.n_resumed == run.n_cells == 2 and [r["dense_textured_mae"] for r in run.rows] == [0.25, 0.25]
+    assert said == [f"resuming: 2 of 2 cells read back from {tmp_path / 'cells'}"]
+    said.clear()
+    with pytest.raises(_EngineStarted):  # --force: nothing read back, the engine started for every cell
+        run_sweep(grid, tmp_path, progress=False, log=said.append, force=True)
+    assert said == []
+    assert mod._parser().parse_args(["--out", "x"]).force is False
+    assert mod._parser().parse_args(["--out", "x", "--force"]).force is True

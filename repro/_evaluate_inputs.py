@@ -88,7 +88,7 @@ def main_photos(args) -> int:
         names, presets = _validate_photos(args)
     fig = FIGURES["photos"]
     config = dataclasses.replace(fig.config("full"), photos=tuple(names), presets=tuple(presets))
-    workers, scheduler = engine_choice(1 if args.workers in (None, 0) else args.workers, args.scheduler, command=PROG)
+    workers, scheduler = engine_choice(args.workers, args.scheduler, command=PROG)
     if not args.quiet:
         print(f"scoring {', '.join(presets)} on {', '.join(names)} ...", file=sys.stderr)
     (run,) = run_figures([FigureJob(fig, config, "photos")], workers=workers, scheduler=scheduler, force=args.force,

@@ -60,14 +60,9 @@ def add_options(p) -> None:
     p.add_argument("--scene-seed-start", type=int_type("--scene-seed-start", minimum=0), default=None, metavar="S",
                    help="with --procedural: first scene seed (default: the split's first; fresh: drawn at run time "
                         "and recorded). Not --seed: that one is a render's sampler seed")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--workers", "--jobs", dest="workers", type=int_type("--workers"), default=None,
-                   metavar="W", help="cases (scenes) computed in parallel: a Dask LocalCluster of W single-threaded "
-                                     "worker processes (default: one per core with --procedural, else 1; 1: in this "
-                                     "process, no Dask); --jobs is the same")
-    g.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="an existing Dask scheduler, e.g. tcp://10.0.0.5:8786 (its workers must see the same "
-                        "$DEFOCUS_CACHE_DIR)")
+    from ._runner import add_engine_options
+
+    add_engine_options(p, what="cases (scenes, photos, procedural scenes)")
     p.add_argument("--spp", type=int_type("--spp"), default=None, metavar="N",
                    help="with --procedural: samples per pixel of every render (default: each scene's own)")
 

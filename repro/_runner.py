@@ -111,15 +111,21 @@ def start_client(*, workers: int | None, scheduler: str | None):
     return Client(cluster), cluster
 
 
-def add_engine_options(p, *, what: str = "cases") -> None:
-    """``--workers N`` (alias ``--jobs``) and ``--scheduler ADDRESS`` (exclusive) on an argparse parser."""
+def add_engine_options(p, *, what: str = "cases", one_in_process: bool = True) -> None:
+    """``--workers N`` (alias ``--jobs``; default :func:`default_workers`, one per core, for every tool) and
+    ``--scheduler ADDRESS`` (exclusive) on an argparse parser.
+
+    ``one_in_process``: whether ``--workers 1`` runs in this process (the case runner) rather than on
+    one Dask worker (``repro.sweep``).
+    """
     from repro._cli import int_type
 
+    one = ("1: one after another in this process, where an estimator registered at run time is seen, as "
+           "without the sweep extra" if one_in_process else "1: one worker process")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", "--jobs", dest="workers", type=int_type("--workers"), default=None, metavar="N",
                    help=f"{what} computed in parallel: a Dask LocalCluster of N single-threaded worker processes "
-                        "(default: one per core; 1: one after another in this process, as without the sweep "
-                        "extra); --jobs is the same")
+                        f"(default: one per core; {one}); --jobs is the same")
     g.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="an existing Dask scheduler, e.g. tcp://10.0.0.5:8786 (its workers must see the same "
                         "$DEFOCUS_CACHE_DIR)")

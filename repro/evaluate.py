@@ -156,9 +156,7 @@ def _evaluate_cases(args, presets, estimators, scenes, f_numbers, encodings, noi
     config = EvaluateConfig(presets=tuple(presets), estimators=tuple(estimators), scenes=tuple(scenes),
                             f_numbers=tuple(float(n) for n in f_numbers), scene_size=args.scene_size,
                             encodings=tuple(encodings), noises=tuple(noises), variant=args.variant, force=args.force)
-    # in this process unless asked: an estimator registered at run time is seen only here
-    workers = 1 if args.workers is None and args.scheduler is None else args.workers
-    workers, scheduler = engine_choice(workers, args.scheduler, command=PROG)
+    workers, scheduler = engine_choice(args.workers, args.scheduler, command=PROG)
     (run,) = run_figures([FigureJob(EVALUATE, config, "evaluate")], workers=workers, scheduler=scheduler,
                          progress=not args.quiet, desc="evaluate")
     if run.error is not None:

@@ -82,6 +82,7 @@ def _parser():
 
     from ._cli import (ArgumentParser, add_force_option, add_preset_option, add_quiet_option, add_scene_size_option,
                        add_variant_option, float_type, hidden_alias, int_type)
+    from ._runner import add_engine_options
 
     p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     add_variant_option(p)
@@ -101,12 +102,7 @@ def _parser():
     add_scene_size_option(p)
     p.add_argument("--encoding", nargs="+", default=["srgb"], choices=("srgb", "linear"),
                    help="input encodings given to the method (default: srgb)")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--workers", type=int_type("--workers"), default=None, metavar="N",
-                   help="LocalCluster worker processes, one thread each (default: one per core)")
-    g.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="submit to an existing Dask scheduler, e.g. tcp://10.0.0.5:8786 (workers must see "
-                        "the same $DEFOCUS_CACHE_DIR)")
+    add_engine_options(p, what="cells", one_in_process=False)
     p.add_argument("--metric", default=DEFAULT_METRIC, metavar="COLUMN",
                    help=f"metric of the plot and summary (default {DEFAULT_METRIC})")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")

@@ -93,7 +93,8 @@ def _modules(root: Path, packages=PROJECT_PACKAGES) -> dict[str, Path]:
 
 def _import_statements(name: str, path: Path):
     """``(line, module, names)`` of every import statement of module ``name`` (function-local ones too),
-    relative imports resolved: ``import a.b`` → ``(n, "a.b", ())``; ``from .x import y`` → ``(n, "<pkg>.x", ("y",))``."""
+    relative imports resolved: ``import a.b`` → ``(n, "a.b", ())``; ``from .x import y`` →
+    ``(n, "<pkg>.x", ("y",))``."""
     package = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.Import):

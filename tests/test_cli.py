@@ -327,3 +327,12 @@ def test_single_output_files_are_o_output_and_folders_out(capsys):
     for name in ("figures", "evaluate", "report", "bench", "sweep", "dataset"):
         text = _help(name, capsys)
         assert "--out DIR" in text and "--output" not in text, name
+
+
+def test_workers_has_one_default_in_every_tool(capsys):
+    """Every tool that runs cases in parallel takes --workers N (alias --jobs), default one per core, said in --help."""
+    tools = [name for name in AVAILABLE if "--workers" in _help(name, capsys)]
+    assert sorted(tools) == ["bench", "evaluate", "figures", "sweep"]
+    for name in tools:
+        text = " ".join(_help(name, capsys).split())
+        assert "--workers N, --jobs N" in text and "(default: one per core;" in text, name

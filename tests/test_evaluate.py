@@ -36,7 +36,7 @@ def test_evaluate_one_scene_writes_csv_and_json(tmp_path, capsys, goldens):
 
     out = tmp_path / "ev"
     assert _run(["--estimator", "model_fit", "zero_crossing", "gradient_ratio", "--scenes", "planes",
-                 "--fnumber", "8", "--scene-size", "small", "--out", str(out)]) == 0
+                 "--fnumber", "8", "--scene-size", "small", "--workers", "1", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "model_fit" in printed and "gradient_ratio" in printed and "evaluate.csv" in printed
     rows, js = _read(out)
@@ -66,7 +66,8 @@ def test_registered_dummy_estimator_shows_up(tmp_path, monkeypatch):
 
     monkeypatch.setitem(BLUR_ESTIMATORS, "dummy_constant", _dummy_constant_sigma)
     out = tmp_path / "ev"
-    assert _run(["--estimator", "dummy_constant", "--scenes", "planes", "--fnumber", "8",
+    # registered at run time: seen in this process only (--workers 1), not by fresh Dask workers
+    assert _run(["--estimator", "dummy_constant", "--scenes", "planes", "--fnumber", "8", "--workers", "1",
                  "--out", str(out)]) == 0
     rows, _ = _read(out)
     assert [r["estimator"] for r in rows] == ["dummy_constant"]
@@ -145,7 +146,7 @@ def test_evaluate_presets_and_stages(tmp_path, capsys):
     """--preset compares presets (each with its own estimator); --stages writes the stage attribution."""
     out = tmp_path / "ev"
     assert _run(["--preset", "paper", "robust", "--scenes", "planes", "--fnumber", "8", "--scene-size", "small",
-                 "--stages", "--out", str(out)]) == 0
+                 "--stages", "--workers", "1", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "oracle_propagate" in printed and "stages.csv" in printed
     rows, js = _read(out)
@@ -163,3 +164,28 @@ def test_evaluate_presets_and_stages(tmp_path, capsys):
     op = next(r for r in stages if r["method_preset"] == "paper" and r["input"] == "oracle_propagate"
               and r["stage"] == "dense_edges")
     assert op["mae"] < 0.1
+
+
+class _EngineChosen(Exception):
+    pass
+
+
+@pytest.mark.parametrize("argv", [["--scenes", "planes", "--fnumber", "8"], ["--photos", "coffee"],
+                                  ["--procedural", "2", "--split", "dev"]], ids=["named", "photos", "procedural"])
+def test_one_workers_default_on_every_path(argv, tmp_path, monkeypatch):
+    """Without --workers every path asks the engine for its default (one per core); --workers N is passed on."""
+    from repro import _runner
+    from repro.evaluate import main
+
+    asked = []
+
+    def chosen(workers, scheduler, *, command):
+        asked.append(workers)
+        raise _EngineChosen
+
+    monkeypatch.setattr(_runner, "engine_choice", chosen)
+    for extra, want in (([], None), (["--workers", "3"], 3)):
+        with pytest.raises(_EngineChosen):
+            main([*argv, *extra, "--out", str(tmp_path / "o")])
+        assert asked.pop() == want
+    assert _runner.default_workers() >= 1

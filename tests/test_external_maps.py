@@ -276,7 +276,7 @@ def test_round_trip_ground_truth_and_estimate_maps_match_the_harness(tmp_path, c
     assert run_cli(evaluate_main, ["--maps", str(maps), "--dataset", str(data), "--protocol", "harness", "rtf",
                                    "--out", str(tmp_path / "ext"), "-q"], prog="repro.evaluate") == 0
     assert run_cli(evaluate_main, ["--preset", "paper", "--scenes", "planes", "--fnumber", "8", "--encoding", "srgb",
-                                   "--out", str(tmp_path / "own"), "-q"], prog="repro.evaluate") == 0
+                                   "--workers", "1", "--out", str(tmp_path / "own"), "-q"], prog="repro.evaluate") == 0
     capsys.readouterr()
     ext = {r["protocol"]: r for r in json.loads((tmp_path / "ext" / "maps.json").read_text())["rows"]}
     (own,) = json.loads((tmp_path / "own" / "evaluate.json").read_text())["rows"]

@@ -57,7 +57,8 @@ def test_new_estimator_through_repro_evaluate(monkeypatch, tmp_path, capsys):
 
     monkeypatch.setitem(BLUR_ESTIMATORS, "my_idea", _my_idea)
     out = tmp_path / "ev"
-    assert main(["--estimator", "my_idea", "model_fit", "--scenes", "tilted_plane", "--fnumber", "8",
+    # registered at run time: seen in this process only (--workers 1), not by fresh Dask workers
+    assert main(["--estimator", "my_idea", "model_fit", "--scenes", "tilted_plane", "--fnumber", "8", "--workers", "1",
                  "--out", str(out)]) == 0
     rows = json.loads((out / "evaluate.json").read_text())["rows"]
     assert [r["estimator"] for r in rows] == ["my_idea", "model_fit"]

@@ -1,7 +1,7 @@
 """Export the rendered scenes as a versioned dataset (see :mod:`experiments.dataset` and docs/dataset.md).
 
 ``python -m repro.dataset export [--scenes NAME ...] [--fnumber N ...] [--scene-size small|full]
-[--camera PRESET] [--noise LEVEL] [--jpeg Q] --out DIR [-q]``
+[--camera PRESET] [--noise LEVEL] [--jpeg Q] [--force] --out DIR [-q]``
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ PROG = "python -m repro.dataset"
 
 
 def _parser():
-    from repro._cli import (ArgumentParser, add_quiet_option, add_scene_size_option, add_variant_option, float_type,
-                            int_type)
+    from repro._cli import (ArgumentParser, add_force_option, add_quiet_option, add_scene_size_option,
+                            add_variant_option, float_type, int_type)
     from scenes.display import NOISE_LEVELS
 
     p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
@@ -34,6 +34,7 @@ def _parser():
     p.add_argument("--jpeg", type=int_type("--jpeg", minimum=1), default=None, metavar="Q",
                    help="JPEG quality 1-100 of the 8-bit image (default: none)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="dataset folder")
+    add_force_option(p, what="re-render and re-export every image, even those the folder (or the render cache) holds")
     add_quiet_option(p, what="no progress display")
     return p
 
@@ -67,7 +68,7 @@ def main(argv=None) -> int:
     with tqdm(combos, desc="export", unit="image", file=sys.stderr, disable=args.quiet) as bar:
         for s, n in bar:
             name = ds.image_name(s, n, args.scene_size)
-            if ds.is_complete(args.out, name):
+            if not args.force and ds.is_complete(args.out, name):
                 entry = json.loads((args.out / "done" / f"{name}.json").read_text())
                 if entry.get("camera_preset") != camera_name:
                     raise CLIError(f"{args.out}: {name} was exported with --camera {entry.get('camera_preset')}; "
@@ -82,7 +83,8 @@ def main(argv=None) -> int:
             from scenes import render_scene
 
             camera = get_scene(s).camera(args.scene_size, f_number=n, camera_name=camera_name)
-            render = render_scene(s, camera, preset=args.scene_size, variant=args.variant, progress=False)
+            render = render_scene(s, camera, preset=args.scene_size, variant=args.variant, force=args.force,
+                                  progress=False)
             entries.append(ds.export_image(args.out, name, render, camera_preset=camera_name, noise=args.noise,
                                            jpeg_quality=args.jpeg))
     path = ds.write_manifest(args.out, entries,

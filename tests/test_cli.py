@@ -160,7 +160,7 @@ from repro._cli import COMMANDS, console_main, version_string  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 AVAILABLE = [name for name in COMMANDS if importlib.util.find_spec(f"repro.{name}") is not None]
 #: Commands that reuse cached results, so they have --force.
-CACHED = ("figures", "render", "evaluate", "estimate", "magnify", "sweep")
+CACHED = ("figures", "render", "evaluate", "estimate", "magnify", "sweep", "dataset")
 
 
 def test_console_script_is_declared():

@@ -95,6 +95,7 @@ def test_export_camera_reaches_the_render_and_the_manifest(tmp_path, monkeypatch
     seen = []
 
     def fake_render(scene, camera=None, **kw):  # the cached render stands in; the camera is what is checked
+        assert kw["force"] is (len(seen) == 1)
         seen.append(camera)
         return real
 
@@ -114,6 +115,11 @@ def test_export_camera_reaches_the_render_and_the_manifest(tmp_path, monkeypatch
     assert manifest["images"]["planes_f8_small"]["render"]["spp"] == real.metadata["spp"]
     status, _, err = run(["export", "--scenes", "planes", "--fnumber", "8", "--out", out, "-q"], capsys)
     assert_one_line_error(status, err, "was exported with --camera aps_c_22")
+    # --force: re-rendered and re-exported (the camera then replaces the folder's)
+    status, _, err = run(["export", "--scenes", "planes", "--fnumber", "8", "--out", out, "--force", "-q"], capsys)
+    assert status == 0, err
+    assert len(seen) == 2 and seen[1].sensor_width_mm == real.camera.sensor_width_mm
+    assert json.loads((out / "manifest.json").read_text())["images"]["planes_f8_small"]["camera_preset"] is None
 
 
 @pytest.mark.render

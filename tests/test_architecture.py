@@ -184,6 +184,16 @@ def test_no_import_cycles_between_files():
     assert not cycles, "import cycles (break each with a leaf module): " + "; ".join(" <-> ".join(c) for c in cycles)
 
 
+#: Modules that hold what several modules of their package share, so they import none of it.
+LEAF_MODULES = ("experiments.cache_keys", "experiments.metric_paths", "experiments.evaluation_columns")
+
+
+@pytest.mark.parametrize("name", LEAF_MODULES)
+def test_shared_helpers_live_in_leaf_modules(name):
+    package = name.split(".")[0]
+    assert not {t for t in import_graph(ROOT)[name] if t.split(".")[0] == package}, name
+
+
 def _fake_package(root: Path, files: dict[str, str]) -> Path:
     for rel, text in files.items():
         (root / rel).parent.mkdir(parents=True, exist_ok=True)

@@ -79,3 +79,18 @@ def test_a_quick_run_and_the_report_leave_git_status_clean(repo_copy):
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
     assert "fig10 (quick)" in proc.stderr
     assert {line[3:] for line in _status(repo)} == changed and (repo / "README.md").read_bytes() == readme
+
+
+def test_the_exploratory_defaults_are_git_ignored_and_the_committed_folders_are_not():
+    import repro._evaluate_procedural as procedural
+    import repro.evaluate as evaluate
+    import repro.figures as figures
+    from repro._report_paths import EVALUATIONS
+
+    def ignored(path: Path) -> bool:
+        return subprocess.run(["git", "check-ignore", "-q", "--no-index", path.as_posix()], cwd=ROOT).returncode == 0
+
+    assert ignored(figures.QUICK_OUT / "results.csv") and ignored(evaluate.DEFAULT_OUT / "evaluate.csv")
+    assert ignored(procedural.DEFAULT_ROOT / "test-100000-n8-small-0000abcd" / "results.csv")
+    assert not ignored(figures.DEFAULT_OUT / "results.csv")
+    assert not ignored(EVALUATIONS / "test-100000-n8-small-0000abcd" / "results.csv")

@@ -29,9 +29,10 @@ cannot be scored is one line on stderr naming the entry and the file.
 
 Generalisation: the newest evaluation of each split of the procedural scene family under
 ``--evaluations`` (the committed ``report/evaluations`` is written only on purpose: ``python -m
-repro.evaluate --procedural N --split dev|test|fresh --out report/evaluations``) gives, per preset and aperture, the dev and test errors side by side with 95 % bootstrap intervals and
-test − dev (:mod:`repro._report_gap`); also written to ``<out>/generalisation.json``. Without both a
-dev and a test evaluation the section is left out.
+repro.evaluate --procedural N --split dev|test|fresh --out report/evaluations``) gives, per preset and
+aperture, the dev and test errors side by side with 95 % bootstrap intervals and test − dev
+(:mod:`repro._report_gap`); also written to ``<out>/generalisation.json``. Without both a dev and a
+test evaluation the section is left out.
 """
 
 from __future__ import annotations
@@ -43,12 +44,12 @@ from pathlib import Path
 from repro._cli import ArgumentParser, CLIError, run_cli
 
 from ._report_html import build_html
-from ._report_paths import EVALUATIONS, FIGURES, QUICK, QUICK_EVALUATIONS, QUICK_FIGURES, REPORT
 from ._report_markdown import build_markdown, md_verdict_cell
+from ._report_paths import EVALUATIONS, FIGURES, QUICK, QUICK_EVALUATIONS, QUICK_FIGURES, REPORT
 from ._report_text import MARKS, cell_texts, column_label, mark, md_cell
 
-__all__ = ["README_END", "README_START", "build_html", "build_markdown", "claims_block", "figure_modes",
-           "load_figures", "main", "parse_external", "update_readme_block"]
+__all__ = ["README_END", "README_START", "build_html", "build_markdown", "check_full_mode", "claims_block",
+           "figure_modes", "load_figures", "main", "parse_external", "update_readme_block"]
 
 PROG = "python -m repro.report"
 _PROJECT_ROOT = Path(__file__).resolve().parents[1]
@@ -224,7 +225,7 @@ def _parser():
     from repro._cli import add_quiet_option
 
     parser = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
-    parser.add_argument("--figures", type=Path, default=FIGURES,
+    parser.add_argument("--figures", type=Path, default=FIGURES, metavar="DIR",
                         help=f"folder with results.parquet|csv and <fig>.png/.pdf/.metrics.json (default: {FIGURES}, "
                              f"full-mode figures; a quick run's: {QUICK_FIGURES})")
     parser.add_argument("--out", type=Path, default=None, metavar="DIR",

@@ -379,7 +379,8 @@ def test_figure_modes_come_from_the_metrics_files_and_the_rows():
     assert figure_modes({"fig10": {"mode": "full"}, "photos": {}}, table) == {
         "fig10": {"full"}, "fig2": {"quick"}, "photos": {None}}
     assert evaluation_mode("fig10-quick-c0cd097d", "fig10") == "quick"
-    assert evaluation_mode("fig10-full-c0cd097d", "fig1") is None and evaluation_mode("dev-0-n8-small-ee91be4d", "dev") is None
+    assert evaluation_mode("fig10-full-c0cd097d", "fig1") is None
+    assert evaluation_mode("dev-0-n8-small-ee91be4d", "dev") is None  # a procedural evaluation's folder name
 
 
 def test_the_report_is_the_same_bytes_on_the_same_results(tmp_path):

@@ -48,9 +48,10 @@ figures: setup
 	$(BIN)/python -m repro.figures
 	$(BIN)/python -m repro.report
 
+# Exploratory: figures and report under the git-ignored report/quick/ (the committed report is untouched).
 figures-quick: setup
 	$(BIN)/python -m repro.figures --quick
-	$(BIN)/python -m repro.report
+	$(BIN)/python -m repro.report --figures report/quick/figures
 
 report: setup
 	$(BIN)/python -m repro.report

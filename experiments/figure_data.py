@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 from .cases import CaseOutput, case_rows, run_cases
 
-__all__ = ["FigureData", "evaluation_id", "run_figure"]
+__all__ = ["FigureData", "evaluation_id", "evaluation_mode", "run_figure"]
 
 
 def evaluation_id(figure, config, mode: str | None = None) -> str:
@@ -28,6 +28,14 @@ def evaluation_id(figure, config, mode: str | None = None) -> str:
     if mode is None:
         mode = next((m for m, c in figure.configs.items() if c == config), "custom")
     return f"{figure.name}-{mode}-{hash_key(to_jsonable(config))[:8]}"
+
+
+def evaluation_mode(evaluation_id: str, figure: str) -> str | None:
+    """The mode (``quick``, ``full``, ``custom``) that :func:`evaluation_id` wrote into a run of ``figure``
+    (a figure name); None for an id of another shape or figure."""
+    head, sep, rest = str(evaluation_id).partition(f"{figure}-")
+    mode, sep2, digest = rest.rpartition("-")
+    return mode if sep and not head and sep2 and mode and "-" not in mode and len(digest) == 8 else None
 
 
 @dataclasses.dataclass

@@ -4,9 +4,10 @@ One case per scene (:func:`experiments.procedural_eval.score_scene`: its renders
 through the render cache, every preset on every input, scored against σ_gt), run by the case runner
 (:mod:`repro._runner`) on a Dask LocalCluster of single-threaded workers (``--workers``, default one
 per core), an existing scheduler (``--scheduler``) or in this process (``--workers 1``). Each
-finished scene is written at once, atomically, to
-``DIR/<evaluation id>/cells/<key>.json``, so the same command after Ctrl-C, a crash or a killed worker
-reads finished scenes back. Then the long results table (:mod:`experiments.results_table`:
+finished scene is written at once, atomically, to ``DIR/<evaluation id>/cells/<key>.json`` (``DIR``:
+``--out``, default the git-ignored ``report/quick/evaluations``; the committed report shows those of
+``report/evaluations``), so the same command after Ctrl-C, a crash or a killed worker reads finished
+scenes back. Then the long results table (:mod:`experiments.results_table`:
 ``results.parquet`` + ``results.csv``), the summary per preset and aperture with 95 % bootstrap
 intervals over scenes (``summary.csv``, ``summary.json``), the timings per scene and lighting kind
 (``timings.json``) and ``run.json`` (the plan, the seeds and the command that reruns them; written
@@ -23,9 +24,13 @@ import sys
 import time
 from pathlib import Path
 
+from ._report_paths import QUICK_EVALUATIONS
+
 PROG = "python -m repro.evaluate"
-#: Default output root of ``--procedural`` (one folder per evaluation id; ``repro.report`` reads the newest).
-DEFAULT_ROOT = Path("report") / "evaluations"
+#: Default output root of ``--procedural`` (one folder per evaluation id), git-ignored: an exploratory run never
+#: changes the committed report, which shows the newest evaluations of ``report/evaluations`` (written there only
+#: with ``--out report/evaluations``; :mod:`repro._report_paths`).
+DEFAULT_ROOT = QUICK_EVALUATIONS
 #: Options only ``--procedural`` takes (flag, attribute, argparse default).
 PROCEDURAL_ONLY = (("--split", "split", None), ("--scene-seed-start", "scene_seed_start", None), ("--spp", "spp", None))
 #: Options of the named-scene evaluation that ``--procedural`` does not take.

@@ -2,16 +2,13 @@
 scene family side by side (:func:`experiments.leaderboard.generalisation_gap`).
 
 ``repro.report`` reads the newest ``results.parquet`` of each split under ``--evaluations`` (default
-``report/evaluations``, where ``repro.evaluate --procedural`` writes) and shows, per preset and aperture,
+``report/evaluations``, which ``repro.evaluate --procedural ... --out report/evaluations`` writes on
+purpose; :mod:`repro._report_paths`) and shows, per preset and aperture,
 the mean error over the dev scenes and over the test scenes with 95 % bootstrap intervals and test − dev.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
-#: Where ``repro.evaluate --procedural`` writes by default and ``repro.report`` looks.
-DEFAULT_EVALUATIONS = Path("report") / "evaluations"
 #: Preset and metric whose pooled gap the section's text states.
 HEADLINE = ("robust", "dense_textured_mae")
 

@@ -19,7 +19,12 @@ encoding, keyed also by the code fingerprint), and the errors against the render
 tabulated, per method preset (:data:`method.PRESETS`) and estimator: the sparse blur measure at edge pixels, after the cross-bilateral filter, the dense map
 over all / edge / textured pixels, RTF-normalised errors and the in-focus outlier fraction
 (occlusion boundaries excluded everywhere). The table is printed and written to
-``<out>/evaluate.csv`` and ``<out>/evaluate.json`` (atomically).
+``<out>/evaluate.csv`` and ``<out>/evaluate.json`` (atomically). Every mode writes under the git-ignored
+``report/quick/`` unless ``--out`` says otherwise (named scenes, ``--photos``, ``--maps``:
+``report/quick/evaluate``; ``--procedural``: ``report/quick/evaluations``): an evaluation never changes
+the committed report by default. The report's generalisation section reads the procedural evaluations
+of ``report/evaluations``, written there only on purpose (``--procedural N --split dev|test --out
+report/evaluations``).
 
 ``--noise`` adds the sensor noise levels (:data:`scenes.display.NOISE_LEVELS`) as an axis. ``--procedural N``
 scores the presets on N seeded scenes of a ``--split`` (tune on dev, report test and fresh), one Dask task
@@ -62,13 +67,15 @@ from pathlib import Path
 
 from experiments.evaluation_columns import METRIC_COLUMNS
 from repro import _evaluate_procedural as _procedural
+from repro._report_paths import EVALUATIONS, QUICK_EVALUATE
 
 from ._evaluate_inputs import MAPS_ONLY, MAP_ID_COLUMNS, PHOTO_COLUMNS, main_maps, main_photos, photo_names, photo_rows, used
 from ._evaluate_table import (ID_COLUMNS, SHOWN, STAGE_ID_COLUMNS, format_stage_table, format_table,
                               stage_table_rows, table_rows, write_csv_json, write_outputs, write_stage_outputs)
 
 PROG = "python -m repro.evaluate"
-DEFAULT_OUT = Path("report") / "evaluate"
+#: Default ``--out`` of the named-scene, ``--photos`` and ``--maps`` evaluations (git-ignored: exploratory).
+DEFAULT_OUT = QUICK_EVALUATE
 __all__ = ["DEFAULT_OUT", "ID_COLUMNS", "MAP_ID_COLUMNS", "PHOTO_COLUMNS", "PROG", "SHOWN",
            "STAGE_ID_COLUMNS", "format_stage_table", "format_table", "main", "main_maps", "main_photos", "photo_rows",
            "stage_table_rows", "table_rows", "write_csv_json", "write_outputs", "write_stage_outputs"]
@@ -118,7 +125,8 @@ def _parser():
                    help="with --maps: a 16-bit PNG map holds σ × S (default 1000: 0.001 px steps)")
     p.add_argument("--out", type=Path, default=None, metavar="DIR",
                    help=f"output folder (default: {DEFAULT_OUT}; with --procedural: {_procedural.DEFAULT_ROOT}, one "
-                        "folder per evaluation in it)")
+                        "folder per evaluation in it; both git-ignored. The committed report shows the procedural "
+                        f"evaluations of {EVALUATIONS}: write there only on purpose, with --out {EVALUATIONS})")
     add_force_option(p)
     add_quiet_option(p, what="no progress display")
     return p

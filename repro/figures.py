@@ -12,7 +12,9 @@ without the ``sweep`` extra) in this process. As soon as a figure's cases are do
 ``<out>/<name>.png``, ``<name>.pdf`` (one more pair per further scene set) and ``<name>.metrics.json``
 (the config, the σ convention, library versions, the cases). Every case's numbers go to one long
 results table, ``<out>/results.parquet`` and ``results.csv`` (:mod:`experiments.results_table`; the
-rows of figures not run this time are kept), which ``repro.report`` reads.
+rows of figures not run this time are kept), which ``repro.report`` reads. ``<out>`` is ``report/figures``
+(the committed results) for a full run and ``report/quick/figures`` (git-ignored) with ``--quick``, so an
+exploratory run never touches the committed report (:mod:`repro._report_paths`); ``--out`` overrides both.
 
 ``--preset robust zhuo_sim`` sets the ``presets`` field (method parameter presets of :data:`method.PRESETS`)
 of every selected figure whose config has one, to ``("paper", "robust", "zhuo_sim")`` — ``"paper"``,
@@ -29,8 +31,12 @@ import sys
 import time
 from pathlib import Path
 
+from ._report_paths import FIGURES, QUICK_FIGURES
+
 PROG = "python -m repro.figures"
-DEFAULT_OUT = Path("report") / "figures"
+#: Default ``--out`` of a full run (the committed results) and of a ``--quick`` run (git-ignored).
+DEFAULT_OUT = FIGURES
+QUICK_OUT = QUICK_FIGURES
 #: Stem of the results table in the output folder.
 TABLE_STEM = "results"
 
@@ -49,8 +55,9 @@ def _parser():
     p.add_argument("--list", action="store_true", help="list the registered figures and exit")
     p.add_argument("--quick", action="store_true", help="quick mode: fewer points, fewer samples per pixel")
     add_engine_options(p)
-    p.add_argument("--out", type=Path, default=DEFAULT_OUT, metavar="DIR",
-                   help=f"output folder (default: {DEFAULT_OUT})")
+    p.add_argument("--out", type=Path, default=None, metavar="DIR",
+                   help=f"output folder (default: {DEFAULT_OUT}, the committed results; with --quick: {QUICK_OUT}, "
+                        "git-ignored)")
     add_force_option(p)
     add_quiet_option(p, what="no progress display")
     p.add_argument("--preset", nargs="+", default=None, metavar="NAME",
@@ -170,6 +177,7 @@ def main(argv=None) -> int:
         if unknown:
             raise ValueError(f"unknown figure(s) {', '.join(map(repr, unknown))}; choose from {', '.join(FIGURES)}")
         mode = "quick" if args.quick else "full"
+        out = args.out if args.out is not None else QUICK_OUT if args.quick else DEFAULT_OUT
         presets = preset_names(args.preset) if args.preset is not None else None
     workers, scheduler = engine_choice(args.workers, args.scheduler, command=PROG)
     if args.variant:
@@ -182,7 +190,7 @@ def main(argv=None) -> int:
     jobs = [FigureJob(FIGURES[n], figure_config(FIGURES[n], mode, presets), mode) for n in names]
     for job in jobs:
         job.case_list()  # a bad config (unknown scene set, preset, …) fails before anything runs
-    args.out.mkdir(parents=True, exist_ok=True)
+    out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     summaries, finished = {}, []
 
@@ -190,7 +198,7 @@ def main(argv=None) -> int:
         if run.data is None:
             return
         try:
-            summaries[run.job.figure.name] = write_figure(run.data, args.out)
+            summaries[run.job.figure.name] = write_figure(run.data, out)
         except Exception as exc:  # noqa: BLE001 - a failing plot fails its figure; the others go on
             import traceback
 
@@ -201,7 +209,7 @@ def main(argv=None) -> int:
 
     runs = run_figures(jobs, workers=workers, scheduler=scheduler, force=args.force, progress=not args.quiet,
                        on_figure=on_figure)
-    table = write_table(args.out, finished) if finished else []
+    table = write_table(out, finished) if finished else []
     failed = [r for r in runs if r.error is not None]
     for r in failed:
         print(r.traceback, file=sys.stderr)

@@ -1,7 +1,7 @@
 """Build the report: ``report/index.html`` and ``report/README.md`` from the results table of the figures.
 
-``python -m repro.report [--figures report/figures] [--out report] [--external NAME=MAPDIR ...] [--dataset DIR]
-[--evaluations report/evaluations] [-q]``
+``python -m repro.report [--figures report/figures] [--out DIR] [--readme FILE] [--external NAME=MAPDIR ...]
+[--dataset DIR] [--evaluations DIR] [-q]``
 
 Reads the long results table that ``python -m repro.figures`` wrote (``<figures>/results.parquet`` or
 ``results.csv``, :mod:`experiments.results_table`) and the figures' ``<fig>.metrics.json`` (config,
@@ -10,7 +10,16 @@ one verdict per method preset × scene set) and writes, atomically, an HTML page
 path, :mod:`repro._report_html`), a Markdown page (:mod:`repro._report_markdown`) and ``claims.json``
 with the verdict table, the evidence numbers, the fragile verdicts — those that differ between the
 hand-built scene sets and the procedural test split, shown with both evidences — and the key figures.
-Nothing in the report is typed by hand: rerun the figures and this command to refresh it.
+Nothing in the report is typed by hand: rerun the figures and this command to refresh it; the same
+results give the same files (no timestamp), so a rerun on unchanged results leaves ``git status`` clean.
+
+``python -m repro.report`` writes the committed report (``report/``, and the claims block of the
+project's ``README.md``) from ``report/figures`` and ``report/evaluations``. With ``--figures`` in the
+git-ignored ``report/quick/`` (``repro.figures --quick`` writes ``report/quick/figures``), ``--out``
+defaults to ``report/quick`` and ``--evaluations`` to ``report/quick/evaluations`` (where
+``repro.evaluate --procedural`` writes by default), and ``README.md`` is left alone.
+The committed report is built from full-mode figures only: a figure whose metrics file or results rows
+say another mode (``quick``; :func:`figure_modes`) is refused there (one line, exit status 2).
 
 ``--external NAME=MAPDIR`` (repeatable) adds a leaderboard (:mod:`experiments.leaderboard`): every
 method preset and every external map folder, one row each, per scene set and protocol, on the images
@@ -19,10 +28,11 @@ harness's renders named by the maps; its rows are long-table rows (``leaderboard
 cannot be scored is one line on stderr naming the entry and the file.
 
 Generalisation: the newest evaluation of each split of the procedural scene family under
-``--evaluations`` (``python -m repro.evaluate --procedural N --split dev|test|fresh`` writes there)
-gives, per preset and aperture, the dev and test errors side by side with 95 % bootstrap intervals and
-test − dev (:mod:`repro._report_gap`); also written to ``<out>/generalisation.json``. Without both a
-dev and a test evaluation the section is left out.
+``--evaluations`` (the committed ``report/evaluations`` is written only on purpose: ``python -m
+repro.evaluate --procedural N --split dev|test|fresh --out report/evaluations``) gives, per preset and
+aperture, the dev and test errors side by side with 95 % bootstrap intervals and test − dev
+(:mod:`repro._report_gap`); also written to ``<out>/generalisation.json``. Without both a dev and a
+test evaluation the section is left out.
 """
 
 from __future__ import annotations
@@ -35,10 +45,11 @@ from repro._cli import ArgumentParser, CLIError, run_cli
 
 from ._report_html import build_html
 from ._report_markdown import build_markdown, md_verdict_cell
+from ._report_paths import EVALUATIONS, FIGURES, QUICK, QUICK_EVALUATIONS, QUICK_FIGURES, REPORT
 from ._report_text import MARKS, cell_texts, column_label, mark, md_cell
 
-__all__ = ["README_END", "README_START", "build_html", "build_markdown", "claims_block", "load_figures", "main",
-           "parse_external", "update_readme_block"]
+__all__ = ["README_END", "README_START", "build_html", "build_markdown", "check_full_mode", "claims_block",
+           "figure_modes", "load_figures", "main", "parse_external", "update_readme_block"]
 
 PROG = "python -m repro.report"
 _PROJECT_ROOT = Path(__file__).resolve().parents[1]
@@ -65,6 +76,57 @@ def load_figures(folder: Path):
     if not infos:
         raise ValueError(f"no *.metrics.json in {folder}; run python -m repro.figures first")
     return infos, read_table(folder)
+
+
+def figure_modes(infos: dict, table) -> dict[str, set]:
+    """The run modes (``full``, ``quick``, …) of every figure of a ``repro.figures`` output folder.
+
+    A figure's modes are its metrics file's ``mode`` (None when it has none) and the mode named by the
+    ``evaluation_id`` of each of its results rows (``<figure>-<mode>-<hash>``, None for another shape;
+    :func:`experiments.figure_data.evaluation_mode`), so a table whose rows were merged from runs of
+    different modes shows both.
+
+    Parameters
+    ----------
+    infos : dict
+        ``{figure: parsed <figure>.metrics.json}`` (:func:`load_figures`).
+    table : experiments.results_query.Results
+        The folder's results table.
+    """
+    from experiments.figure_data import evaluation_mode
+
+    modes = {name: {info.get("mode")} for name, info in infos.items()}
+    for row in table:
+        if row.get("figure"):
+            modes.setdefault(row["figure"], set()).add(evaluation_mode(row.get("evaluation_id", ""), row["figure"]))
+    return modes
+
+
+def _quick(args) -> bool:
+    """Whether ``--figures`` lies in the git-ignored folder of exploratory runs (:data:`QUICK`)."""
+    return args.figures.resolve().is_relative_to(QUICK.resolve())
+
+
+def _committed_target(out: Path, readme: Path | None) -> bool:
+    """Whether the report goes to the project's committed ``report/`` or its ``README.md``."""
+    return (out.resolve() == (_PROJECT_ROOT / "report").resolve()
+            or readme is not None and readme.resolve() == (_PROJECT_ROOT / "README.md").resolve())
+
+
+def check_full_mode(infos: dict, table, *, figures: Path) -> None:
+    """Refuse figures run in another mode than ``full`` for the committed report.
+
+    Raises
+    ------
+    ValueError
+        Naming the figures and their modes, and the way to a quick report.
+    """
+    other = {name: sorted(map(str, m)) for name, m in figure_modes(infos, table).items() if m != {"full"}}
+    if other:
+        listed = ", ".join(f"{name} ({'/'.join(m)})" for name, m in sorted(other.items()))
+        raise ValueError(f"{figures} holds results of a run that is not full-mode: {listed}; allowed for the committed "
+                         "report (report/, README.md): full-mode figures (python -m repro.figures without --quick); "
+                         "a quick run's report: python -m repro.report --figures report/quick/figures")
 
 
 def _bench_summary(out: Path) -> str | None:
@@ -150,9 +212,9 @@ def external_leaderboard(external: dict, dataset: Path | None) -> dict:
 
 def _generalisation(args) -> dict | None:
     """The generalisation section from ``--evaluations`` (None when it lacks a dev or a test evaluation)."""
-    from ._report_gap import DEFAULT_EVALUATIONS, load_generalisation
+    from ._report_gap import load_generalisation
 
-    root = args.evaluations if args.evaluations is not None else DEFAULT_EVALUATIONS
+    root = args.evaluations if args.evaluations is not None else QUICK_EVALUATIONS if _quick(args) else EVALUATIONS
     if args.evaluations is not None and not root.is_dir():
         raise CLIError(f"--evaluations {str(root)!r} is not a folder; allowed: a folder of repro.evaluate "
                          "--procedural evaluations")
@@ -163,10 +225,13 @@ def _parser():
     from repro._cli import add_quiet_option
 
     parser = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
-    parser.add_argument("--figures", type=Path, default=Path("report") / "figures",
-                        help="folder with results.parquet|csv and <fig>.png/.pdf/.metrics.json (default: report/figures)")
-    parser.add_argument("--out", type=Path, default=Path("report"), metavar="DIR", help="output folder (default: report)")
-    parser.add_argument("--readme", type=Path, default=None,
+    parser.add_argument("--figures", type=Path, default=FIGURES, metavar="DIR",
+                        help=f"folder with results.parquet|csv and <fig>.png/.pdf/.metrics.json (default: {FIGURES}, "
+                             f"full-mode figures; a quick run's: {QUICK_FIGURES})")
+    parser.add_argument("--out", type=Path, default=None, metavar="DIR",
+                        help=f"output folder (default: {REPORT}; {QUICK} when --figures is in it); the committed "
+                             f"{REPORT}/ takes full-mode figures only")
+    parser.add_argument("--readme", type=Path, default=None, metavar="FILE",
                         help="README whose marked claims block is refreshed (default: the project's "
                              "README.md, and only when --out is the project's report/ folder)")
     parser.add_argument("--external", action="append", default=[], metavar="NAME=MAPDIR",
@@ -177,7 +242,9 @@ def _parser():
                              "harness's renders named by the maps)")
     parser.add_argument("--evaluations", type=Path, default=None, metavar="DIR",
                         help="folder of repro.evaluate --procedural evaluations; the newest dev and test ones give the "
-                             "generalisation section (default: report/evaluations)")
+                             f"generalisation section (default: {EVALUATIONS}, written only on purpose with "
+                             f"repro.evaluate --procedural ... --out {EVALUATIONS}; {QUICK_EVALUATIONS} when "
+                             f"--figures is in {QUICK})")
     add_quiet_option(parser, what="no verdict listing on the terminal")
     return parser
 
@@ -199,6 +266,13 @@ def main(argv=None) -> int:
         if args.dataset is not None and not external:
             raise ValueError("--dataset is invalid without --external; allowed: with --external NAME=MAPDIR")
         infos, table = load_figures(args.figures)
+        if args.out is None:
+            args.out = QUICK if _quick(args) else REPORT
+        readme = args.readme
+        if readme is None and args.out.resolve() == (_PROJECT_ROOT / "report").resolve():
+            readme = _PROJECT_ROOT / "README.md"
+        if _committed_target(args.out, readme):
+            check_full_mode(infos, table, figures=args.figures)
     from defocus_cache import atomic_write_text
     from experiments.claims import claim_matrix, claims_document, fragile_claims
 
@@ -229,9 +303,6 @@ def main(argv=None) -> int:
                           for c, v in (matrix[first] if first is not None else [])],
                "matrix": claims_document(matrix), "fragile": fragile}
     atomic_write_text(args.out / "claims.json", json.dumps(summary, indent=1, ensure_ascii=False))
-    readme = args.readme
-    if readme is None and args.out.resolve() == (_PROJECT_ROOT / "report").resolve():
-        readme = _PROJECT_ROOT / "README.md"
     if readme is not None and readme.is_file():
         try:
             link = (args.out / "README.md").resolve().relative_to(readme.resolve().parent).as_posix()

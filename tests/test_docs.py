@@ -131,7 +131,8 @@ TOP_FOLDERS = ("method", "scenes", "experiments", "repro", "tests", "docs", "ben
 #: module named (checked below, so the list cannot outlive the code that writes them).
 GENERATED = {
     "report/figures/": "repro/figures.py",            # python -m repro.figures (default --out)
-    "report/evaluate": "repro/evaluate.py",            # python -m repro.evaluate (default --out)
+    "report/quick": "repro/_report_paths.py",         # exploratory runs (git-ignored; default --out of
+                                                      # repro.figures --quick and repro.evaluate)
     "report/leaderboard.json": "repro/report.py",      # python -m repro.report --external
     "tests/_failures/": "tests/test_render_reference.py",  # images of a failed comparison (git-ignored)
 }

@@ -285,3 +285,18 @@ def test_fig5_to_fig8_expose_at_least_16_independent_cases_at_the_full_preset():
         assert len(leaves) >= 16, (name, len(leaves))
         assert len(set(cases)) == len(cases)
         assert {c.scene_size for c in cases if c.scene} <= {"full", None}
+
+
+@pytest.mark.parametrize("argv, out", [(["--quick"], "report/quick/figures"), ([], "report/figures"),
+                                       (["--quick", "--out", "mine"], "mine")])
+def test_cli_quick_runs_default_to_the_ignored_report_quick(tmp_path, monkeypatch, argv, out):
+    """A quick run never writes into the committed report/figures unless --out says so."""
+    import repro._runner as runner
+    import repro.figures as rf
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(runner, "run_figures", lambda jobs, **kw: [runner.FigureRun(job=j) for j in jobs])
+    assert rf.main(["fig10", "--workers", "1", *argv]) == 0
+    made = sorted(p.relative_to(tmp_path).as_posix() for p in tmp_path.rglob("*") if p.is_dir())
+    assert made == [out.rsplit("/", i)[0] for i in range(out.count("/"), -1, -1)]
+

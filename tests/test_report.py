@@ -298,3 +298,99 @@ def test_leaderboard_without_a_dataset_scores_on_the_renders_the_maps_name(tmp_p
     own = evaluate_case(None, "planes", f_number=8.0, preset="small", method_preset="paper").metrics
     assert abs(rows[("paper", "harness")]["all_mae"] - own["dense"]["all"]["mae"]) <= 1e-9  # = repro.evaluate
     assert abs(rows[("paper", "rtf")]["nmae"] - own["rtf"]["nmae"]) <= 1e-9
+
+
+# --- the committed report takes full-mode figures only; a quick report stays in report/quick/ ------------
+def _project(tmp_path, monkeypatch, mode: str, *, row_mode: str | None = None) -> Path:
+    """A project layout in ``tmp_path`` (the working folder; repro.report's project root): a README with the
+    claims markers and ``report/figures`` holding fig10 of a ``mode`` run (its rows say ``row_mode``)."""
+    import repro.report as rr
+    from tests.claims_tables import rows
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(rr, "_PROJECT_ROOT", tmp_path)
+    (tmp_path / "README.md").write_text(f"# P\n{rr.README_START}\nstale\n{rr.README_END}\n")
+    table = rows("fig10", [({"variant": "paper"}, {"max_rel_err": 0.001, "n_points": 12})], mode=row_mode or mode)
+    return _figures(tmp_path / "report" / "figures", table, {"fig10": {"title": "CoC", "mode": mode}})
+
+
+@pytest.mark.parametrize("mode, row_mode, refused", [("full", None, False), ("quick", None, True),
+                                                     ("full", "quick", True), ("quick", "full", True)])
+def test_the_committed_report_refuses_figures_not_run_in_full_mode(tmp_path, monkeypatch, capsys, mode, row_mode,
+                                                                   refused):
+    from repro._cli import run_cli
+    from repro.report import main
+
+    _project(tmp_path, monkeypatch, mode, row_mode=row_mode)
+    before = (tmp_path / "README.md").read_text()
+    status = run_cli(main, ["-q"], prog="python -m repro.report")
+    err = capsys.readouterr().err
+    if refused:
+        assert status == 2 and len(err.splitlines()) == 1 and "fig10 (" in err and "quick" in err, err
+        assert "--figures report/quick/figures" in err
+        assert (tmp_path / "README.md").read_text() == before and not (tmp_path / "report" / "README.md").exists()
+    else:
+        assert status == 0, err
+        assert "stale" not in (tmp_path / "README.md").read_text()  # the project README's claims block refreshed
+        assert "**reproduced**" in (tmp_path / "report" / "README.md").read_text()
+
+
+def test_a_quick_report_goes_to_report_quick_and_leaves_the_readme_alone(tmp_path, monkeypatch, capsys):
+    from repro._cli import run_cli
+    from repro.report import main
+    from tests.claims_tables import fig10
+
+    _project(tmp_path, monkeypatch, "full")
+    _figures(tmp_path / "report" / "quick" / "figures", fig10(0.001), {"fig10": {"title": "CoC", "mode": "quick"}})
+    before = (tmp_path / "README.md").read_text()
+    assert run_cli(main, ["--figures", "report/quick/figures", "-q"], prog="python -m repro.report") == 0
+    assert (tmp_path / "README.md").read_text() == before
+    assert not (tmp_path / "report" / "README.md").exists() and not (tmp_path / "report" / "claims.json").exists()
+    md = (tmp_path / "report" / "quick" / "README.md").read_text()
+    assert "(mode: quick)" in md and "**reproduced**" in md
+    assert (tmp_path / "report" / "quick" / "claims.json").is_file()
+    # an explicit --out to the committed report is refused with quick figures
+    assert run_cli(main, ["--figures", "report/quick/figures", "--out", "report"], prog="python -m repro.report") == 2
+    assert "not full-mode: fig10 (quick)" in capsys.readouterr().err
+
+
+def test_the_quick_report_reads_the_quick_evaluations_and_the_committed_one_the_committed(tmp_path, monkeypatch):
+    import types
+
+    import repro._report_gap as gap
+    from repro.report import _generalisation
+
+    seen = []
+    monkeypatch.setattr(gap, "load_generalisation", lambda root: seen.append(Path(root)))
+    monkeypatch.chdir(tmp_path)
+    for figures in ("report/figures", "report/quick/figures", "elsewhere/figures"):
+        _generalisation(types.SimpleNamespace(figures=Path(figures), evaluations=None))
+    assert seen == [Path("report/evaluations"), Path("report/quick/evaluations"), Path("report/evaluations")]
+
+
+def test_figure_modes_come_from_the_metrics_files_and_the_rows():
+    from experiments.figure_data import evaluation_mode
+    from experiments.results_query import Results
+    from repro.report import figure_modes
+    from tests.claims_tables import fig2, rows
+
+    table = Results(rows("fig10", [({}, {"n_points": 1})], mode="full") + fig2() + [{"evaluation_id": "dev-0-n8-small-"
+                    "ee91be4d", "source": "procedural", "metric": "m", "value": 1.0, "unit": "px (σ)"}])
+    assert figure_modes({"fig10": {"mode": "full"}, "photos": {}}, table) == {
+        "fig10": {"full"}, "fig2": {"quick"}, "photos": {None}}
+    assert evaluation_mode("fig10-quick-c0cd097d", "fig10") == "quick"
+    assert evaluation_mode("fig10-full-c0cd097d", "fig1") is None
+    assert evaluation_mode("dev-0-n8-small-ee91be4d", "dev") is None  # a procedural evaluation's folder name
+
+
+def test_the_report_is_the_same_bytes_on_the_same_results(tmp_path):
+    from repro._cli import run_cli
+    from repro.report import main
+    from tests.claims_tables import fig10
+
+    figs = _figures(tmp_path / "figures", fig10(0.001), {"fig10": {"title": "CoC", "mode": "full"}})
+    pages = {}
+    for out in ("a", "b"):
+        assert run_cli(main, ["--figures", str(figs), "--out", str(tmp_path / out), "-q"]) == 0
+        pages[out] = [(tmp_path / out / f).read_bytes() for f in ("README.md", "index.html", "claims.json")]
+    assert pages["a"] == pages["b"]

@@ -100,7 +100,8 @@ class SweepRun:
 
 
 def _start_client(*, workers: int | None, scheduler: str | None):
-    """A Dask client on a new LocalCluster (``workers`` single-threaded processes) or an existing scheduler."""
+    """A Dask client on a new LocalCluster (``workers`` single-threaded processes) or an existing scheduler,
+    whose workers register the same plugins as this process (:mod:`repro._plugins`)."""
     import logging
 
     from dask.distributed import Client, LocalCluster
@@ -115,7 +116,7 @@ def _start_client(*, workers: int | None, scheduler: str | None):
             client.close()
             raise CLIError(f"--scheduler {scheduler}: no worker connected within 60 s; "
                              "allowed: a scheduler with workers (dask worker ADDRESS)") from None
-        return client, None
+        return _with_plugins(client, None)
     n = workers or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
     import dask
 
@@ -128,7 +129,22 @@ def _start_client(*, workers: int | None, scheduler: str | None):
     dask.config.set({"distributed.nanny.pre-spawn-environ": environ})
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                            dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
-    return Client(cluster), cluster
+    return _with_plugins(Client(cluster), cluster)
+
+
+def _with_plugins(client, cluster):
+    """``(client, cluster)`` once every worker (also any that joins later) has this process's plugins
+    (:func:`repro._plugins.install_on_workers`); both closed if that fails."""
+    from repro._plugins import install_on_workers
+
+    try:
+        install_on_workers(client)
+    except BaseException:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+        raise
+    return client, cluster
 
 
 def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | None = None,

@@ -80,8 +80,8 @@ def _parser():
     from method import BLUR_ESTIMATORS
     from scenes import CAMERA_PRESETS, SCENES
 
-    from ._cli import (ArgumentParser, add_preset_option, add_quiet_option, add_scene_size_option, add_variant_option,
-                       float_type, hidden_alias, int_type)
+    from ._cli import (ArgumentParser, add_plugin_options, add_preset_option, add_quiet_option, add_scene_size_option,
+                       add_variant_option, float_type, hidden_alias, int_type)
 
     p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     add_variant_option(p)
@@ -112,6 +112,7 @@ def _parser():
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder")
     add_quiet_option(p, what="no progress bar")
     hidden_alias(p, "--no-progress", dest="quiet", action="store_true")
+    add_plugin_options(p)
     return p
 
 

@@ -16,7 +16,10 @@ Two ways in, both naming an object by import path ``package.module:attribute``:
   (:func:`repro._cli.add_plugin_options`).
 
 The object is a function (estimators) or a :class:`method.DefocusParams` (presets), or a
-:class:`method.registry.Entry` of one (summary, capabilities, hooks); it is registered with
+:class:`method.registry.Entry` of one (summary, capabilities, hooks); a preset may also be a function of no
+arguments returning one, called once the estimators are registered (so its parameters may name an
+estimator of the same package: entry points of estimators load before those of presets, and
+``--estimator-module`` before ``--preset-module``). It is registered with
 :meth:`method.registry.Registry.register` into :data:`method.BLUR_ESTIMATORS` / :data:`method.PRESETS`
 (a name that is taken is refused). Every Dask worker the harness starts or joins
 (:func:`install_on_workers`, called by ``repro._sweep_engine._start_client``) imports the same import
@@ -76,7 +79,7 @@ def _registry(kind: str):
 def _allowed_value(kind: str) -> str:
     if kind == "estimator":
         return "a function fn(gray, edge_map, *, params) -> σ map (px), or a method.registry.Entry of one"
-    return "a method.DefocusParams, or a method.registry.Entry of one"
+    return "a method.DefocusParams, a method.registry.Entry of one, or a function of no arguments returning one"
 
 
 def parse_spec(text: str, *, kind: str, origin: str | None = None) -> PluginSpec:
@@ -130,10 +133,17 @@ def _import_object(spec: PluginSpec):
 
 
 def _check_value(spec: PluginSpec, obj):
-    """``obj`` if it is of ``spec``'s kind (a plain value or an Entry of one); else ValueError."""
+    """``obj`` if it is of ``spec``'s kind (a plain value or an Entry of one; a preset may also be a function
+    of no arguments returning one, called here); else ValueError."""
     from method import DefocusParams
     from method.registry import Entry
 
+    if spec.kind == "preset" and callable(obj) and not isinstance(obj, (Entry, DefocusParams, type)):
+        try:  # a factory: its params may name estimators registered just before (entry points load those first)
+            obj = obj()
+        except Exception as exc:  # noqa: BLE001 - a preset that cannot be built is the user's to fix
+            raise ValueError(f"{spec.origin}: {spec.module}:{spec.attribute}() raised {type(exc).__name__}: "
+                             f"{' '.join(str(exc).split())}; allowed: {_allowed_value(spec.kind)}") from exc
     value = obj.value if isinstance(obj, Entry) else obj
     good = callable(value) and not isinstance(value, type) if spec.kind == "estimator" else isinstance(value, DefocusParams)
     if not good:

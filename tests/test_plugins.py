@@ -341,3 +341,25 @@ def test_readme_names_the_groups_the_code_loads():
     text = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
     for group in _plugins.ENTRY_POINT_GROUPS.values():
         assert group in text
+
+
+@pytest.mark.slow
+def test_a_worker_that_joins_later_registers_the_plugins_too(plugin):
+    """On a real LocalCluster: the client's plugins reach its first worker and one added afterwards."""
+    pytest.importorskip("distributed")
+    from repro._sweep_engine import _start_client
+
+    _plugins.load_plugins(["one=extpkg_blur:estimate_blur_one"], ["extpkg_blur:one_preset"], entry_points=False)
+    client, cluster = _start_client(workers=1, scheduler=None)
+    try:
+        cluster.scale(2)
+        client.wait_for_workers(2, timeout=120)
+        names = client.run(_plugins.registered_names)
+        files = client.run(lambda: sys.modules["extpkg_blur"].__file__)
+    finally:
+        client.close()
+        cluster.close()
+    assert len(names) == 2
+    for got in names.values():
+        assert "one" in got["estimator"] and "one_preset" in got["preset"], names
+    assert set(files.values()) == {str(plugin / "extpkg_blur.py")}  # imported by path on each worker

@@ -105,11 +105,13 @@ def parse_spec(text: str, *, kind: str, origin: str | None = None) -> PluginSpec
     module, colon, attribute = path.strip().partition(":")
     module, attribute, name = module.strip(), attribute.strip(), name.strip()
     if not colon or not _PATH.match(module) or not _PATH.match(attribute):
-        raise ValueError(f"{origin} is invalid; allowed: [NAME=]package.module:{'function' if kind == 'estimator' else 'ATTRIBUTE'}"
-                         " (an import path, e.g. my_pkg.blur:estimate_blur_my_idea)")
+        what = "function" if kind == "estimator" else "ATTRIBUTE"
+        raise ValueError(f"{origin} is invalid; allowed: [NAME=]package.module:{what} (an import path, e.g. "
+                         "my_pkg.blur:estimate_blur_my_idea)")
     name = name if sep else attribute.rpartition(".")[2]
     if not _NAME.match(name):
-        raise ValueError(f"{origin}: name {name!r} is invalid; allowed: letters, digits, '_' and '-', not first a digit")
+        raise ValueError(f"{origin}: name {name!r} is invalid; allowed: letters, digits, '_' and '-', not first "
+                         "a digit")
     return PluginSpec(kind, name, module, attribute, origin)
 
 
@@ -145,7 +147,10 @@ def _check_value(spec: PluginSpec, obj):
             raise ValueError(f"{spec.origin}: {spec.module}:{spec.attribute}() raised {type(exc).__name__}: "
                              f"{' '.join(str(exc).split())}; allowed: {_allowed_value(spec.kind)}") from exc
     value = obj.value if isinstance(obj, Entry) else obj
-    good = callable(value) and not isinstance(value, type) if spec.kind == "estimator" else isinstance(value, DefocusParams)
+    if spec.kind == "estimator":
+        good = callable(value) and not isinstance(value, type)
+    else:
+        good = isinstance(value, DefocusParams)
     if not good:
         raise ValueError(f"{spec.origin}: {spec.module}:{spec.attribute} is a {type(value).__name__}; allowed: "
                          f"{_allowed_value(spec.kind)}")

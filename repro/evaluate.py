@@ -84,8 +84,8 @@ def _parser():
     add_variant_option(p)
     p.add_argument("--preset", nargs="+", default=None, metavar="NAME",
                    help=f"method parameter sets (method.PRESETS): {', '.join(PRESETS)}. Default: paper "
-                        "(with --procedural: all registered; with --photos: paper robust zhuo_sim). The render size "
-                        "is --scene-size")
+                        "(with --procedural: all registered, with --estimator paper; with --photos: paper robust "
+                        "zhuo_sim). The render size is --scene-size")
     p.add_argument("--estimator", nargs="+", default=None, metavar="NAME",
                    help=f"estimators to compare, overriding each preset's own (registered: {', '.join(BLUR_ESTIMATORS)}, "
                         "plus --estimator-module and installed entry points; default: all registered with the paper "

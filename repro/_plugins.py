@@ -22,8 +22,8 @@ estimator of the same package: entry points of estimators load before those of p
 ``--estimator-module`` before ``--preset-module``). It is registered with
 :meth:`method.registry.Registry.register` into :data:`method.BLUR_ESTIMATORS` / :data:`method.PRESETS`
 (a name that is taken is refused). Every Dask worker the harness starts or joins
-(:func:`install_on_workers`, called by ``repro._sweep_engine._start_client``) imports the same import
-paths itself, through a worker plugin, also workers that join later: the registries are never pickled.
+(:func:`repro._plugin_worker.install_on_workers`, called by ``repro._sweep_engine._start_client``) imports
+the same import paths itself, through a worker plugin, also workers that join later: the registries are never pickled.
 Before any task is submitted the workers' registries are compared with this process's, so an entry
 registered here by other means (``BLUR_ESTIMATORS["x"] = f`` in a script) is one clear error instead of
 tasks failing on the workers.
@@ -40,8 +40,8 @@ import dataclasses
 import importlib
 import re
 
-__all__ = ["ENTRY_POINT_GROUPS", "FLAGS", "PluginSpec", "install_on_workers", "load_entry_points", "load_plugins",
-           "load_worker_plugins", "loaded_specs", "parse_spec", "plugin_argv", "register_spec", "registered_names"]
+__all__ = ["ENTRY_POINT_GROUPS", "FLAGS", "PluginSpec", "load_entry_points", "load_plugins",
+           "load_worker_plugins", "loaded_specs", "parse_spec", "plugin_argv", "register_spec", "registered_names", "registry_of"]
 
 #: kind -> entry-point group.
 ENTRY_POINT_GROUPS = {"estimator": "defocus_repro.estimators", "preset": "defocus_repro.presets"}
@@ -70,7 +70,8 @@ class PluginSpec:
         return f"{self.name}={self.module}:{self.attribute}"
 
 
-def _registry(kind: str):
+def registry_of(kind: str):
+    """The registry of ``kind``: :data:`method.BLUR_ESTIMATORS` ("estimator") or :data:`method.PRESETS` ("preset")."""
     from method import BLUR_ESTIMATORS, PRESETS
 
     return {"estimator": BLUR_ESTIMATORS, "preset": PRESETS}[kind]
@@ -168,7 +169,7 @@ def register_spec(spec: PluginSpec):
     """
     obj = _check_value(spec, _import_object(spec))
     try:
-        entry = _registry(spec.kind).register(spec.name, obj)
+        entry = registry_of(spec.kind).register(spec.name, obj)
     except ValueError as exc:
         raise ValueError(f"{spec.origin}: {exc}") from None
     _LOADED[(spec.kind, spec.name)] = spec
@@ -238,7 +239,7 @@ def plugin_argv() -> list[str]:
 
 def registered_names() -> dict[str, list[str]]:
     """kind -> the names registered in this process (what a worker reports to the client)."""
-    return {kind: list(_registry(kind)) for kind in FLAGS}
+    return {kind: list(registry_of(kind)) for kind in FLAGS}
 
 
 def load_worker_plugins(specs) -> None:
@@ -246,34 +247,3 @@ def load_worker_plugins(specs) -> None:
     load_plugins(entry_points=True)
     for kind, text in specs:
         register_spec(parse_spec(text, kind=kind))
-
-
-def install_on_workers(client) -> None:
-    """Make ``client``'s workers (also those that join later) import this process's plugins by import path.
-
-    Raises
-    ------
-    repro._cli_errors.CLIError
-        A worker could not load one (its environment lacks the package), or this process has names the
-        workers do not (registered here by other means than an import path).
-    """
-    from ._cli_errors import CLIError
-    from ._plugin_worker import LoadPlugins
-
-    specs = [(s.kind, s.text) for s in loaded_specs()]
-    try:
-        client.register_plugin(LoadPlugins(specs))
-    except Exception as exc:  # noqa: BLE001 - a worker's environment, not this computation
-        raise CLIError(f"the Dask workers could not load the plugins ({type(exc).__name__}: "
-                       f"{' '.join(str(exc).split())}); allowed: workers whose Python has the same packages "
-                       "installed") from exc
-    here = registered_names()
-    for worker, names in client.run(registered_names).items():
-        for kind, mine in here.items():
-            missing = [n for n in mine if n not in names[kind]]
-            if missing:
-                raise CLIError(
-                    f"{_registry(kind).kind}(s) {', '.join(map(repr, missing))} registered in this process are "
-                    f"unknown on the Dask worker {worker}; allowed: entries registered by import path "
-                    f"({FLAGS[kind]} package.module:attribute or the entry-point group "
-                    f"{ENTRY_POINT_GROUPS[kind]}), or --workers 1 (in this process)")

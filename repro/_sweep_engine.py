@@ -134,8 +134,8 @@ def _start_client(*, workers: int | None, scheduler: str | None):
 
 def _with_plugins(client, cluster):
     """``(client, cluster)`` once every worker (also any that joins later) has this process's plugins
-    (:func:`repro._plugins.install_on_workers`); both closed if that fails."""
-    from repro._plugins import install_on_workers
+    (:func:`repro._plugin_worker.install_on_workers`); both closed if that fails."""
+    from repro._plugin_worker import install_on_workers
 
     try:
         install_on_workers(client)

@@ -238,7 +238,9 @@ def test_workers_get_the_import_paths_and_a_name_they_lack_is_refused(plugin):
     pytest.importorskip("distributed")
     _plugins.load_plugins(["one=extpkg_blur:estimate_blur_one"], entry_points=False)
     client = _FakeClient(_plugins.registered_names())
-    _plugins.install_on_workers(client)
+    from repro._plugin_worker import install_on_workers
+
+    install_on_workers(client)
     (sent,) = client.plugins
     assert sent.specs == (("estimator", "one=extpkg_blur:estimate_blur_one"),)
     import pickle
@@ -248,7 +250,7 @@ def test_workers_get_the_import_paths_and_a_name_they_lack_is_refused(plugin):
                            "estimator": [n for n in BLUR_ESTIMATORS if n != "one"]})
     with pytest.raises(CLIError, match=r"blur estimator\(s\) 'one' registered in this process are unknown on the "
                                        r"Dask worker tcp://worker:1; allowed: entries registered by import path"):
-        _plugins.install_on_workers(lacking)
+        install_on_workers(lacking)
 
 
 def test_the_worker_plugin_registers_the_paths_in_a_workers_process(plugin):

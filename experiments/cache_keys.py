@@ -13,7 +13,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-__all__ = ["CACHE_SUBDIR", "cache_key", "check_config", "code_fingerprint", "to_jsonable"]
+__all__ = ["CACHE_SUBDIR", "cache_key", "check_config", "code_fingerprint", "plugin_fingerprints", "to_jsonable"]
 
 #: Folder under the project cache holding figure compute results.
 CACHE_SUBDIR = "figures"
@@ -63,6 +63,22 @@ def code_fingerprint() -> str:
                               exclude=FINGERPRINT_EXCLUDED)
 
 
+def plugin_fingerprints() -> dict:
+    """Registry kind -> name -> what identifies each variant registered from another package
+    (:meth:`method.registry.Registry.plugin_names`; code outside :func:`code_fingerprint`): an estimator's
+    :func:`defocus_cache.source_fingerprint`, a preset's fields. Empty when there is none."""
+    from defocus_cache import source_fingerprint
+    from method import BLUR_ESTIMATORS, PRESETS
+
+    out = {}
+    for reg in (BLUR_ESTIMATORS, PRESETS):
+        names = reg.plugin_names()
+        if names:
+            out[reg.kind] = {n: (source_fingerprint(reg[n]) if callable(reg[n]) else to_jsonable(reg[n]))
+                             for n in names}
+    return out
+
+
 def cache_key(figure, config) -> dict:
     """JSON-able key of a compute result: figure name, code version and source fingerprint, config type and
     fields, the versions of the numerical and rendering libraries (:data:`defocus_cache.KEY_LIBRARIES`)
@@ -84,6 +100,9 @@ def cache_key(figure, config) -> dict:
         "config": to_jsonable(config),
         "libraries": library_versions(),
     }
+    plugins = plugin_fingerprints()
+    if plugins:  # only then: the keys of a run without other packages' variants stay as they were
+        key["plugins"] = plugins
     if figure.renders:
         from scenes.backend import select_variant
 

@@ -19,6 +19,7 @@ import dataclasses
 import json
 import os
 import time
+import traceback
 import warnings
 from pathlib import Path
 
@@ -55,6 +56,7 @@ class ProceduralPlan:
     encodings: tuple
     spp: int | None
     variant: str | None
+    estimators: tuple = (None,)  # None: each preset's own estimator; a name: the preset with that estimator
 
     @property
     def seeds(self) -> range:
@@ -62,8 +64,15 @@ class ProceduralPlan:
         return range(self.start, self.start + self.n)
 
     def to_dict(self) -> dict:
-        """JSON-able fields."""
-        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(self).items()}
+        """JSON-able fields (``estimators`` only when it is not the presets' own, so such a plan keeps its id)."""
+        out = {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(self).items()}
+        if self.estimators == (None,):
+            del out["estimators"]
+        return out
+
+    def runs(self) -> list[tuple[str, str | None]]:
+        """``(preset, estimator or None)`` of every run of the method on an input, in table order."""
+        return [(p, e) for p in self.presets for e in self.estimators]
 
     @property
     def evaluation_id(self) -> str:
@@ -77,6 +86,8 @@ class ProceduralPlan:
         args = ["--procedural", str(self.n), "--split", self.split, "--scene-seed-start", str(self.start),
                 "--preset", *self.presets, "--fnumber", *(f"{n:g}" for n in self.f_numbers),
                 "--scene-preset", self.scene_size, "--noise", *self.noises, "--encoding", *self.encodings]
+        if self.estimators != (None,):
+            args += ["--estimator", *self.estimators]
         if self.spp is not None:
             args += ["--spp", str(self.spp)]
         if self.variant is not None:
@@ -85,7 +96,7 @@ class ProceduralPlan:
 
 
 def plan_evaluation(n, *, split, start=None, presets=None, f_numbers=None, scene_size="small", noises=("none",),
-                    encodings=("srgb",), spp=None, variant=None) -> ProceduralPlan:
+                    encodings=("srgb",), spp=None, variant=None, estimators=None) -> ProceduralPlan:
     """Check every option of an evaluation and draw the fresh seeds; nothing is rendered.
 
     Parameters
@@ -97,7 +108,7 @@ def plan_evaluation(n, *, split, start=None, presets=None, f_numbers=None, scene
         First seed. Default: the split's first seed (dev, test) or one drawn at run time (fresh,
         :func:`scenes.library.procedural.draw_fresh_start`; recorded in the plan).
     presets : sequence of str, optional, keyword-only
-        Keys of :data:`method.PRESETS` (default: all).
+        Keys of :data:`method.PRESETS` (default: all; with ``estimators``: ``paper``).
     f_numbers : sequence of float, optional, keyword-only
         Apertures (default :data:`scenes.library.procedural.PROCEDURAL_F_NUMBERS`: 8, 4, 2).
     scene_size : {"small", "full"}, keyword-only
@@ -110,14 +121,19 @@ def plan_evaluation(n, *, split, start=None, presets=None, f_numbers=None, scene
         Samples per pixel of every render (default: each scene's own, 144 emission-only, 256 lit).
     variant : str, optional, keyword-only
         Mitsuba variant requested.
+    estimators : sequence of str, optional, keyword-only
+        Keys of :data:`method.BLUR_ESTIMATORS`: every preset runs once with each instead of its own
+        (``DefocusParams.preset(p).replace(estimator=e)``; the rows' ``estimator`` column tells them
+        apart). Default: each preset's own.
 
     Raises
     ------
     ValueError
-        One line naming the bad value and what is allowed: an unknown split, preset, noise level or
-        encoding; n ≤ 0; seeds reaching outside the split (into another one); a bad f-number or spp.
+        One line naming the bad value and what is allowed: an unknown split, preset, estimator, noise
+        level or encoding; a preset that does not take an estimator; n ≤ 0; seeds reaching outside the
+        split (into another one); a bad f-number or spp.
     """
-    from method import PRESETS
+    from method import BLUR_ESTIMATORS, PRESETS, DefocusParams
     from scenes.display import NOISE_LEVELS
     from scenes.library import PRESETS as SIZES
     from scenes.library.procedural import PROCEDURAL_F_NUMBERS, SPLITS, check_seed_range, draw_fresh_start
@@ -131,7 +147,17 @@ def plan_evaluation(n, *, split, start=None, presets=None, f_numbers=None, scene
     if start is None:
         start = draw_fresh_start(n) if SPLITS[split].drawn else SPLITS[split].start
     seeds = check_seed_range(split, start, n)
-    names = tuple(PRESETS.check_all(dict.fromkeys(presets if presets is not None else PRESETS), what="preset"))
+    if presets is None:
+        presets = PRESETS if estimators is None else ("paper",)
+    names = tuple(PRESETS.check_all(dict.fromkeys(presets), what="preset"))
+    ests = (None,) if estimators is None else tuple(BLUR_ESTIMATORS.check_all(dict.fromkeys(estimators),
+                                                                              what="estimator"))
+    for name in names:
+        for est in ests if estimators is not None else ():
+            try:
+                DefocusParams.preset(name).replace(estimator=est)
+            except ValueError as exc:
+                raise ValueError(f"--estimator {est} with --preset {name}: {exc}") from None
     numbers = tuple(dict.fromkeys(float(x) for x in (f_numbers or PROCEDURAL_F_NUMBERS)))
     if any(not (x > 0 and x < float("inf")) for x in numbers):
         raise ValueError(f"--fnumber {numbers} is invalid; allowed: finite numbers > 0")
@@ -147,15 +173,21 @@ def plan_evaluation(n, *, split, start=None, presets=None, f_numbers=None, scene
         raise ValueError(f"--spp {spp!r} is invalid; allowed: an integer > 0")
     return ProceduralPlan(split=split, start=seeds.start, n=len(seeds), presets=names, f_numbers=numbers,
                           scene_size=scene_size, noises=tuple(dict.fromkeys(noises)),
-                          encodings=tuple(dict.fromkeys(encodings)), spp=spp, variant=variant)
+                          encodings=tuple(dict.fromkeys(encodings)), spp=spp, variant=variant, estimators=ests)
 
 
 def scene_key(plan: ProceduralPlan, seed: int, *, code: str, versions: dict, variant_requested: str) -> dict:
     """Resume key of one scene's result: what it computes, the code and library versions that compute it."""
-    from experiments.cache_keys import to_jsonable
+    from experiments.cache_keys import plugin_fingerprints, to_jsonable
     from method import DefocusParams
 
-    return {"kind": "procedural_scene", "version": PROCEDURAL_EVAL_VERSION, "seed": int(seed), "split": plan.split,
+    extra = {}
+    if plan.estimators != (None,):
+        extra["estimators"] = list(plan.estimators)
+    plugins = plugin_fingerprints()  # other packages' estimators and presets (code outside ``code``)
+    if plugins:
+        extra["plugins"] = plugins
+    return {**extra, "kind": "procedural_scene", "version": PROCEDURAL_EVAL_VERSION, "seed": int(seed), "split": plan.split,
             "presets": {p: to_jsonable(DefocusParams.preset(p)) for p in plan.presets},
             "f_numbers": list(plan.f_numbers), "scene_size": plan.scene_size, "noises": list(plan.noises),
             "encodings": list(plan.encodings), "spp": plan.spp, "code": code, "versions": versions,
@@ -188,39 +220,49 @@ def _single_threaded():
     return stack
 
 
-def _score_render(render, ids: dict, plan: ProceduralPlan, seed: int, failures: list) -> tuple[list[dict], dict]:
-    """Rows of every encoding × noise × preset on one render, and the seconds spent per preset; a run of the
-    method that raises gets one :data:`FAILED_METRIC` row of 1 and a line in ``failures``."""
+def _run_label(preset: str, estimator: str | None) -> str:
+    """``preset`` or ``preset+estimator`` (a preset run with another estimator), for timings and messages."""
+    return preset if estimator is None else f"{preset}+{estimator}"
+
+
+def _score_render(render, ids: dict, plan: ProceduralPlan, seed: int, failures: list,
+                  tracebacks: list) -> tuple[list[dict], dict]:
+    """Rows of every encoding × noise × preset (× estimator) on one render, and the seconds spent per run; a run
+    of the method that raises gets one :data:`FAILED_METRIC` row of 1, a line in ``failures`` and its
+    traceback in ``tracebacks``."""
     import numpy as np
 
     from method import DefocusParams, NoEdgesWarning, estimate_defocus_map
 
     from .evaluation import evaluate_result, flatten_metrics, input_image
 
-    rows, seconds = [], dict.fromkeys(plan.presets, 0.0)
+    rows, seconds = [], dict.fromkeys((_run_label(p, e) for p, e in plan.runs()), 0.0)
     f_number = ids["aperture"]
     for encoding in plan.encodings:
         for noise in plan.noises:
             image = input_image(render, encoding=encoding, quantize_bits=8, noise=noise,
                                 rng=noise_seed(seed, f_number, noise))
-            for preset in plan.presets:
-                t0 = time.perf_counter()
+            for preset, estimator in plan.runs():
+                t0, label = time.perf_counter(), _run_label(preset, estimator)
                 params = DefocusParams.preset(preset)
+                if estimator is not None:
+                    params = params.replace(estimator=estimator)
                 row_ids = {**ids, "preset": preset, "estimator": params.estimator, "encoding": encoding, "noise": noise}
                 try:
                     with _single_threaded(), warnings.catch_warnings():
                         warnings.simplefilter("ignore", NoEdgesWarning)
                         result = estimate_defocus_map(image, params)
                 except Exception as exc:  # the method failing on a scene is a result: recorded, not fatal
-                    failures.append(f"{preset} on {ids['scene']} f/{f_number:g} {encoding} {noise}: "
+                    failures.append(f"{label} on {ids['scene']} f/{f_number:g} {encoding} {noise}: "
                                     f"{type(exc).__name__}: {exc}")
+                    tracebacks.append("".join(traceback.format_exception(exc)))
                     rows += metric_rows(row_ids, {FAILED_METRIC: 1.0})
-                    seconds[preset] += time.perf_counter() - t0
+                    seconds[label] += time.perf_counter() - t0
                     continue
                 metrics = flatten_metrics(evaluate_result(result, render, image=image))
                 metrics = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in metrics.items()}
                 rows += metric_rows(row_ids, {FAILED_METRIC: 0.0, **metrics})
-                seconds[preset] += time.perf_counter() - t0
+                seconds[label] += time.perf_counter() - t0
     return rows, seconds
 
 
@@ -241,7 +283,8 @@ def score_scene(seed: int, *, plan: dict, evaluation_id: str) -> dict:
     dict
         ``rows`` (the scene's rows of the results table: ground-truth facts per aperture, then every
         metric per aperture × encoding × noise × preset, :data:`FAILED_METRIC` among them), ``failures`` (one
-        line per run of the method that raised: preset, input, exception), ``timings`` (``lighting``, per aperture the
+        line per run of the method that raised: preset, input, exception), ``traceback`` (the first such run's, or
+        None), ``timings`` (``lighting``, per aperture the
         seconds this task spent on the render (≈ 0 when cached), the seconds the render took when
         it was made and the seconds of scoring per preset, ``host``, ``pid``) and ``variant`` (Mitsuba's).
 
@@ -262,7 +305,7 @@ def score_scene(seed: int, *, plan: dict, evaluation_id: str) -> dict:
     layout = sdef.facts["layout"]
     rows, timings = [], {"lighting": layout["lighting"], "camera": layout["camera_name"], "render_s": {},
                          "render_built_s": {}, "score_s": {}, "host": os.uname().nodename, "pid": os.getpid()}
-    variant, failures = None, []
+    variant, failures, tracebacks = None, [], []
     for f_number in p.f_numbers:
         t0 = time.perf_counter()
         render = render_scene(sdef.name, preset=p.scene_size, f_number=f_number, spp=p.spp, variant=p.variant,
@@ -277,15 +320,17 @@ def score_scene(seed: int, *, plan: dict, evaluation_id: str) -> dict:
                "split": split_of(int(seed)), "scene_size": p.scene_size, "camera": layout["camera_name"],
                "lighting": layout["lighting"], "aperture": float(f_number)}
         rows += metric_rows(ids, {name: md["stats"].get(k) for k, name in _GT_FACTS})
-        scored, seconds = _score_render(render, ids, p, int(seed), failures)
+        scored, seconds = _score_render(render, ids, p, int(seed), failures, tracebacks)
         rows += scored
         timings["score_s"][key] = seconds
-    return {"rows": rows, "timings": timings, "variant": variant, "failures": failures}
+    return {"rows": rows, "timings": timings, "variant": variant, "failures": failures,
+            "traceback": tracebacks[0] if tracebacks else None}
 
 
 def summary_rows(rows) -> list[dict]:
-    """:func:`experiments.results_table.summarise` per split, scene size, preset, aperture, encoding and noise."""
-    return summarise(rows, by=("split", "scene_size", "preset", "aperture", "encoding", "noise", "metric"))
+    """:func:`experiments.results_table.summarise` per split, scene size, preset, estimator, aperture, encoding and
+    noise."""
+    return summarise(rows, by=("split", "scene_size", "preset", "estimator", "aperture", "encoding", "noise", "metric"))
 
 
 def latest_evaluations(root) -> dict:

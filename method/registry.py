@@ -10,6 +10,8 @@ a new variant is one function plus one entry, e.g.::
 
     BLUR_ESTIMATORS["my_idea"] = Entry(estimate_blur_my_idea, "what it computes (reference)")
 
+From outside the package, :meth:`Registry.register` adds a name and refuses one that is taken (the
+harness registers estimators and presets of other packages this way: ``repro._plugins``).
 The error for an unknown name is written once, here (:meth:`Registry.check`).
 """
 
@@ -82,6 +84,7 @@ class Registry(MutableMapping):
         self.kind = str(kind)
         items = entries.items() if isinstance(entries, Mapping) else ((n, None) for n in entries)
         self._entries: dict[str, Entry] = {}
+        self._registered: set[str] = set()  # names added by register(): other packages' (plugin_names)
         for name, value in items:
             self[name] = value
 
@@ -96,6 +99,7 @@ class Registry(MutableMapping):
 
     def __delitem__(self, name):
         del self._entries[name]
+        self._registered.discard(name)
 
     def __iter__(self) -> Iterator[str]:
         return iter(self._entries)
@@ -108,6 +112,37 @@ class Registry(MutableMapping):
 
     def __repr__(self) -> str:
         return f"Registry({self.kind!r}, {list(self._entries)})"
+
+    def register(self, name: str, value) -> Entry:
+        """Add ``name`` -> ``value`` (an :class:`Entry` or anything the constructor takes) unless it is taken.
+
+        Registering the very entry a name already has again is a no-op (a plugin module loaded twice).
+
+        Returns
+        -------
+        Entry
+            The registered entry.
+
+        Raises
+        ------
+        ValueError
+            ``name`` is not a non-empty str, or it is registered with another entry (the message names
+            the registered names).
+        """
+        entry = _as_entry(value)
+        if name in self:
+            old = self._entries[name]
+            if old == entry or (old.value is entry.value and entry.value is not None and not isinstance(value, Entry)):
+                return old
+            raise ValueError(f"{self.kind} name={name!r} is invalid (already registered: "
+                             f"{old.summary or old.value!r}); allowed: a name not in {self.allowed()}")
+        self[name] = entry
+        self._registered.add(name)
+        return self._entries[name]
+
+    def plugin_names(self) -> tuple[str, ...]:
+        """The names added by :meth:`register` (other packages' variants, which the caches key by value)."""
+        return tuple(n for n in self._entries if n in self._registered)
 
     # --- what validation, CLIs and messages read ----------------------------------------------
     def entry(self, name: str) -> Entry:

@@ -40,6 +40,12 @@ the render size; ``--scene-preset`` kept as a hidden alias) and :func:`add_prese
 a method parameter set of ``method.PRESETS`` only, with the tool's default stated in its help).
 :func:`hidden_alias` adds an old flag name that still works but is not shown.
 
+Estimators and presets of other packages (:mod:`repro._plugins`): :func:`add_plugin_options` adds
+``--estimator-module [NAME=]package.module:function`` and ``--preset-module [NAME=]package.module:ATTRIBUTE``
+(repeatable) and makes ``parse_args`` register them, after the entry points of the groups
+``defocus_repro.estimators`` / ``defocus_repro.presets``, before the tool validates any name; every
+Dask worker the tool starts imports the same paths. One call per tool that evaluates the method.
+
 :func:`console_main` is the ``defocus-repro`` console script (``defocus-repro COMMAND``, one per
 ``repro.X`` tool, :data:`COMMANDS`): it imports the sub-command's module ``repro.<name>`` only when
 asked for it and runs its ``main``.
@@ -83,6 +89,7 @@ __all__ = [
     "CLIError",
     "MissingExtraError",
     "add_force_option",
+    "add_plugin_options",
     "add_preset_option",
     "add_quiet_option",
     "add_scene_size_option",
@@ -142,6 +149,7 @@ class ArgumentParser(argparse.ArgumentParser):
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
+        self.after_parse: list[Callable] = []  # fn(namespace), run after a successful parse (add_plugin_options)
         self.add_argument("--version", action="version", version=version_string(),
                           help="print the version and exit")
         self.add_argument("--debug", action="store_true",
@@ -151,6 +159,8 @@ class ArgumentParser(argparse.ArgumentParser):
         namespace, extras = super().parse_known_args(args, namespace)
         if getattr(namespace, "debug", False):
             _DEBUG["on"] = True
+        for hook in self.after_parse:
+            hook(namespace)
         return namespace, extras
 
     def error(self, message):  # noqa: D102 - argparse hook
@@ -354,6 +364,33 @@ def add_preset_option(parser, *, default, many: bool = False, blurbs: dict | Non
                         metavar="NAME",
                         help=f"method parameter set{'s' if many else ''} (method.PRESETS): {listing}. "
                              f"Default: {shown}{'. ' + extra if extra else ''}")
+
+
+def add_plugin_options(parser: ArgumentParser) -> None:
+    """Add ``--estimator-module`` / ``--preset-module`` (repeatable; dests ``estimator_module``,
+    ``preset_module``) and register them, after the installed entry points, when ``parser`` parses.
+
+    A bad spec, a module that does not import, an object of the wrong kind or a taken name is one line
+    and exit status 2 (:func:`user_input` around :func:`repro._plugins.load_plugins`).
+    """
+    from repro._plugins import ENTRY_POINT_GROUPS
+
+    groups = " / ".join(ENTRY_POINT_GROUPS.values())
+    parser.add_argument("--estimator-module", action="append", default=[], metavar="[NAME=]PKG.MODULE:FUNCTION",
+                        help="register a blur estimator fn(gray, edge_map, *, params) of another package under NAME "
+                             "(default: the function's name), here and on every Dask worker; repeatable. Installed "
+                             f"packages' entry points ({groups}) are registered without a flag")
+    parser.add_argument("--preset-module", action="append", default=[], metavar="[NAME=]PKG.MODULE:ATTRIBUTE",
+                        help="register a preset (a method.DefocusParams) of another package under NAME (default: "
+                             "the attribute's name); repeatable")
+
+    def load(namespace):
+        from repro._plugins import load_plugins
+
+        with user_input():
+            load_plugins(namespace.estimator_module, namespace.preset_module)
+
+    parser.after_parse.append(load)
 
 
 def console_main(argv: Sequence[str] | None = None) -> int:

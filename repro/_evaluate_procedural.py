@@ -34,7 +34,7 @@ DEFAULT_ROOT = QUICK_EVALUATIONS
 #: Options only ``--procedural`` takes (flag, attribute, argparse default).
 PROCEDURAL_ONLY = (("--split", "split", None), ("--scene-seed-start", "scene_seed_start", None), ("--spp", "spp", None))
 #: Options of the named-scene evaluation that ``--procedural`` does not take.
-NOT_PROCEDURAL = (("--estimator", "estimator", None), ("--scenes", "scenes", None), ("--stages", "stages", False),
+NOT_PROCEDURAL = (("--scenes", "scenes", None), ("--stages", "stages", False),
                   ("--photos", "photos", None), ("--maps", "maps", None))
 
 
@@ -79,13 +79,13 @@ def validate(args):
     used = [flag for flag, attr, default in NOT_PROCEDURAL if getattr(args, attr, default) != default]
     if used:
         raise ValueError(f"--procedural does not take {', '.join(used)}; allowed with --procedural: --split, "
-                         "--scene-seed-start, --preset, --fnumber, --scene-size, --noise, --encoding, --spp, "
+                         "--scene-seed-start, --preset, --estimator, --fnumber, --scene-size, --noise, --encoding, --spp, "
                          "--workers | --scheduler, --variant, --out, --force, -q")
     if args.split is None:
         raise ValueError("--procedural needs --split; allowed: dev, test, fresh (tune on dev; report test and fresh)")
     plan = plan_evaluation(args.procedural, split=args.split, start=args.scene_seed_start, presets=args.preset,
                            f_numbers=args.fnumber, scene_size=args.scene_size, noises=args.noise or ["none"],
-                           encodings=args.encoding, spp=args.spp, variant=args.variant)
+                           encodings=args.encoding, spp=args.spp, variant=args.variant, estimators=args.estimator)
     root = args.out if args.out is not None else DEFAULT_ROOT
     if root.exists() and not root.is_dir():
         raise ValueError(f"--out {str(root)!r} is a file; allowed: a folder")
@@ -108,6 +108,7 @@ class EvaluationRun:
     wall_s: float
     paths: list
     failures: dict  # seed -> lines of the method runs that raised
+    traceback: str | None = None  # of the first run that raised
 
 
 def _now() -> str:
@@ -229,7 +230,8 @@ def run_evaluation(plan, root, *, workers=None, scheduler=None, force=False, pro
     paths.append(out / "timings.json")
     return EvaluationRun(folder=out, rows=rows, summary=summary, timings=timings, n_resumed=len(resumed),
                          wall_s=meta["wall_s"], paths=paths,
-                         failures={s: records[s]["result"].get("failures", []) for s in plan.seeds})
+                         failures={s: records[s]["result"].get("failures", []) for s in plan.seeds},
+                         traceback=next((tb for s in plan.seeds if (tb := records[s]["result"].get("traceback"))), None))
 
 
 def _ci(row) -> str:
@@ -241,15 +243,18 @@ def _ci(row) -> str:
 
 
 def format_summary(summary, *, metrics=("dense_textured_mae", "sparse_mae", "dense_all_mae")) -> str:
-    """Terminal table: per preset × aperture (× encoding × noise) the mean over scenes [95 % interval]."""
-    keys = list(dict.fromkeys((r["preset"], r["aperture"], r["encoding"], r["noise"]) for r in summary))
-    by = {(r["preset"], r["aperture"], r["encoding"], r["noise"], r["metric"]): r for r in summary}
-    head = ["preset", "f/N", "encoding", "noise", "scenes", *(f"{m} (px)" if "fraction" not in m else m for m in metrics)]
+    """Terminal table: per preset × estimator × aperture (× encoding × noise) the mean over scenes [95 % interval]."""
+    ids = ("preset", "estimator", "aperture", "encoding", "noise")
+    keys = list(dict.fromkeys(tuple(r.get(c) for c in ids) for r in summary))
+    by = {(*(r.get(c) for c in ids), r["metric"]): r for r in summary}
+    head = ["preset", "estimator", "f/N", "encoding", "noise", "scenes",
+            *(f"{m} (px)" if "fraction" not in m else m for m in metrics)]
     body = []
     for k in keys:
         cells = [by.get((*k, m)) for m in metrics]
         n = next((c["n_scenes"] for c in cells if c), 0)
-        body.append([str(k[0]), f"{k[1]:g}", str(k[2]), str(k[3]), str(n), *(_ci(c) if c else "–" for c in cells)])
+        body.append([str(k[0]), str(k[1]), f"{k[2]:g}", str(k[3]), str(k[4]), str(n),
+                     *(_ci(c) if c else "–" for c in cells)])
     widths = [max(len(h), *(len(b[i]) for b in body)) if body else len(h) for i, h in enumerate(head)]
     lines = ["mean over scenes [95 % bootstrap interval]", "  ".join(h.ljust(w) for h, w in zip(head, widths))]
     return "\n".join(lines + ["  ".join(c.ljust(w) for c, w in zip(b, widths)) for b in body])
@@ -285,6 +290,8 @@ def main_procedural(args) -> int:
               file=sys.stderr)
         for line in failures:
             print(f"  {line}", file=sys.stderr)
+        if run.traceback:
+            print(f"the first one's traceback:\n{run.traceback.rstrip()}", file=sys.stderr)
     for p in run.paths:
         print(f"  {p}")
     return 0

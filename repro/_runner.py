@@ -70,7 +70,8 @@ def default_workers() -> int:
 
 
 def start_client(*, workers: int | None, scheduler: str | None):
-    """A Dask client on a new LocalCluster of single-threaded worker processes or an existing scheduler.
+    """A Dask client on a new LocalCluster of single-threaded worker processes or an existing scheduler, whose
+    workers register the same plugins as this process (:mod:`repro._plugins`).
 
     Parameters
     ----------
@@ -95,7 +96,7 @@ def start_client(*, workers: int | None, scheduler: str | None):
             client.close()
             raise CLIError(f"--scheduler {scheduler}: no worker connected within 60 s; "
                              "allowed: a scheduler with workers (dask worker ADDRESS)") from None
-        return client, None
+        return _with_plugins(client, None)
     n = workers or default_workers()
     import dask
 
@@ -108,7 +109,22 @@ def start_client(*, workers: int | None, scheduler: str | None):
     dask.config.set({"distributed.nanny.pre-spawn-environ": environ})
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                            dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
-    return Client(cluster), cluster
+    return _with_plugins(Client(cluster), cluster)
+
+
+def _with_plugins(client, cluster):
+    """``(client, cluster)`` once every worker (also any that joins later) has this process's plugins
+    (:func:`repro._plugin_worker.install_on_workers`); both closed if that fails."""
+    from repro._plugin_worker import install_on_workers
+
+    try:
+        install_on_workers(client)
+    except BaseException:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+        raise
+    return client, cluster
 
 
 def add_engine_options(p, *, what: str = "cases", one_in_process: bool = True) -> None:

@@ -49,9 +49,12 @@ PROG = "python -m repro.bench"
 
 
 def _run_size(size: int, repeat: int, preset: str = "paper") -> dict:
-    """One (preset, size) timed in a fresh process (its own peak memory): ``--worker``'s JSON line."""
+    """One (preset, size) timed in a fresh process (its own peak memory): ``--worker``'s JSON line
+    (the process registers the same plugins: entry points and ``--estimator-module`` / ``--preset-module``)."""
+    from repro._plugins import plugin_argv
+
     cmd = [sys.executable, "-m", "repro.bench", "--worker", str(size), "--repeat", str(repeat),
-           "--worker-preset", preset]
+           "--worker-preset", preset, *plugin_argv()]
     proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
     if proc.returncode != 0:
         raise RuntimeError(f"benchmark of {preset} at {size}² failed:\n{proc.stderr[-2000:]}")
@@ -135,7 +138,8 @@ def _parser():
     from experiments.bench import BENCH_PRESETS, LENS_CONFIG
     from experiments.bench.speed import MAGNIFY_BENCH_RENDERERS
     from scenes.analytic.psfs import PSFS
-    from repro._cli import ArgumentParser, add_preset_option, add_quiet_option, hidden_alias, int_type
+    from repro._cli import (ArgumentParser, add_plugin_options, add_preset_option, add_quiet_option, hidden_alias,
+                            int_type)
 
     parser = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int_type("--sizes", minimum=16), nargs="+", default=[256, 512, 1024],
@@ -171,6 +175,7 @@ def _parser():
     parser.add_argument("--worker", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--worker-magnify", default=None, help=argparse.SUPPRESS)
     parser.add_argument("--worker-preset", default="paper", help=argparse.SUPPRESS)
+    add_plugin_options(parser)
     return parser
 
 

@@ -5,7 +5,7 @@
 [--force] [--variant V] [-q]``
 
 ``python -m repro.evaluate --procedural N --split dev|test|fresh [--scene-seed-start S] [--preset NAME ...]
-[--fnumber N ...] [--scene-size small|full] [--noise LEVEL ...] [--encoding ...] [--spp N]
+[--estimator NAME ...] [--fnumber N ...] [--scene-size small|full] [--noise LEVEL ...] [--encoding ...] [--spp N]
 [--workers W | --scheduler ADDR] [--out DIR] [--force] [-q]``
 
 ``python -m repro.evaluate --photos [NAME ...] [--preset NAME ...] [--out DIR] [--force] [-q]``
@@ -54,8 +54,9 @@ stderr naming it and the others are still scored; exit status 2 when none could 
 of an unknown major layout version is refused.
 
 Estimators are read from :data:`method.BLUR_ESTIMATORS` at run time, so a newly registered
-estimator is compared on the same ground truth with no other change. Unknown estimator or scene,
-or a bad f-number: one line on stderr, exit status 2.
+estimator is compared on the same ground truth with no other change; one of another package is
+registered by ``--estimator-module pkg.module:function`` or its entry point (:mod:`repro._plugins`), here
+and on every Dask worker. Unknown estimator or scene, or a bad f-number: one line on stderr, exit status 2.
 """
 
 from __future__ import annotations
@@ -83,19 +84,21 @@ __all__ = ["DEFAULT_OUT", "ID_COLUMNS", "MAP_ID_COLUMNS", "PHOTO_COLUMNS", "PROG
 
 def _parser():
     from method import BLUR_ESTIMATORS, PRESETS
-    from repro._cli import (ArgumentParser, add_force_option, add_quiet_option, add_scene_size_option,
-                            add_variant_option, float_type)
+    from repro._cli import (ArgumentParser, add_force_option, add_plugin_options, add_quiet_option,
+                            add_scene_size_option, add_variant_option, float_type)
     from scenes import SCENES
 
     p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
     add_variant_option(p)
     p.add_argument("--preset", nargs="+", default=None, metavar="NAME",
                    help=f"method parameter sets (method.PRESETS): {', '.join(PRESETS)}. Default: paper "
-                        "(with --procedural: all registered; with --photos: paper robust zhuo_sim). The render size "
-                        "is --scene-size")
+                        "(with --procedural: all registered, with --estimator paper; with --photos: paper robust "
+                        "zhuo_sim). The render size is --scene-size")
     p.add_argument("--estimator", nargs="+", default=None, metavar="NAME",
-                   help=f"estimators to compare, overriding each preset's own (registered: {', '.join(BLUR_ESTIMATORS)}; "
-                        "default: all registered with the paper preset alone, else each preset's own estimator)")
+                   help=f"estimators to compare, overriding each preset's own (registered: {', '.join(BLUR_ESTIMATORS)}, "
+                        "plus --estimator-module and installed entry points; default: all registered with the paper "
+                        "preset alone, else each preset's own estimator; with --procedural: each preset, default "
+                        "paper, runs once with each)")
     p.add_argument("--scenes", nargs="+", default=None, metavar="NAME",
                    help=f"scenes (default: all: {', '.join(SCENES)})")
     p.add_argument("--fnumber", nargs="+", type=float_type("--fnumber"), default=None, metavar="N",
@@ -129,6 +132,7 @@ def _parser():
                         f"evaluations of {EVALUATIONS}: write there only on purpose, with --out {EVALUATIONS})")
     add_force_option(p)
     add_quiet_option(p, what="no progress display")
+    add_plugin_options(p)
     return p
 
 

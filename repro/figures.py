@@ -44,7 +44,7 @@ TABLE_STEM = "results"
 def _parser():
     from experiments.registry import FIGURES
     from method import PRESETS
-    from repro._cli import ArgumentParser, add_force_option, add_quiet_option, add_variant_option
+    from repro._cli import ArgumentParser, add_force_option, add_plugin_options, add_quiet_option, add_variant_option
 
     from ._runner import add_engine_options
 
@@ -64,6 +64,7 @@ def _parser():
                    help=f"method parameter presets (method.PRESETS: {', '.join(PRESETS)}) for the figures whose "
                         "config has a 'presets' field; 'paper' is always kept first (--preset paper: the paper "
                         "alone); default: each config's own; figures without the field ignore it")
+    add_plugin_options(p)
     return p
 
 

@@ -80,8 +80,8 @@ def _parser():
     from method import BLUR_ESTIMATORS
     from scenes import CAMERA_PRESETS, SCENES
 
-    from ._cli import (ArgumentParser, add_force_option, add_preset_option, add_quiet_option, add_scene_size_option,
-                       add_variant_option, float_type, hidden_alias, int_type)
+    from ._cli import (ArgumentParser, add_force_option, add_plugin_options, add_preset_option, add_quiet_option,
+                       add_scene_size_option, add_variant_option, float_type, hidden_alias, int_type)
     from ._runner import add_engine_options
 
     p = ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
@@ -109,6 +109,7 @@ def _parser():
     add_force_option(p, what="recompute every cell even when the output folder holds it (the new cell replaces it)")
     add_quiet_option(p, what="no progress bar")
     hidden_alias(p, "--no-progress", dest="quiet", action="store_true")
+    add_plugin_options(p)
     return p
 
 

@@ -163,7 +163,7 @@ def _evaluate_cases(args, presets, estimators, scenes, f_numbers, encodings, noi
                          force=args.force, progress=not args.quiet, desc="evaluate")
     if run.error is not None:
         raise RuntimeError(f"an evaluation case failed: {run.error}\n{run.traceback}")
-    return [types.SimpleNamespace(key=o.info["key"], metrics=o.info["metrics"], cached=o.info["cached"])
+    return [types.SimpleNamespace(key=o.info["key"], metrics=o.info["metrics"], cached=o.cached)
             for o in run.data.outputs.values()], run.data
 
 

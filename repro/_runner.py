@@ -3,9 +3,8 @@
 :func:`run_figures` takes figure runs (:class:`FigureJob`: a figure, a config and its cases, see
 :mod:`experiments.cases`) and computes every case through the figure cache
 (:func:`experiments.cases.run_case`): on a Dask LocalCluster of single-threaded worker processes (one
-per core by default) or an existing scheduler, started by :mod:`repro._sweep_engine` as ``repro.sweep``
-starts it, one task per case — a case that needs others takes their futures, so it waits for those
-tasks only — or, with one worker or without the ``sweep`` extra, in this process, needs first. Either
+per core by default) or an existing scheduler (:func:`_start_client`), one task per case — a case that
+needs others takes their futures, so it waits for those tasks only — or, with one worker or without the ``sweep`` extra, in this process, needs first. Either
 way each case runs with numba and BLAS on one thread and is stored in the cache as soon as it finishes,
 so serial and parallel runs give the same numbers, a killed worker loses only the case it was running
 (the scheduler reruns it elsewhere) and the same command again reads every finished case back.
@@ -201,13 +200,43 @@ def _run_here(plans, runs, *, force, bar, on_figure, on_case) -> None:
             on_figure(run)
 
 
+def _start_client(*, workers: int | None, scheduler: str | None):
+    """A Dask client on a new LocalCluster (``workers`` single-threaded processes) or an existing scheduler."""
+    import logging
+
+    from dask.distributed import Client, LocalCluster
+
+    from repro._cli_errors import CLIError
+
+    if scheduler:
+        client = Client(scheduler, timeout="20s")
+        try:
+            client.wait_for_workers(1, timeout=60)
+        except (TimeoutError, OSError):
+            client.close()
+            raise CLIError(f"--scheduler {scheduler}: no worker connected within 60 s; "
+                             "allowed: a scheduler with workers (dask worker ADDRESS)") from None
+        return client, None
+    n = workers or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
+    import dask
+
+    # Dask's nanny sets MALLOC_TRIM_THRESHOLD_ in its workers to hand freed memory back at once; setting it
+    # switches off glibc's adaptive mmap threshold, so every large numpy array is mapped and faulted in
+    # afresh (measured: a third of the workers' CPU time spent in the kernel). The workers keep glibc's
+    # defaults; the single-thread BLAS/OpenMP settings stay.
+    environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()
+               if k != "MALLOC_TRIM_THRESHOLD_"}
+    dask.config.set({"distributed.nanny.pre-spawn-environ": environ})
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                           dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
 def _run_dask(plans, runs, *, workers, scheduler, force, bar, on_figure, on_case, log) -> None:
     """One Dask task per case (needs as futures); figures finish as their last case comes back."""
     from dask.distributed import as_completed
 
     from experiments.cases import case_task, task_key
-
-    from ._sweep_engine import _start_client
 
     client, cluster = _start_client(workers=workers, scheduler=scheduler)
     try:

@@ -7,14 +7,13 @@ stored at once in the one case store (:func:`experiments.cases.run_case`), so th
 reads it back. Then the long results table ``results.parquet`` + ``results.csv``
 (:mod:`experiments.results_table`, the format of every evaluation), its wide view
 ``results_wide.parquet`` and ``timings.parquet`` (:mod:`experiments.sweep_table`) and the metric's plot
-(:mod:`experiments.plotting.sweep`). :func:`_start_client` starts the Dask client the runner uses.
+(:mod:`experiments.plotting.sweep`).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -76,40 +75,8 @@ class SweepRun:
     dashboard: str | None
 
 
-def _start_client(*, workers: int | None, scheduler: str | None):
-    """A Dask client on a new LocalCluster (``workers`` single-threaded processes) or an existing scheduler."""
-    import logging
-
-    from dask.distributed import Client, LocalCluster
-
-    from repro._cli_errors import CLIError
-
-    if scheduler:
-        client = Client(scheduler, timeout="20s")
-        try:
-            client.wait_for_workers(1, timeout=60)
-        except (TimeoutError, OSError):
-            client.close()
-            raise CLIError(f"--scheduler {scheduler}: no worker connected within 60 s; "
-                             "allowed: a scheduler with workers (dask worker ADDRESS)") from None
-        return client, None
-    n = workers or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
-    import dask
-
-    # Dask's nanny sets MALLOC_TRIM_THRESHOLD_ in its workers to hand freed memory back at once; setting it
-    # switches off glibc's adaptive mmap threshold, so every large numpy array is mapped and faulted in
-    # afresh (measured: a third of the workers' CPU time spent in the kernel). The workers keep glibc's
-    # defaults; the single-thread BLAS/OpenMP settings stay.
-    environ = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()
-               if k != "MALLOC_TRIM_THRESHOLD_"}
-    dask.config.set({"distributed.nanny.pre-spawn-environ": environ})
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address="127.0.0.1:0", silence_logs=logging.ERROR)
-    return Client(cluster), cluster
-
-
 def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | None = None,
-              progress: bool = True, log=None) -> SweepRun:
+              progress: bool = True, force: bool = False, log=None) -> SweepRun:
     """Run (or resume) a sweep and write its outputs.
 
     Parameters
@@ -125,6 +92,8 @@ def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | N
         Address of an existing Dask scheduler (``tcp://HOST:PORT``) instead of a LocalCluster.
     progress : bool, keyword-only
         tqdm bar of cases done / total with ETA.
+    force : bool, keyword-only
+        Compute every case again (the stored ones are replaced), none read back.
     log : callable, optional, keyword-only
         Where one-line messages go (default: print to stderr).
 
@@ -152,7 +121,8 @@ def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | N
     t_start = time.perf_counter()
     config = SweepConfig(variant=grid.variant)
     cases = sweep_cases(grid)
-    outputs = {c: run_case(UNIT, config, c, {}) for c in dict.fromkeys(cases) if stored_case(UNIT, config, c)}
+    outputs = {} if force else {c: run_case(UNIT, config, c, {}) for c in dict.fromkeys(cases)
+                                if stored_case(UNIT, config, c)}
     resumed = set(outputs)
     todo = [c for c in dict.fromkeys(cases) if c not in outputs]
     n_total = len(grid.cells)
@@ -170,7 +140,8 @@ def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | N
             computed.append(output)
 
         (run,) = run_figures([FigureJob(UNIT, config, "sweep", cases=tuple(todo))], workers=workers,
-                             scheduler=scheduler, progress=progress, on_case=keep, log=log, desc="sweep")
+                             scheduler=scheduler, force=force, progress=progress, on_case=keep, log=log,
+                             desc="sweep")
         if run.error is not None:
             raise RuntimeError(f"a sweep case failed: {run.error}\n{run.traceback}")
         compute_wall = time.perf_counter() - t0
@@ -192,7 +163,8 @@ def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | N
             "mitsuba_variants": sorted({r["mitsuba_variant"] for r in rows})}
     evaluation_id = f"sweep-{hash_key([case.key() for case in cases])[:12]}"
     paths = write_results(out, long_rows(grid, cases, outputs, evaluation_id), {"evaluation_id": evaluation_id, **meta})
-    paths += [write_table(out / "results_wide.parquet", rows, meta), write_table(out / "timings.parquet", timings, meta)]
+    paths += [write_table(out / "results_wide.parquet", rows, meta),
+              write_table(out / "timings.parquet", timings, meta)]
     from experiments.plotting.sweep import plot_metric
 
     paths.append(plot_metric(rows, grid.metric, out / f"{grid.metric}.png"))

@@ -270,9 +270,9 @@ def _free_port() -> int:
     (["--split", "dev"], "invalid without --procedural"),
 ])
 def test_bad_input_is_one_line_exit_2_and_nothing_written(args, needle, tmp_path, capsys, monkeypatch):
-    from repro import _sweep_engine
+    from repro import _runner
 
-    monkeypatch.setattr(_sweep_engine, "_start_client", lambda **k: pytest.fail("an engine was started"))
+    monkeypatch.setattr(_runner, "_start_client", lambda **k: pytest.fail("an engine was started"))
     args = [a.format(port=_free_port()) for a in args]
     out = tmp_path / "out"
     assert _evaluate([*args, "--out", str(out)]) == 2

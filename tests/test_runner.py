@@ -39,9 +39,9 @@ def _figures(argv):
     (["--workers", "2", "--scheduler", "tcp://127.0.0.1:{port}"], "not allowed with argument"),
 ])
 def test_bad_engine_flags_are_one_line_exit_2_and_nothing_written(argv, needle, tmp_path, capsys, monkeypatch):
-    from repro import _sweep_engine
+    from repro import _runner
 
-    monkeypatch.setattr(_sweep_engine, "_start_client", lambda **k: pytest.fail("an engine was started"))
+    monkeypatch.setattr(_runner, "_start_client", lambda **k: pytest.fail("an engine was started"))
     argv = [a.format(port=_free_port()) for a in argv]
     out = tmp_path / "out"
     assert _figures(["fig2", *argv, "--out", str(out)]) == 2

@@ -286,7 +286,8 @@ def test_external_scheduler_two_workers_one_sigkilled_mid_cell_table_complete(se
         with Client(external, timeout="30s") as client:
             deadline = time.monotonic() + TIMEOUT_S
             while killed is None and proc.poll() is None and time.monotonic() < deadline:
-                busy = [w for w, keys in client.processing().items() if any(str(k).startswith("case-sweep-") for k in keys)]
+                busy = [w for w, keys in client.processing().items()
+                        if any(str(k).startswith("case-sweep-") for k in keys)]
                 if busy:
                     pid = client.run(os.getpid, workers=[busy[0]])[busy[0]]
                     os.kill(pid, signal.SIGKILL)
@@ -368,10 +369,10 @@ def test_ctrl_c_then_resume_reads_finished_cells_back(serial, env, tmp_path):
     (["--scenes", "planes", "--workers", "0"], "--workers"),
 ])
 def test_bad_grid_one_line_exit_2_before_anything_starts(args, needle, tmp_path, monkeypatch, capsys):
-    from repro import _sweep_engine, sweep as mod
+    from repro import _runner, sweep as mod
     from repro._cli import run_cli
 
-    monkeypatch.setattr(_sweep_engine, "_start_client", lambda **k: pytest.fail("an engine was started for a bad grid"))
+    monkeypatch.setattr(_runner, "_start_client", lambda **k: pytest.fail("an engine was started for a bad grid"))
     out = tmp_path / "out"
     rc = run_cli(mod.main, [*args, "--out", str(out)], prog=mod.PROG)
     err = capsys.readouterr().err

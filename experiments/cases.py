@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["PATH_SEP", "Case", "CaseOutput", "case_key", "case_rows", "case_task", "task_key", "flatten", "method_presets", "nest",
-           "order_cases", "run_case", "run_cases", "stored_case"]
+__all__ = ["PATH_SEP", "Case", "CaseOutput", "case_key", "case_rows", "case_task", "task_key", "flatten", "method_presets",
+           "nest", "order_cases", "run_case", "run_cases", "stored_case"]
 
 #: Separator of the parts of a metric path (``image_vs_large/unchanged_small/psnr_db``).
 PATH_SEP = "/"

@@ -3,8 +3,8 @@
 A :class:`CaseUnit` has what the runner (:mod:`repro._runner`, :func:`experiments.cases.run_case`) needs
 of a figure — a name, ``cases(config)``, ``compute_case(config, case, inputs)``, a code version, whether
 it renders — and whether it keeps its cases in the one case store, the figure cache
-(:func:`experiments.cases.run_case`), optionally keyed by a part of its config (``key_config``). :func:`unit` finds a figure or a unit by name
-(what a Dask worker does with a task's name).
+(:func:`experiments.cases.run_case`), optionally keyed by a part of its config (``key_config``).
+:func:`unit` finds a figure or a unit by name (what a Dask worker does with a task's name).
 
 * ``evaluate`` (``repro.evaluate`` on named scenes): one case per scene × aperture × encoding × noise ×
   preset × estimator of an :class:`EvaluateConfig` (:func:`evaluate_case`, scored by

@@ -55,9 +55,12 @@ __all__ = [
 CACHE_ENV = "DEFOCUS_CACHE_DIR"
 
 #: Distributions whose versions enter every cache key of renders, figure data and photo maps: a
-#: different numpy/scipy/scikit-image/pyamg/numba/pymatting (numerics) or mitsuba/drjit (renders)
-#: can change the numbers, so an upgrade recomputes instead of serving stale entries.
-KEY_LIBRARIES = ("numpy", "scipy", "scikit-image", "pyamg", "numba", "pymatting", "mitsuba", "drjit")
+#: different numpy/scipy/scikit-image/pyamg/numba/pymatting (numerics), mitsuba/drjit (renders),
+#: colour-science (every sRGB encoding and decoding), Pillow (the JPEG round trip of an input, the text
+#: textures, 8-bit photos), OpenEXR (renders read back) or tifffile/imagecodecs (16-bit and raw photos
+#: decoded) can change the numbers, so an upgrade recomputes instead of serving stale entries.
+KEY_LIBRARIES = ("numpy", "scipy", "scikit-image", "pyamg", "numba", "pymatting", "mitsuba", "drjit",
+                 "colour-science", "Pillow", "OpenEXR", "tifffile", "imagecodecs")
 
 #: Folder holding the packages (``method``, ``scenes``, ``experiments``, ``repro``).
 _PROJECT_ROOT = Path(__file__).resolve().parents[1]

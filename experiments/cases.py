@@ -11,8 +11,10 @@ receives their :class:`CaseOutput` in ``inputs``.
 :func:`run_case` computes one case through the figure cache (``<cache>/figures``, keyed by the figure,
 its code version, the source fingerprint of ``method``/``scenes``/``experiments``, the config, the
 case and what it needs, the library versions and, for figures that render, the Mitsuba variant),
-with numba and BLAS on one thread: cases are the parallelism (:mod:`repro._runner` runs them on
-Dask workers), and one thread per case makes every number independent of how many cases run at once.
+with numba and BLAS on one thread (:func:`experiments.threads.single_threaded`): cases are the
+parallelism (:mod:`repro._runner` runs them on Dask workers), and one thread per case makes every number
+independent of how many cases run at once. It is the one case store: the figures, the evaluations
+(:mod:`experiments.units`) and the sweep's cells (:mod:`experiments.sweep_cells`) keep their cases there.
 :func:`run_cases` runs cases one after another in this process (needs first).
 :func:`case_rows` turns a finished case into rows of the long results table
 (:mod:`experiments.results_table`).
@@ -20,7 +22,6 @@ Dask workers), and one thread per case makes every number independent of how man
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import json
 import math
@@ -33,7 +34,8 @@ import numpy as np
 from .metric_paths import flatten, nest
 
 __all__ = ["Case", "CaseOutput", "case_key", "case_rows", "task_key", "method_presets", "order_cases", "run_case",
-           "run_cases", "single_threaded"]
+           "run_cases", "stored_case"]
+
 
 @dataclasses.dataclass(frozen=True)
 class Case:
@@ -185,21 +187,6 @@ def method_presets(names) -> dict:
     return {n: DefocusParams.preset(n) for n in names}
 
 
-@contextlib.contextmanager
-def single_threaded():
-    """BLAS (threadpoolctl) and numba on one thread inside the block, restored after."""
-    import numba
-    from threadpoolctl import threadpool_limits
-
-    old = numba.get_num_threads()
-    with threadpool_limits(1):
-        numba.set_num_threads(1)
-        try:
-            yield
-        finally:
-            numba.set_num_threads(old)
-
-
 def order_cases(cases: Iterable[Case]) -> list[Case]:
     """Every case and, recursively, what it needs, each once, needs before the cases that read them."""
     out: dict[Case, None] = {}
@@ -217,10 +204,29 @@ def order_cases(cases: Iterable[Case]) -> list[Case]:
 
 
 def case_key(figure, config, case: Case) -> dict:
-    """The cache key of one case (see the module docstring)."""
+    """The cache key of one case (see the module docstring); a unit with a ``key_config(config, case)``
+    (:class:`experiments.units.CaseUnit`) puts that in place of the whole config."""
     from .cache_keys import cache_key
 
-    return {**cache_key(figure, config), "case": case.key()}
+    key_config = getattr(figure, "key_config", None)
+    return {**cache_key(figure, config if key_config is None else key_config(config, case)), "case": case.key()}
+
+
+def stored_case(figure, config, case: Case, *, cache_dir=None) -> Path | None:
+    """The case store's folder of ``case`` when it holds the finished case (valid for its current key), else
+    None: what a run would read back instead of computing."""
+    from defocus_cache import Cache
+
+    from .cache_keys import CACHE_SUBDIR
+
+    if not getattr(figure, "cached", True):
+        return None
+    if cache_dir is None:
+        from scenes.backend import cache_root
+
+        cache_dir = cache_root() / CACHE_SUBDIR
+    cache, key = Cache(Path(cache_dir)), case_key(figure, config, case)
+    return cache.path_for(key) if cache.is_valid(key) else None
 
 
 def task_key(figure, config, case: Case) -> str:
@@ -280,6 +286,8 @@ def run_case(figure, config, case: Case, inputs: Mapping | None = None, *, force
         for need in case.needs:
             if need not in inputs:
                 inputs[need] = run_case(figure, config, need, inputs, use_cache=use_cache, cache_dir=cache_dir)
+        from .threads import single_threaded
+
         with single_threaded():
             return _check_output(figure, case, figure.compute_case(config, case, inputs))
 
@@ -305,7 +313,7 @@ def run_case(figure, config, case: Case, inputs: Mapping | None = None, *, force
     folder = cache.get_or_build(key, build)
     doc = json.loads((folder / "metrics.json").read_text())
     return CaseOutput(case=case, metrics=_from_json(doc["metrics"]),
-                      groups=tuple((ids, _from_json(m)) for ids, m in doc["groups"]), info=doc["info"],
+                      groups=tuple((ids, _from_json(m)) for ids, m in doc["groups"]), info=_infinities(doc["info"]),
                       folder=str(folder), cached=cached, seconds=time.perf_counter() - t0)
 
 
@@ -318,6 +326,15 @@ def _json_numbers(obj):
     if isinstance(obj, float) and not math.isfinite(obj):
         return None if math.isnan(obj) else ("inf" if obj > 0 else "-inf")
     return obj
+
+
+def _infinities(obj):
+    """:func:`_json_numbers`' "inf" / "-inf" back to floats, anywhere in a JSON document."""
+    if isinstance(obj, dict):
+        return {k: _infinities(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_infinities(v) for v in obj]
+    return float(obj) if obj in ("inf", "-inf") else obj
 
 
 def _from_json(flat: dict) -> dict:

@@ -1,7 +1,7 @@
-"""Shared evaluation core: run blur estimator(s) on rendered scene(s) × aperture(s), score against σ_gt.
+"""Shared evaluation core: the input image, σ_gt, the metrics of one pipeline run, sparse estimates.
 
-Used by :mod:`repro.evaluate` (the metrics table), by Fig. 4 (estimators compared at edge pixels)
-and Fig. 5 (cross-bilateral before/after), and usable by any other figure.
+Used by the one scorer (:mod:`experiments.scoring`, behind :mod:`repro.evaluate`), by Fig. 4 (estimators
+compared at edge pixels) and Fig. 5 (cross-bilateral before/after), and usable by any other figure.
 
 Any estimator registered in :data:`method.BLUR_ESTIMATORS` can be evaluated by name: nothing here
 lists the estimators. Ground truth comes from the render (:func:`scenes.render_scene`):
@@ -17,16 +17,12 @@ input_image(render, *, encoding, quantize_bits) -> HxWx3 image the method sees.
 ground_truth_sigma(render, *, convention) -> HxW σ_gt (px).
 sparse_estimates(image, estimators, *, params) -> edges + one sparse σ map per estimator (shared edges).
 evaluate_result(result, render, *, image, convention) -> metrics dict of one pipeline run.
-evaluate_case(estimator, scene, *, f_number, preset, encoding, ...) -> EvaluationCase (cached).
+
+The pipeline is run and scored in one place, :func:`experiments.scoring.score_render`; the named-scene
+evaluation's cases are :func:`experiments.units.evaluate_case`.
 """
 
 from __future__ import annotations
-
-import dataclasses
-import json
-import time
-import warnings
-from pathlib import Path
 
 import numpy as np
 
@@ -40,12 +36,8 @@ from .metrics import (
 
 __all__ = [
     "ENCODINGS",
-    "EVAL_CACHE_SUBDIR",
-    "EVAL_VERSION",
-    "EvaluationCase",
     "binned_abs_error",
     "estimator_fingerprint",
-    "evaluate_case",
     "evaluate_result",
     "flatten_metrics",
     "ground_truth_sigma",
@@ -56,10 +48,6 @@ __all__ = [
 
 #: Input encodings: ``"srgb"`` as a camera stores it, ``"linear"`` the renderer's radiance.
 ENCODINGS = ("srgb", "linear")
-#: Folder under the project cache holding per-case evaluation results.
-EVAL_CACHE_SUBDIR = "evaluate"
-#: Version of :func:`evaluate_case`'s output layout; part of its cache key.
-EVAL_VERSION = 2  # 2: stage attribution (experiments.stage_attribution) in every case's metrics
 
 
 def validate_estimators(names) -> tuple[str, ...]:
@@ -254,147 +242,3 @@ def flatten_metrics(d: dict, prefix: str = "", sep: str = "_") -> dict:
         else:
             out[key] = v
     return out
-
-
-@dataclasses.dataclass(frozen=True)
-class EvaluationCase:
-    """One (estimator, scene, f-number, preset, encoding) evaluation.
-
-    Attributes
-    ----------
-    key : dict
-        The identifying fields (also the cache key without the code fingerprints).
-    metrics : dict
-        :func:`evaluate_result`'s dict plus ``timings`` (s).
-    arrays : dict of ndarray
-        ``sparse_sigma``, ``refined_sigma``, ``defocus_map``, ``sigma_gt`` (HxW, px) and
-        ``edges`` (HxW bool).
-    cached : bool
-        Whether the result came from the cache.
-    """
-
-    key: dict
-    metrics: dict
-    arrays: dict
-    cached: bool
-
-
-def evaluate_case(estimator: str | None, scene: str, *, f_number: float = 8.0, preset: str = "small",
-                  encoding: str = "srgb", quantize_bits: int | None = 8, convention: str = "line_spread",
-                  noise: str = "none", noise_seed: int = 0,
-                  params=None, method_preset: str | None = None, variant: str | None = None,
-                  use_cache: bool = True, force: bool = False, cache_dir=None) -> EvaluationCase:
-    """Render (cached), run the whole pipeline with one estimator, and score it; cached per case.
-
-    Parameters
-    ----------
-    estimator : str or None
-        Key of :data:`method.BLUR_ESTIMATORS`; None keeps the estimator of ``params`` / the preset.
-    scene : str
-        Key of :data:`scenes.SCENES`.
-    f_number : float, keyword-only
-        Aperture N of the render (> 0).
-    preset : {"small", "full"}, keyword-only
-        Render resolution preset (160×120 / 640×480 px).
-    encoding : {"srgb", "linear"}, keyword-only
-    quantize_bits : int or None, keyword-only
-        Bits per channel of the input (8 = camera JPEG-like).
-    convention : {"line_spread", "erf_fit"}, keyword-only
-        σ_gt convention.
-    noise : str, keyword-only
-        Sensor noise level of the input, a name of :data:`scenes.display.NOISE_LEVELS` (default "none").
-    noise_seed : int, keyword-only
-        Seed of the noise (the same seed gives the same noise image).
-    params : DefocusParams, optional, keyword-only
-        Pipeline parameters; ``estimator`` overrides ``params.estimator``. Default: the preset
-        ``method_preset`` (``"paper"`` when that is None too).
-    method_preset : str, optional, keyword-only
-        Name of :data:`method.PRESETS` (recorded in the key; gives ``params`` when those are None).
-    variant : str, optional, keyword-only
-        Mitsuba variant.
-    use_cache, force : bool, keyword-only
-        Read/write the evaluation cache; recompute even if cached.
-    cache_dir : path, optional, keyword-only
-        Default ``<cache>/evaluate``.
-
-    Returns
-    -------
-    EvaluationCase
-
-    Notes
-    -----
-    1. Validate names; render with :func:`scenes.render_scene` (its own cache).
-    2. Input image (:func:`input_image`), :func:`method.estimate_defocus_map` with ``estimator``.
-    3. :func:`evaluate_result`. The cache key holds every option above, the pipeline parameters,
-       :func:`experiments.cache_keys.code_fingerprint` (source of method/scenes/experiments), the
-       estimator's own :func:`estimator_fingerprint`, the Mitsuba variant and :data:`EVAL_VERSION`.
-    """
-    from method import DefocusParams, NoEdgesWarning, estimate_defocus_map
-    from scenes import render_scene
-    from scenes.backend import cache_root, select_variant
-    from scenes.render import validate_render_options
-    from defocus_cache import Cache
-
-    from .cache_keys import code_fingerprint, to_jsonable
-    from .stage_attribution import stage_errors
-
-    label = method_preset or ("paper" if params is None else "custom")
-    if params is None:
-        params = DefocusParams.preset(label)
-    if estimator is None:
-        estimator = params.estimator
-    validate_estimators([estimator])
-    if encoding not in ENCODINGS:
-        raise ValueError(f"encoding={encoding!r} is invalid; allowed: {list(ENCODINGS)}")
-    from scenes.display import check_noise_level
-
-    check_noise_level(noise)
-    validate_render_options(scene, preset=preset, f_number=f_number, sigma_convention=convention)
-    params = params.replace(estimator=estimator)
-    key_fields = {"estimator": estimator, "method_preset": label, "scene": scene, "f_number": float(f_number), "preset": preset,
-                  "encoding": encoding, "quantize_bits": quantize_bits, "convention": convention, "noise": noise,
-                  "noise_seed": int(noise_seed)}
-    chosen = select_variant(variant)
-
-    def compute() -> tuple[dict, dict]:
-        t0 = time.perf_counter()
-        render = render_scene(scene, preset=preset, f_number=f_number, variant=chosen, progress=False)
-        t_render = time.perf_counter() - t0
-        image = input_image(render, encoding=encoding, quantize_bits=quantize_bits, noise=noise, rng=int(noise_seed))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", NoEdgesWarning)
-            result = estimate_defocus_map(image, params)
-        metrics = evaluate_result(result, render, image=image, convention=convention)
-        metrics["stages"] = stage_errors(image, ground_truth_sigma(render, convention=convention), params=params,
-                                         valid=~np.asarray(render.occlusion_boundary, dtype=bool), result=result)
-        metrics["timings"] = {"render_load_s": t_render, **{f"{k}_s": v for k, v in result.timings.items()}}
-        arrays = {"sparse_sigma": result.sparse_sigma, "refined_sigma": result.refined_sigma,
-                  "defocus_map": result.defocus_map, "edges": result.edges,
-                  "sigma_gt": ground_truth_sigma(render, convention=convention)}
-        return metrics, arrays
-
-    if not use_cache:
-        metrics, arrays = compute()
-        return EvaluationCase(key=key_fields, metrics=metrics, arrays=arrays, cached=False)
-
-    from defocus_cache import library_versions
-
-    key = {**key_fields, "eval_version": EVAL_VERSION, "code": code_fingerprint(),
-           "estimator_code": estimator_fingerprint(estimator), "params": to_jsonable(params),
-           "libraries": library_versions(), "mitsuba": {"variant": chosen}}
-    cache = Cache(Path(cache_dir) if cache_dir is not None else cache_root() / EVAL_CACHE_SUBDIR)
-    if force:
-        cache.invalidate(key)
-    cached = cache.is_valid(key)
-
-    def build(folder: Path) -> None:
-        metrics, arrays = compute()
-        with open(folder / "arrays.npz", "wb") as fh:
-            np.savez_compressed(fh, **arrays)
-        (folder / "metrics.json").write_text(json.dumps(to_jsonable(metrics), indent=1, sort_keys=True))
-
-    folder = cache.get_or_build(key, build)
-    with np.load(folder / "arrays.npz", allow_pickle=False) as npz:
-        arrays = {k: npz[k] for k in npz.files}
-    metrics = json.loads((folder / "metrics.json").read_text())
-    return EvaluationCase(key=key_fields, metrics=metrics, arrays=arrays, cached=cached)

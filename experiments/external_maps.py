@@ -13,8 +13,9 @@ renderer nor the sweep engine) or from the harness's own renders of the same nam
 Protocols (:data:`PROTOCOLS`), every one with the occlusion bands excluded:
 
 ``harness``
-    MAE, RMSE and bias (mean signed error) of σ over all pixels and over textured pixels, and MAE
-    and bias per σ_gt bin (:data:`SIGMA_BINS_PX`), px (:func:`experiments.metrics.sparse_metrics`).
+    MAE, RMSE and bias (mean signed error) of σ over all pixels and over textured pixels, the dense-map
+    metrics the harness scores its own renders with (:func:`experiments.metrics.dense_metrics`, as
+    :func:`experiments.scoring.score_render` does), and MAE and bias per σ_gt bin (:data:`SIGMA_BINS_PX`), px.
 ``rtf``
     D'Andrès et al. (TIP 2016), as used by DMENet (Lee et al., CVPR 2019): σ and σ_gt clipped at
     3.275 px and divided by it; MSE and MAE (:func:`experiments.metrics.rtf_normalized_errors`).
@@ -38,7 +39,7 @@ import numpy as np
 from method.registry import Entry, Registry
 
 from .dataset import ground_truth_arrays, image_name, load_ground_truth, load_image, parse_image_name, read_dataset
-from .metrics import RTF_SIGMA_CLIP_PX, rtf_normalized_errors, sparse_metrics
+from .metrics import RTF_SIGMA_CLIP_PX, dense_metrics, rtf_normalized_errors, sparse_metrics
 
 __all__ = ["DETECTION_THRESHOLD_PX", "HEADLINE", "MAP_SUFFIXES", "PNG_SCALE", "PROTOCOLS", "SIGMA_BINS_PX",
            "DatasetTruth", "MapScores", "RenderTruth", "detection_scores", "find_map", "flatten", "folder_maps",
@@ -171,9 +172,10 @@ def detection_scores(estimate, truth, *, threshold_px=DETECTION_THRESHOLD_PX, ma
 
 
 def _harness(est, gt, keep, threshold_px):
+    """The dense-map metrics of a render's scorer (:func:`experiments.evaluation.evaluate_result`'s ``dense``,
+    :func:`experiments.metrics.dense_metrics`) over all and textured pixels, plus MAE and bias per σ_gt bin."""
     sigma = np.asarray(gt["sigma"], dtype=np.float64)
-    out = {"all": sparse_metrics(est, sigma, mask=keep),
-           "textured": sparse_metrics(est, sigma, mask=keep & np.asarray(gt["textured"], bool))}
+    out = dense_metrics(est, sigma, regions={"all": keep, "textured": keep & np.asarray(gt["textured"], bool)})
     for lo, hi in zip(SIGMA_BINS_PX[:-1], SIGMA_BINS_PX[1:]):
         m = sparse_metrics(est, sigma, mask=keep & (sigma >= lo) & (sigma < hi))
         out[f"bin_{lo:g}_{hi:g}"] = {"n": m["n"], "mae": m["mae"], "bias": m["bias"]}

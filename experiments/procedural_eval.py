@@ -7,7 +7,7 @@ every aperture (through the render cache), give each preset the image each encod
 makes of it, score every map against σ_gt (:func:`experiments.evaluation.evaluate_result`) — and
 returns its rows of the long results table (:mod:`experiments.results_table`) and its timings. It is
 a plain module function of JSON-able arguments, so a Dask worker can run it (``repro.evaluate
---procedural``); :func:`scene_key` is its resume key.
+--procedural``, one case of :data:`experiments.units.PROCEDURAL` per scene in the one case store).
 
 Noise: the sensor noise of an input is drawn from a seed made of the scene seed, the aperture and the
 level (:func:`noise_seed`), so every preset sees the same noisy image and a rerun sees it again.
@@ -20,21 +20,18 @@ import json
 import os
 import time
 import traceback
-import warnings
 from pathlib import Path
 
 from .results_table import metric_rows, summarise
+from .scoring import FAILED_METRIC
 
 __all__ = ["FAILED_METRIC", "PROCEDURAL_EVAL_VERSION", "SOURCE", "ProceduralPlan", "latest_evaluations",
-           "noise_seed", "plan_evaluation", "scene_key", "score_scene", "summary_rows"]
+           "noise_seed", "plan_evaluation", "score_scene", "summary_rows"]
 
-#: Version of :func:`score_scene`'s output; part of every scene's resume key.
-PROCEDURAL_EVAL_VERSION = 1
+#: Version of :func:`score_scene`'s output; part of every scene's case key (:data:`experiments.units.PROCEDURAL`).
+PROCEDURAL_EVAL_VERSION = 2  # 2: stored in the one case store
 #: The ``source`` column of the family's rows.
 SOURCE = "procedural"
-#: Metric of every (render, input, preset): 1 when the method raised on it (its other metrics are then
-#: absent), else 0; its mean over scenes is the failure rate.
-FAILED_METRIC = "pipeline_failed"
 #: Ground-truth facts of a render stored as rows (metadata ``stats`` key → metric name).
 _GT_FACTS = (("sigma_px_min", "gt_sigma_min"), ("sigma_px_median", "gt_sigma_median"),
              ("sigma_px_p95", "gt_sigma_p95"), ("sigma_px_max", "gt_sigma_max"),
@@ -176,24 +173,6 @@ def plan_evaluation(n, *, split, start=None, presets=None, f_numbers=None, scene
                           encodings=tuple(dict.fromkeys(encodings)), spp=spp, variant=variant, estimators=ests)
 
 
-def scene_key(plan: ProceduralPlan, seed: int, *, code: str, versions: dict, variant_requested: str) -> dict:
-    """Resume key of one scene's result: what it computes, the code and library versions that compute it."""
-    from experiments.cache_keys import plugin_fingerprints, to_jsonable
-    from method import DefocusParams
-
-    extra = {}
-    if plan.estimators != (None,):
-        extra["estimators"] = list(plan.estimators)
-    plugins = plugin_fingerprints()  # other packages' estimators and presets (code outside ``code``)
-    if plugins:
-        extra["plugins"] = plugins
-    return {**extra, "kind": "procedural_scene", "version": PROCEDURAL_EVAL_VERSION, "seed": int(seed), "split": plan.split,
-            "presets": {p: to_jsonable(DefocusParams.preset(p)) for p in plan.presets},
-            "f_numbers": list(plan.f_numbers), "scene_size": plan.scene_size, "noises": list(plan.noises),
-            "encodings": list(plan.encodings), "spp": plan.spp, "code": code, "versions": versions,
-            "variant_requested": variant_requested, "quantize_bits": 8, "convention": "line_spread"}
-
-
 def noise_seed(seed: int, f_number: float, noise: str) -> int:
     """Seed of the sensor noise of one input: from the scene seed, the aperture (1/1000 f-stops) and the level."""
     import numpy as np
@@ -204,37 +183,20 @@ def noise_seed(seed: int, f_number: float, noise: str) -> int:
     return int(ss.generate_state(1, dtype=np.uint32)[0])
 
 
-def _single_threaded():
-    """BLAS and numba on one thread while a scene is scored (scenes are the parallelism; the numbers then
-    do not depend on a worker's core count, so serial and parallel tables agree)."""
-    import contextlib
-
-    import numba
-    from threadpoolctl import threadpool_limits
-
-    stack = contextlib.ExitStack()
-    stack.enter_context(threadpool_limits(1))
-    old = numba.get_num_threads()
-    numba.set_num_threads(1)
-    stack.callback(numba.set_num_threads, old)
-    return stack
-
-
 def _run_label(preset: str, estimator: str | None) -> str:
     """``preset`` or ``preset+estimator`` (a preset run with another estimator), for timings and messages."""
     return preset if estimator is None else f"{preset}+{estimator}"
 
 
-def _score_render(render, ids: dict, plan: ProceduralPlan, seed: int, failures: list,
-                  tracebacks: list) -> tuple[list[dict], dict]:
-    """Rows of every encoding × noise × preset (× estimator) on one render, and the seconds spent per run; a run
-    of the method that raises gets one :data:`FAILED_METRIC` row of 1, a line in ``failures`` and its
-    traceback in ``tracebacks``."""
-    import numpy as np
+def _render_rows(render, ids: dict, plan: ProceduralPlan, seed: int, failures: list,
+                 tracebacks: list) -> tuple[list[dict], dict]:
+    """Rows of every encoding × noise × preset (× estimator) on one render
+    (:func:`experiments.scoring.score_render`), and the seconds spent per run; a run of the method that raises
+    gets one :data:`FAILED_METRIC` row of 1, a line in ``failures`` and its traceback in ``tracebacks``."""
+    from method import DefocusParams
 
-    from method import DefocusParams, NoEdgesWarning, estimate_defocus_map
-
-    from .evaluation import evaluate_result, flatten_metrics, input_image
+    from .evaluation import input_image
+    from .scoring import score_render
 
     rows, seconds = [], dict.fromkeys((_run_label(p, e) for p, e in plan.runs()), 0.0)
     f_number = ids["aperture"]
@@ -248,20 +210,11 @@ def _score_render(render, ids: dict, plan: ProceduralPlan, seed: int, failures: 
                 if estimator is not None:
                     params = params.replace(estimator=estimator)
                 row_ids = {**ids, "preset": preset, "estimator": params.estimator, "encoding": encoding, "noise": noise}
-                try:
-                    with _single_threaded(), warnings.catch_warnings():
-                        warnings.simplefilter("ignore", NoEdgesWarning)
-                        result = estimate_defocus_map(image, params)
-                except Exception as exc:  # the method failing on a scene is a result: recorded, not fatal
-                    failures.append(f"{label} on {ids['scene']} f/{f_number:g} {encoding} {noise}: "
-                                    f"{type(exc).__name__}: {exc}")
-                    tracebacks.append("".join(traceback.format_exception(exc)))
-                    rows += metric_rows(row_ids, {FAILED_METRIC: 1.0})
-                    seconds[label] += time.perf_counter() - t0
-                    continue
-                metrics = flatten_metrics(evaluate_result(result, render, image=image))
-                metrics = {k: (v.item() if isinstance(v, np.generic) else v) for k, v in metrics.items()}
-                rows += metric_rows(row_ids, {FAILED_METRIC: 0.0, **metrics})
+                score = score_render(render, image, encoding=encoding, params=params)
+                if score.failed:
+                    failures.append(f"{label} on {ids['scene']} f/{f_number:g} {encoding} {noise}: {score.error}")
+                    tracebacks.append("".join(traceback.format_exception(score.exception)))
+                rows += metric_rows(row_ids, score.flat())
                 seconds[label] += time.perf_counter() - t0
     return rows, seconds
 
@@ -320,7 +273,7 @@ def score_scene(seed: int, *, plan: dict, evaluation_id: str) -> dict:
                "split": split_of(int(seed)), "scene_size": p.scene_size, "camera": layout["camera_name"],
                "lighting": layout["lighting"], "aperture": float(f_number)}
         rows += metric_rows(ids, {name: md["stats"].get(k) for k, name in _GT_FACTS})
-        scored, seconds = _score_render(render, ids, p, int(seed), failures, tracebacks)
+        scored, seconds = _render_rows(render, ids, p, int(seed), failures, tracebacks)
         rows += scored
         timings["score_s"][key] = seconds
     return {"rows": rows, "timings": timings, "variant": variant, "failures": failures,

@@ -52,8 +52,8 @@ COLUMNS: tuple[Column, ...] = (
     Column("evaluation_id", "string", False, "the evaluation (run) that measured the value: an evaluation's folder name, "
                                              "or <figure>-<mode>-<config hash> for a figure"),
     Column("source", "string", False, "what produced the row: 'procedural' (repro.evaluate --procedural), 'scenes' "
-                                      "(repro.evaluate on named scenes), 'figures' (repro.figures), 'accuracy' "
-                                      "(repro.bench --accuracy)"),
+                                      "(repro.evaluate on named scenes), 'figures' (repro.figures), 'sweep' "
+                                      "(repro.sweep), 'accuracy' (repro.bench --accuracy)"),
     Column("figure", "string", True, "the figure (or benchmark) whose case measured the value; empty for evaluations"),
     Column("scene_set", "string", True, "scene set of the case (paper_cameras, tabletop_stress, procedural_test, …); "
                                         "empty for a case without one (analytic images, optics)"),

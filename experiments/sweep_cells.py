@@ -1,19 +1,23 @@
-"""The two kinds of task of an experiment sweep (``python -m repro.sweep``): one render, one cell.
+"""The cases of an experiment sweep (``python -m repro.sweep``): one per distinct render, one per cell.
 
 A *render* is one distinct (scene, camera, f-number, scene preset, seed) image with its ground truth,
 made through the render cache (:func:`scenes.render_scene`: content-addressed, file-locked, atomic);
 a *cell* is one render × method preset × estimator × parameter values × input encoding: the image
-the method sees, the whole pipeline, and every metric of :func:`experiments.evaluation.evaluate_result`
-against σ_gt. Many cells share one render; the sweep engine runs each render once and makes its
-cells depend on it.
+the method sees, scored by the one scorer (:func:`experiments.scoring.score_render`: the whole pipeline
+and every metric of :func:`experiments.evaluation.evaluate_result` against σ_gt). Both are cases of
+:data:`UNIT`, run by the case runner (:mod:`repro._runner`) and kept in the one case store
+(:func:`experiments.cases.run_case`), each cell keyed by its own inputs and full parameters (never by the
+rest of its grid), so an interrupted sweep resumes cell by cell and a cell shared by two grids is
+computed once. A cell needs its render's case, so many cells share one render task.
 
-Both functions are plain, picklable-by-reference module functions taking and returning small JSON-able
-values (paths, numbers, dicts), so a Dask worker on another machine can run them: it needs the project
-installed and, to reuse renders instead of redoing them, the same cache folder
-(``$DEFOCUS_CACHE_DIR``, :func:`scenes.backend.cache_root`).
+The task functions are plain module functions taking and returning small JSON-able values (paths,
+numbers, dicts), so a Dask worker on another machine can run them: it needs the project installed and,
+to reuse renders instead of redoing them, the same cache folder (``$DEFOCUS_CACHE_DIR``,
+:func:`scenes.backend.cache_root`).
 
 Main entry points
 -----------------
+render_case(scene, *, f_number, scene_preset, camera, seed) -> Case; cell_case(render, ...) -> Case.
 render_task(scene, *, f_number, scene_preset, camera, seed, variant) -> dict (path, variant, times).
 cell_task(render_info, *, scene, ..., method_preset, estimator, param_changes, encoding) -> dict.
 cell_params(method_preset, estimator, param_changes) -> DefocusParams.
@@ -21,15 +25,18 @@ cell_params(method_preset, estimator, param_changes) -> DefocusParams.
 
 from __future__ import annotations
 
+import dataclasses
+import json
+import math
 import os
 import time
-import warnings
 from pathlib import Path
 
-__all__ = ["SWEEP_CELL_VERSION", "cell_params", "cell_task", "render_camera", "render_task"]
+__all__ = ["SWEEP_CELL_VERSION", "UNIT", "SweepConfig", "cell_case", "cell_params", "cell_task", "render_camera",
+           "render_case", "render_task"]
 
-#: Version of :func:`cell_task`'s output layout; part of every sweep cell's resume key.
-SWEEP_CELL_VERSION = 1
+#: Version of a sweep case's output layout; part of every sweep case's key.
+SWEEP_CELL_VERSION = 2  # 2: cases of the one case store
 
 
 def render_camera(scene: str, *, scene_preset: str, f_number: float, camera: str | None):
@@ -118,37 +125,76 @@ def cell_params(method_preset: str, estimator: str | None, param_changes: dict):
     return params.replace(**changes) if changes else params
 
 
-def _single_threaded():
-    """Context: BLAS and numba kernels on one thread (cells are the parallelism; numbers then do not
-    depend on how many cores a worker has)."""
-    import contextlib
+@dataclasses.dataclass(frozen=True)
+class SweepConfig:
+    """What shapes every case of a sweep beyond the case's own fields: the Mitsuba variant asked for."""
 
-    from threadpoolctl import threadpool_limits
+    variant: str | None = None
+    # Mitsuba variant requested (None: $DEFOCUS_MITSUBA_VARIANT or the fastest that works on the worker).
 
-    stack = contextlib.ExitStack()
-    stack.enter_context(threadpool_limits(1))
-    try:
-        import numba
 
-        old = numba.get_num_threads()
-        numba.set_num_threads(1)
-        stack.callback(numba.set_num_threads, old)
-    except ImportError:  # pragma: no cover - numba is a dependency
-        pass
-    return stack
+def _spec(case) -> dict:
+    return json.loads(case.variant)
+
+
+def render_case(scene: str, *, f_number: float, scene_preset: str, camera: str | None, seed: int):
+    """The case of one distinct render of a sweep (its output's ``info`` is :func:`render_task`'s dict)."""
+    from .cases import Case
+
+    spec = json.dumps({"render": True, "camera": camera, "seed": int(seed)}, sort_keys=True)
+    return Case("sweep", scene=scene, aperture=float(f_number), scene_size=scene_preset, variant=spec)
+
+
+def cell_case(render, *, method_preset: str, estimator: str | None, param_changes, encoding: str):
+    """The case of one sweep cell; it needs its render's case (:func:`render_case`).
+
+    ``param_changes`` are ``(field, value)`` pairs; the values keep their JSON types (int, float, bool, None,
+    str), so the case's key names them exactly.
+    """
+    from .cases import Case
+
+    spec = {**_spec(render), "render": False, "params": [[k, v] for k, v in param_changes]}
+    return Case("sweep", scene=render.scene, aperture=render.aperture, scene_size=render.scene_size,
+                preset=method_preset, estimator=estimator, encoding=encoding,
+                variant=json.dumps(spec, sort_keys=True), needs=(render,))
+
+
+def _case_key(config: SweepConfig, case) -> dict:
+    """Per case: the variant asked for; for a cell also its full parameters and the estimator's own source
+    (an estimator registered at run time from outside ``method/``), the input's bits and the σ_gt convention."""
+    from .evaluation import estimator_fingerprint
+    from .cache_keys import to_jsonable
+
+    key = {"variant_requested": config.variant, "version": SWEEP_CELL_VERSION}
+    if not _spec(case)["render"]:
+        params = cell_params(case.preset, case.estimator, dict(_spec(case)["params"]))
+        key.update(params=to_jsonable(params), estimator_code=estimator_fingerprint(params.estimator),
+                   quantize_bits=8, convention="line_spread")
+    return key
+
+
+def _compute_case(config: SweepConfig, case, inputs) -> dict:
+    spec = _spec(case)
+    if spec["render"]:
+        return {"info": render_task(case.scene, f_number=case.aperture, scene_preset=case.scene_size,
+                                    camera=spec["camera"], seed=spec["seed"], variant=config.variant)}
+    (render,) = case.needs
+    out = cell_task(inputs[render].info, scene=case.scene, f_number=case.aperture, scene_preset=case.scene_size,
+                    camera=spec["camera"], seed=spec["seed"], method_preset=case.preset, estimator=case.estimator,
+                    param_changes=dict(spec["params"]), encoding=case.encoding)
+    return {"metrics": out.pop("metrics"), "info": out}
 
 
 def cell_task(render_info: dict, *, scene: str, f_number: float, scene_preset: str = "small",
               camera: str | None = None, seed: int = 0, method_preset: str = "paper", estimator: str | None = None,
               param_changes: dict | None = None, encoding: str = "srgb", quantize_bits: int | None = 8,
               convention: str = "line_spread") -> dict:
-    """One sweep cell: the image the method sees, the whole pipeline, every metric against σ_gt.
+    """One sweep cell: the image the method sees, scored by :func:`experiments.scoring.score_render`.
 
     Parameters
     ----------
     render_info : dict
-        :func:`render_task`'s result for this cell's render (the engine passes the render's future,
-        so the cell waits for that one task).
+        :func:`render_task`'s result for this cell's render.
     scene, f_number, scene_preset, camera, seed : keyword-only
         The render's inputs (used only when ``render_info["path"]`` is not visible on this worker:
         the render is then made or read through this worker's own render cache).
@@ -168,22 +214,21 @@ def cell_task(render_info: dict, *, scene: str, f_number: float, scene_preset: s
     Returns
     -------
     dict
-        ``metrics`` (flat dict of :func:`experiments.evaluation.evaluate_result`'s numbers, px or
-        fractions; NaN as None), ``variant`` (Mitsuba variant of the render), ``seconds`` (this task's
-        wall time, s), ``seconds_pipeline`` (the method alone, s), ``host``, ``pid``,
-        ``render_task_seconds`` (wall time of the render task this cell waited for, s).
+        ``metrics`` (:meth:`experiments.scoring.Score.flat`: every metric of
+        :func:`experiments.evaluation.evaluate_result`, px or fractions, and ``pipeline_failed``; NaN as None),
+        ``variant``
+        (Mitsuba variant of the render), ``seconds`` (this task's wall time, s), ``seconds_pipeline`` (the
+        method alone, s), ``host``, ``pid``, ``render_task_seconds`` (wall time of the render task, s).
 
-    Notes
-    -----
-    The pipeline runs with BLAS and numba on one thread, so a cell's numbers are the same on any
-    worker whatever its core count, and serial and parallel sweeps give identical tables.
+    Raises
+    ------
+    Exception
+        Whatever the pipeline raised (a cell of a sweep that fails is a bug to see, with its traceback).
     """
-    import numpy as np
-
-    from method import NoEdgesWarning, estimate_defocus_map
     from scenes import load_render
 
-    from .evaluation import evaluate_result, flatten_metrics, input_image
+    from .evaluation import input_image
+    from .scoring import score_render
 
     t0 = time.perf_counter()
     params = cell_params(method_preset, estimator, param_changes or {})
@@ -195,16 +240,19 @@ def cell_task(render_info: dict, *, scene: str, f_number: float, scene_preset: s
                            variant=render_info["variant"])
         render = load_render(info["path"])
     image = input_image(render, encoding=encoding, quantize_bits=quantize_bits)
-    t1 = time.perf_counter()
-    with _single_threaded(), warnings.catch_warnings():
-        warnings.simplefilter("ignore", NoEdgesWarning)
-        result = estimate_defocus_map(image, params)
-    t_pipe = time.perf_counter() - t1
-    metrics = evaluate_result(result, render, image=image, convention=convention)
-    flat = {}
-    for k, v in flatten_metrics(metrics).items():
-        v = v.item() if isinstance(v, np.generic) else v
-        flat[k] = None if isinstance(v, float) and np.isnan(v) else v  # NaN -> None (missing); inf kept
-    return {"metrics": flat, "variant": str(render.metadata.get("variant")), "seconds": time.perf_counter() - t0,
-            "seconds_pipeline": t_pipe, "host": os.uname().nodename, "pid": os.getpid(),
-            "render_task_seconds": render_info.get("seconds")}
+    score = score_render(render, image, encoding=encoding, params=params, convention=convention).raise_failure()
+    metrics = {k: None if isinstance(v, float) and math.isnan(v) else v for k, v in score.flat().items()}
+    return {"metrics": metrics, "variant": str(render.metadata.get("variant")),
+            "seconds": time.perf_counter() - t0, "seconds_pipeline": score.seconds, "host": os.uname().nodename,
+            "pid": os.getpid(), "render_task_seconds": render_info.get("seconds")}
+
+
+def _unit():
+    from .units import CaseUnit
+
+    return CaseUnit("sweep", lambda config: (), _compute_case, version=SWEEP_CELL_VERSION, cached=True,
+                    key_config=_case_key)
+
+
+#: The sweep's case unit (:func:`experiments.units.unit` finds it by name on a Dask worker).
+UNIT = _unit()

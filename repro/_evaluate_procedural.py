@@ -1,13 +1,13 @@
 """``python -m repro.evaluate --procedural N``: the procedural scene family scored at scale, on Dask.
 
 One case per scene (:func:`experiments.procedural_eval.score_scene`: its renders at every aperture
-through the render cache, every preset on every input, scored against σ_gt), run by the case runner
-(:mod:`repro._runner`) on a Dask LocalCluster of single-threaded workers (``--workers``, default one
-per core), an existing scheduler (``--scheduler``) or in this process (``--workers 1``). Each
-finished scene is written at once, atomically, to ``DIR/<evaluation id>/cells/<key>.json`` (``DIR``:
-``--out``, default the git-ignored ``report/quick/evaluations``; the committed report shows those of
-``report/evaluations``), so the same command after Ctrl-C, a crash or a killed worker reads finished
-scenes back. Then the long results table (:mod:`experiments.results_table`:
+through the render cache, every preset on every input, scored against σ_gt by
+:func:`experiments.scoring.score_render`), run by the case runner (:mod:`repro._runner`) on a Dask
+LocalCluster of single-threaded workers (``--workers``, default one per core), an existing scheduler
+(``--scheduler``) or in this process (``--workers 1``). Each finished scene is stored at once in the one
+case store (:func:`experiments.cases.run_case`, ``<cache>/figures``), so the same command after Ctrl-C, a
+crash or a killed worker reads finished scenes back. The outputs go to ``DIR/<evaluation id>/`` (``DIR``: ``--out``,
+default the git-ignored ``report/quick/evaluations``; the committed report shows those of ``report/evaluations``). Then the long results table (:mod:`experiments.results_table`:
 ``results.parquet`` + ``results.csv``), the summary per preset and aperture with 95 % bootstrap
 intervals over scenes (``summary.csv``, ``summary.json``), the timings per scene and lighting kind
 (``timings.json``) and ``run.json`` (the plan, the seeds and the command that reruns them; written
@@ -19,7 +19,6 @@ from __future__ import annotations
 import dataclasses
 import datetime
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -163,19 +162,19 @@ def run_evaluation(plan, root, *, workers=None, scheduler=None, force=False, pro
     Notes
     -----
     1. ``run.json`` (plan, seeds, the command that reruns them) is written before anything runs.
-    2. Resume keys (:func:`experiments.procedural_eval.scene_key`); scenes whose file in ``cells/``
-       matches are read back.
-    3. The others run on the case runner (:func:`repro._runner.run_figures`), one case per scene; each
-       result is stored as it arrives.
+    2. One case per scene (:data:`experiments.units.PROCEDURAL`) in the one case store
+       (:func:`experiments.cases.run_case`); scenes the store holds are read back here.
+    3. The others run on the case runner (:func:`repro._runner.run_figures`); each is stored as it finishes.
     4. Rows in seed order; the results table, the summary and the timings, atomically.
     """
-    from defocus_cache import atomic_write_text, hash_key
-    from experiments.procedural_eval import scene_key, summary_rows
+    from defocus_cache import atomic_write_text
+    from experiments.cases import run_case, stored_case
+    from experiments.procedural_eval import summary_rows
     from experiments.cache_keys import code_fingerprint, to_jsonable
+    from experiments.registry import library_versions
     from experiments.results_table import write_results
-    from scenes.backend import VARIANT_ENV
-
-    from ._sweep_engine import key_versions, read_cell, write_cell
+    from experiments.units import PROCEDURAL
+    from scenes.library.procedural import seed_of
 
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     t0, eid = time.perf_counter(), plan.evaluation_id
@@ -186,32 +185,24 @@ def run_evaluation(plan, root, *, workers=None, scheduler=None, force=False, pro
                 "rerun": " ".join(rerun), "command": command, "started_utc": _now()}
     atomic_write_text(out / "run.json", json.dumps(run_info, indent=1, sort_keys=True) + "\n")
     log(f"evaluation {eid}: {plan.n} {plan.split} scene(s), seeds {plan.start}..{plan.start + plan.n - 1} -> {out}")
-    code, versions = code_fingerprint(), key_versions()
-    asked = plan.variant or os.environ.get(VARIANT_ENV) or "auto"
-    keys = {seed: scene_key(plan, seed, code=code, versions=versions, variant_requested=asked) for seed in plan.seeds}
-    ids = {seed: f"{seed}-{hash_key(k)[:12]}" for seed, k in keys.items()}
-    records = {} if force else {s: r for s in plan.seeds if (r := read_cell(out, ids[s], keys[s])) is not None}
+    code, versions = code_fingerprint(), library_versions()
+    cases = {seed_of(c.scene)[0]: c for c in PROCEDURAL.cases(plan)}
+    records = {} if force else {s: {"result": run_case(PROCEDURAL, plan, c).info} for s, c in cases.items()
+                                if stored_case(PROCEDURAL, plan, c) is not None}
     resumed = set(records)
     if resumed:
-        log(f"resuming: {len(resumed)} of {plan.n} scenes read back from {out / 'cells'}")
+        log(f"resuming: {len(resumed)} of {plan.n} scenes read back from the case store")
     todo = [s for s in plan.seeds if s not in records]
     if todo:
-        from experiments.units import PROCEDURAL
-        from scenes.library.procedural import seed_of
-
         from ._runner import FigureJob, run_figures
 
-        todo_names = set(todo)
-        job = FigureJob(PROCEDURAL, plan, cases=tuple(c for c in PROCEDURAL.cases(plan)
-                                                      if seed_of(c.scene)[0] in todo_names))
+        job = FigureJob(PROCEDURAL, plan, cases=tuple(cases[s] for s in todo))
 
         def store(_job, output):
-            seed = seed_of(output.case.scene)[0]
-            write_cell(out, ids[seed], keys[seed], output.info)
-            records[seed] = {"key": keys[seed], "result": output.info}
+            records[seed_of(output.case.scene)[0]] = {"result": output.info}
 
-        (run,) = run_figures([job], workers=workers, scheduler=scheduler, progress=progress, on_case=store, log=log,
-                             desc="evaluate")
+        (run,) = run_figures([job], workers=workers, scheduler=scheduler, force=force, progress=progress,
+                             on_case=store, log=log, desc="evaluate")
         if run.error is not None:
             raise RuntimeError(f"a scene's task failed: {run.error}\n{run.traceback}")
     rows = [r for s in plan.seeds for r in records[s]["result"]["rows"]]

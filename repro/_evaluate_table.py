@@ -25,7 +25,7 @@ _SHORT = {"sparse_n": "n_edge", "sparse_mae": "BM_MAE", "sparse_median_ae": "BM_
 
 
 def table_rows(cases) -> list[dict]:
-    """One flat dict per :class:`experiments.evaluation.EvaluationCase`: ID_COLUMNS + METRIC_COLUMNS."""
+    """One flat dict per :class:`experiments.units.EvaluationCase`: ID_COLUMNS + METRIC_COLUMNS."""
     from experiments.evaluation import flatten_metrics
 
     rows = []

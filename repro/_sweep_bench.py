@@ -41,7 +41,8 @@ def run_sweep_bench(out, *, scenes=("planes", "portrait"), f_numbers=(8.0, 4.0),
     Notes
     -----
     Renders are made first (cached), so the render tasks only read them back (their time still counts in
-    the wall time). Each run uses a fresh output folder, so no cell is resumed. Engine overhead per cell =
+    the wall time). Each run computes every cell again (``force``), so no cell is read back from the case
+store. Engine overhead per cell =
     (workers × wall time − Σ render and cell task seconds) / cells: scheduling, transfer, result
     handling and idle workers at the end; the no-op tasks give the scheduler's own cost per task.
     """
@@ -63,7 +64,7 @@ def run_sweep_bench(out, *, scenes=("planes", "portrait"), f_numbers=(8.0, 4.0),
     tables = []
     for n in worker_counts:
         with tempfile.TemporaryDirectory(prefix="sweep-bench-") as tmp:
-            run = run_sweep(grid, Path(tmp), workers=n, progress=progress)
+            run = run_sweep(grid, Path(tmp), workers=n, progress=progress, force=True)
             tables.append([{k: v for k, v in r.items()} for r in run.rows])
         busy_cells = sum(t["seconds"] for t in run.timings)
         busy_renders = sum({t["render_id"]: t["render_task_seconds"] or 0.0 for t in run.timings}.values())

@@ -1,10 +1,12 @@
-"""The engine of an experiment sweep: resume keys, per-cell files, Dask execution, the output tables.
+"""The engine of an experiment sweep: its cases on the case runner, the output tables, the Dask client.
 
-:func:`run_sweep` runs (or resumes) a :class:`repro._sweep_grid.Grid` on a Dask LocalCluster or an
-existing scheduler: one render task per distinct render, one cell task per cell depending on it
-(:mod:`experiments.sweep_cells`); each finished cell is stored at once (:func:`write_cell`) under its
-resume key (:func:`cell_keys`), so the same command again reads it back. Then ``results.parquet``,
-``timings.parquet`` (:mod:`experiments.sweep_table`) and the metric's plot
+:func:`run_sweep` runs (or resumes) a :class:`repro._sweep_grid.Grid` on the case runner
+(:func:`repro._runner.run_figures`: a Dask LocalCluster, an existing scheduler or this process): one case
+per distinct render, one case per cell needing it (:mod:`experiments.sweep_cells`); each finished case is
+stored at once in the one case store (:func:`experiments.cases.run_case`), so the same command again
+reads it back. Then the long results table ``results.parquet`` + ``results.csv``
+(:mod:`experiments.results_table`, the format of every evaluation), its wide view
+``results_wide.parquet`` and ``timings.parquet`` (:mod:`experiments.sweep_table`) and the metric's plot
 (:mod:`experiments.plotting.sweep`).
 """
 
@@ -12,7 +14,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import sys
 import time
 from pathlib import Path
@@ -21,67 +22,42 @@ from experiments.sweep_table import write_table
 
 from ._sweep_grid import Grid
 
-__all__ = ["SweepRun", "cell_keys", "read_cell", "run_sweep", "write_cell"]
+__all__ = ["SweepRun", "long_rows", "run_sweep", "sweep_cases"]
 
 
-def key_versions() -> dict:
-    from importlib.metadata import PackageNotFoundError, version
+def sweep_cases(grid: Grid) -> list:
+    """The case of every cell of ``grid`` (:func:`experiments.sweep_cells.cell_case`), in grid order; cells of
+    one render need the same render case."""
+    from experiments.sweep_cells import cell_case, render_case
 
-    from experiments.registry import library_versions
-
-    out = dict(library_versions())
-    for pkg in ("numba", "pyamg", "pymatting", "colour-science"):
-        try:
-            out[pkg] = version(pkg)
-        except PackageNotFoundError:
-            out[pkg] = None
-    return out
+    renders = {r: render_case(r.scene, f_number=r.f_number, scene_preset=r.scene_preset, camera=r.camera,
+                              seed=r.seed) for r in grid.renders}
+    return [cell_case(renders[c.render], method_preset=c.method_preset, estimator=c.estimator,
+                      param_changes=c.params, encoding=c.encoding) for c in grid.cells]
 
 
-def cell_keys(grid: Grid) -> list[dict]:
-    """The resume key of every cell: inputs, full parameters, code and library versions, variant asked."""
-    from experiments.evaluation import estimator_fingerprint
-    from experiments.cache_keys import code_fingerprint, to_jsonable
-    from experiments.sweep_cells import SWEEP_CELL_VERSION, cell_params
-    from scenes.backend import VARIANT_ENV
+def long_rows(grid: Grid, cases: list, outputs: dict, evaluation_id: str) -> list[dict]:
+    """The sweep's rows of the long results table (:mod:`experiments.results_table`), cells in grid order.
 
-    code, versions = code_fingerprint(), key_versions()
-    asked = grid.variant or os.environ.get(VARIANT_ENV) or "auto"
-    est_code = {}
-    keys = []
-    for c in grid.cells:
-        if c.estimator not in est_code:
-            est_code[c.estimator] = estimator_fingerprint(c.estimator)
-        params = cell_params(c.method_preset, c.estimator, dict(c.params))
-        keys.append({"kind": "sweep_cell", "cell_version": SWEEP_CELL_VERSION, "inputs": to_jsonable(c.inputs()),
-                     "params": to_jsonable(params), "quantize_bits": 8, "convention": "line_spread",
-                     "code": code, "estimator_code": est_code[c.estimator], "versions": versions,
-                     "variant_requested": asked})
-    return keys
+    ``variant`` is the method variant label (preset/estimator and the swept values), with `` seed=N`` for a
+    render sampler seed other than 0; ``camera`` the camera preset (empty: the scene's own).
+    """
+    from experiments.cases import scene_ids
+    from experiments.results_table import metric_rows
 
+    from ._sweep_grid import SCENE_CAMERA
 
-def _cell_path(out: Path, cell_id: str) -> Path:
-    return out / "cells" / f"{cell_id}.json"
-
-
-def read_cell(out: Path, cell_id: str, key: dict) -> dict | None:
-    """A finished cell's stored record, or None (missing, unreadable, or written for another key)."""
-    try:
-        rec = json.loads(_cell_path(out, cell_id).read_text())
-    except (OSError, ValueError):
-        return None
-    if not isinstance(rec, dict) or rec.get("key") != json.loads(json.dumps(key)) or "result" not in rec:
-        return None
-    return rec
-
-
-def write_cell(out: Path, cell_id: str, key: dict, result: dict) -> None:
-    """Store one finished cell atomically (temporary file + rename)."""
-    from defocus_cache import atomic_write_text
-
-    (out / "cells").mkdir(parents=True, exist_ok=True)
-    atomic_write_text(_cell_path(out, cell_id), json.dumps({"key": key, "result": result}, sort_keys=True))
-
+    rows = []
+    for c, case in zip(grid.cells, cases):
+        r = c.render
+        ids = {"evaluation_id": evaluation_id, "source": "sweep", "figure": "sweep", **scene_ids(r.scene),
+               "scene": r.scene, "scene_size": r.scene_preset, "aperture": float(r.f_number),
+               "preset": c.method_preset, "estimator": c.estimator, "encoding": c.encoding, "noise": "none",
+               "variant": c.variant_label + (f" seed={r.seed}" if r.seed else "")}
+        if (r.camera or SCENE_CAMERA) != SCENE_CAMERA:
+            ids["camera"] = r.camera
+        rows += metric_rows(ids, outputs[case].metrics)
+    return rows
 
 
 @dataclasses.dataclass
@@ -100,7 +76,7 @@ class SweepRun:
 
 
 def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | None = None,
-              progress: bool = True, log=None, force: bool = False) -> SweepRun:
+              progress: bool = True, force: bool = False, log=None) -> SweepRun:
     """Run (or resume) a sweep and write its outputs.
 
     Parameters
@@ -108,18 +84,18 @@ def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | N
     grid : Grid
         From :func:`build_grid`.
     out : path
-        Output folder (created): ``cells/``, ``results.parquet``, ``timings.parquet``, ``<metric>.png``.
+        Output folder (created): ``results.parquet`` + ``results.csv`` (the long table),
+        ``results_wide.parquet`` (one row per cell), ``timings.parquet``, ``<metric>.png``.
     workers : int, optional, keyword-only
-        LocalCluster size (single-threaded worker processes); default one per core.
+        LocalCluster size (single-threaded worker processes); default one per core; 1: in this process.
     scheduler : str, optional, keyword-only
         Address of an existing Dask scheduler (``tcp://HOST:PORT``) instead of a LocalCluster.
     progress : bool, keyword-only
-        tqdm bar of cells done / total with ETA.
+        tqdm bar of cases done / total with ETA.
+    force : bool, keyword-only
+        Compute every case again (the stored ones are replaced), none read back.
     log : callable, optional, keyword-only
         Where one-line messages go (default: print to stderr).
-    force : bool, keyword-only
-        Recompute every cell even when ``out/cells`` holds it (each new cell file replaces the old; the
-        renders keep their own cache).
 
     Returns
     -------
@@ -127,96 +103,75 @@ def run_sweep(grid: Grid, out, *, workers: int | None = None, scheduler: str | N
 
     Notes
     -----
-    1. Resume keys (:func:`cell_keys`); cells whose file in ``out/cells`` matches are read back
-       (none with ``force``).
-    2. If any remain: start the engine; submit one render task per distinct render they need
-       (``key="render-<id>"``) and one cell task per cell (``key="cell-<id>"``) taking the render's
-       future, so it waits for that task only; as each cell comes back its file is written.
-    3. Rows in grid order from the cell files; ``results.parquet`` and ``timings.parquet`` written
-       atomically; the plot.
+    1. One case per cell and per distinct render (:func:`sweep_cases`); cells the one case store holds
+       (:func:`experiments.cases.stored_case`) are read back here.
+    2. If any remain: the case runner (:func:`repro._runner.run_figures`) runs them and the renders they
+       need (one task per distinct render, each cell waiting for its render's task only); each case is
+       stored as it finishes.
+    3. The long table and, as a view under its own name, the wide table; the timings; the plot.
     """
     from defocus_cache import hash_key
+    from experiments.cases import run_case, stored_case
+    from experiments.cache_keys import code_fingerprint
+    from experiments.registry import library_versions
+    from experiments.results_table import write_results
+    from experiments.sweep_cells import UNIT, SweepConfig
 
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     out = Path(out)
     t_start = time.perf_counter()
-    keys = cell_keys(grid)
-    ids = [hash_key(k) for k in keys]
-    records: dict[str, dict] = {}
-    for cid, key in zip(ids, keys):
-        rec = None if force else read_cell(out, cid, key)
-        if rec is not None:
-            records[cid] = rec
-    resumed = set(records)
-    todo = [(c, cid, key) for c, cid, key in zip(grid.cells, ids, keys) if cid not in records]
+    config = SweepConfig(variant=grid.variant)
+    cases = sweep_cases(grid)
+    outputs = {} if force else {c: run_case(UNIT, config, c, {}) for c in dict.fromkeys(cases)
+                                if stored_case(UNIT, config, c)}
+    resumed = set(outputs)
+    todo = [c for c in dict.fromkeys(cases) if c not in outputs]
     n_total = len(grid.cells)
-    dashboard, n_render_tasks, compute_wall = None, 0, 0.0
+    n_render_tasks, compute_wall = 0, 0.0
     if resumed:
-        log(f"resuming: {len(resumed)} of {n_total} cells read back from {out / 'cells'}")
+        log(f"resuming: {len(resumed)} of {n_total} cells read back from the case store")
     if todo:
-        from dask.distributed import as_completed
-        from tqdm import tqdm
+        from ._runner import FigureJob, run_figures
 
-        from experiments.sweep_cells import cell_task, render_task
+        t0 = time.perf_counter()
+        computed = []
 
-        from ._runner import start_client
+        def keep(_job, output):
+            outputs[output.case] = output
+            computed.append(output)
 
-        client, cluster = start_client(workers=workers, scheduler=scheduler)
-        try:
-            dashboard = client.dashboard_link
-            n_workers = len(client.scheduler_info()["workers"]) if scheduler else len(cluster.workers)
-            where = scheduler or "LocalCluster"
-            log(f"engine: {where} with {n_workers} worker(s); dashboard: {dashboard}")
-            t0 = time.perf_counter()
-            render_futs = {}
-            for c, _, _ in todo:
-                r = c.render
-                if r not in render_futs:
-                    render_futs[r] = client.submit(render_task, r.scene, f_number=r.f_number,
-                                                   scene_preset=r.scene_preset, camera=r.camera, seed=r.seed,
-                                                   variant=grid.variant, key=f"render-{r.render_id}")
-            n_render_tasks = len(render_futs)
-            futs = {}
-            for c, cid, key in todo:
-                r = c.render
-                fut = client.submit(cell_task, render_futs[r], scene=r.scene, f_number=r.f_number,
-                                    scene_preset=r.scene_preset, camera=r.camera, seed=r.seed,
-                                    method_preset=c.method_preset, estimator=c.estimator,
-                                    param_changes=dict(c.params), encoding=c.encoding, key=f"cell-{cid}")
-                futs[fut.key] = (fut, cid, key)
-            with tqdm(total=n_total, initial=len(resumed), desc="sweep", unit="cell", file=sys.stderr,
-                      disable=not progress, dynamic_ncols=True) as bar:
-                for fut, result in as_completed([f for f, _, _ in futs.values()], with_results=True):
-                    _, cid, key = futs[fut.key]
-                    write_cell(out, cid, key, result)
-                    records[cid] = {"key": key, "result": result}
-                    bar.update(1)
-            compute_wall = time.perf_counter() - t0
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
+        (run,) = run_figures([FigureJob(UNIT, config, "sweep", cases=tuple(todo))], workers=workers,
+                             scheduler=scheduler, force=force, progress=progress, on_case=keep, log=log,
+                             desc="sweep")
+        if run.error is not None:
+            raise RuntimeError(f"a sweep case failed: {run.error}\n{run.traceback}")
+        compute_wall = time.perf_counter() - t0
+        n_render_tasks = sum(1 for o in computed if not o.cached and json.loads(o.case.variant)["render"])
     rows, timings = [], []
-    for c, cid in zip(grid.cells, ids):
-        res = records[cid]["result"]
+    for c, case in zip(grid.cells, cases):
+        res = outputs[case].info
+        cid = hash_key(case.key())
         rows.append({**c.inputs(), "method_variant": c.variant_label, "mitsuba_variant": res["variant"],
-                     **_metric_columns(res["metrics"])})
+                     **_metric_columns(outputs[case].metrics)})
         timings.append({"cell_id": cid, "render_id": c.render.render_id, "method_variant": c.variant_label,
                         "scene": c.render.scene, "f_number": c.render.f_number, "seed": c.render.seed,
                         "host": res.get("host"), "pid": res.get("pid"), "seconds": res.get("seconds"),
                         "seconds_pipeline": res.get("seconds_pipeline"),
-                        "render_task_seconds": res.get("render_task_seconds"), "resumed": cid in resumed})
+                        "render_task_seconds": res.get("render_task_seconds"), "resumed": case in resumed})
     meta = {"grid": {"n_cells": n_total, "param_names": list(grid.param_names), "metric": grid.metric,
                      "variant_requested": grid.variant},
-            "code": keys[0]["code"] if keys else None, "versions": keys[0]["versions"] if keys else None}
-    out.mkdir(parents=True, exist_ok=True)
-    paths = [write_table(out / "results.parquet", rows, meta), write_table(out / "timings.parquet", timings, meta)]
+            "code": code_fingerprint(), "versions": library_versions(),
+            "mitsuba_variants": sorted({r["mitsuba_variant"] for r in rows})}
+    evaluation_id = f"sweep-{hash_key([case.key() for case in cases])[:12]}"
+    paths = write_results(out, long_rows(grid, cases, outputs, evaluation_id), {"evaluation_id": evaluation_id, **meta})
+    paths += [write_table(out / "results_wide.parquet", rows, meta),
+              write_table(out / "timings.parquet", timings, meta)]
     from experiments.plotting.sweep import plot_metric
 
     paths.append(plot_metric(rows, grid.metric, out / f"{grid.metric}.png"))
     return SweepRun(rows=rows, timings=timings, n_cells=n_total, n_resumed=len(resumed),
                     n_render_tasks=n_render_tasks, wall_s=time.perf_counter() - t_start,
-                    compute_wall_s=compute_wall, paths=paths, dashboard=dashboard)
+                    compute_wall_s=compute_wall, paths=paths, dashboard=None)
 
 
 def _metric_columns(flat: dict) -> dict:

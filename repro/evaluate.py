@@ -14,8 +14,9 @@
 [--detection-threshold PX] [--png-scale S] [--out DIR] [-q]``
 
 For every combination, the scene is rendered (cached), the whole pipeline runs with the estimator
-(:func:`experiments.evaluation.evaluate_case`, cached per estimator, scene, f-number, preset and
-encoding, keyed also by the code fingerprint), and the errors against the render's σ_gt are
+(:func:`experiments.units.evaluate_case`, scored by :func:`experiments.scoring.score_render` and kept in
+the one case store per estimator, scene, f-number, preset, encoding and noise, keyed also by the code
+fingerprint), and the errors against the render's σ_gt are
 tabulated, per method preset (:data:`method.PRESETS`) and estimator: the sparse blur measure at edge pixels, after the cross-bilateral filter, the dense map
 over all / edge / textured pixels, RTF-normalised errors and the in-focus outlier fraction
 (occlusion boundaries excluded everywhere). The table is printed and written to
@@ -61,7 +62,6 @@ and on every Dask worker. Unknown estimator or scene, or a bad f-number: one lin
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from pathlib import Path
@@ -158,7 +158,7 @@ def _validate(args):
 
 def _evaluate_cases(args, presets, estimators, scenes, f_numbers, encodings, noises):
     """Every case of the named-scene evaluation through the case runner; returns the
-    :class:`experiments.evaluation.EvaluationCase`-like records (key, metrics, cached) in grid order."""
+    :class:`experiments.units.EvaluationCase`-like records (key, metrics, cached) in grid order."""
     import types
 
     from experiments.units import EVALUATE, EvaluateConfig
@@ -167,13 +167,13 @@ def _evaluate_cases(args, presets, estimators, scenes, f_numbers, encodings, noi
 
     config = EvaluateConfig(presets=tuple(presets), estimators=tuple(estimators), scenes=tuple(scenes),
                             f_numbers=tuple(float(n) for n in f_numbers), scene_size=args.scene_size,
-                            encodings=tuple(encodings), noises=tuple(noises), variant=args.variant, force=args.force)
+                            encodings=tuple(encodings), noises=tuple(noises), variant=args.variant)
     workers, scheduler = engine_choice(args.workers, args.scheduler, command=PROG)
     (run,) = run_figures([FigureJob(EVALUATE, config, "evaluate")], workers=workers, scheduler=scheduler,
-                         progress=not args.quiet, desc="evaluate")
+                         force=args.force, progress=not args.quiet, desc="evaluate")
     if run.error is not None:
         raise RuntimeError(f"an evaluation case failed: {run.error}\n{run.traceback}")
-    return [types.SimpleNamespace(key=o.info["key"], metrics=o.info["metrics"], cached=o.info["cached"])
+    return [types.SimpleNamespace(key=o.info["key"], metrics=o.info["metrics"], cached=o.cached)
             for o in run.data.outputs.values()], run.data
 
 
@@ -208,9 +208,9 @@ def main(argv=None) -> int:
         from scenes.backend import select_variant
 
         select_variant(args.variant)
-    from experiments.evaluation import EVAL_VERSION
     from experiments.cache_keys import code_fingerprint
     from experiments.registry import library_versions
+    from experiments.units import EVAL_VERSION
     from experiments.results_table import write_results
 
     t0 = time.perf_counter()

@@ -7,24 +7,27 @@
 
 The grid is the product scenes × cameras × f-numbers × seeds (one *render* each) × method presets ×
 estimators × parameter values × encodings (one *cell* each). Every cell renders through the render
-cache, runs the whole pipeline and is scored against σ_gt with the metrics of
-:mod:`repro.evaluate` (:func:`experiments.sweep_cells.cell_task`). Renders are deduplicated: one Dask
-task per distinct render, its cells depend on it.
+cache, runs the whole pipeline and is scored against σ_gt by the one scorer of every render
+(:func:`experiments.scoring.score_render`, the metrics of :mod:`repro.evaluate`). Renders and cells are
+cases of the case runner (:mod:`experiments.sweep_cells`, :mod:`repro._runner`): one task per distinct
+render, its cells depend on it.
 
 Engine: a :class:`dask.distributed.LocalCluster` of ``--workers`` single-threaded processes (default:
-one per core) whose dashboard address is printed, or an existing cluster (``--scheduler``, started
-with ``dask scheduler`` / ``dask worker``; its workers must see the same ``$DEFOCUS_CACHE_DIR``).
-Progress: cells done / total with an ETA (tqdm). Each finished cell is written at once, atomically,
-to ``DIR/cells/<cell id>.json``, keyed by its inputs, the code fingerprint of method/scenes/experiments,
-the estimator's source and the library versions; the same command again (after Ctrl-C, a crash or a
-killed worker) reads finished cells back instead of recomputing them (``--force`` recomputes them). A worker that dies mid-task has
-its tasks rerun elsewhere by the scheduler.
+one per core; 1: in this process) whose dashboard address is printed, or an existing cluster
+(``--scheduler``, started with ``dask scheduler`` / ``dask worker``; its workers must see the same
+``$DEFOCUS_CACHE_DIR``). Progress: cases done / total with an ETA (tqdm). Each finished case is stored at
+once, atomically, in the one case store (``$DEFOCUS_CACHE_DIR/figures``), keyed by its inputs and full
+parameters, the code fingerprint of method/scenes/experiments, the estimator's source and the library
+versions (never by the rest of the grid); the same command again (after Ctrl-C, a crash or a killed
+worker) reads finished cells back instead of recomputing them (``--force`` recomputes them). A worker that dies mid-task has its
+tasks rerun elsewhere by the scheduler.
 
-Outputs (atomic): ``DIR/results.parquet`` (one row per cell: every input, the method variant label,
-the Mitsuba variant, every metric; the same rows serial or parallel), ``DIR/timings.parquet``
-(per cell, in the same order: its id = the name of its file in ``cells/``, worker, seconds,
-resumed or not), ``DIR/<metric>.png`` (the chosen metric per method
-variant) and a summary printed on the terminal.
+Outputs (atomic): ``DIR/results.parquet`` and ``DIR/results.csv``, the long results table of every
+evaluation (docs/results-schema.md: one row per cell × metric, ``source`` = sweep, ``variant`` = the
+method variant); ``DIR/results_wide.parquet``, its wide view (one row per cell: every input, the method
+variant label, the Mitsuba variant, every metric; the same rows serial or parallel); ``DIR/timings.parquet``
+(per cell, in the same order: worker, seconds, read back or not); ``DIR/<metric>.png`` (the chosen metric
+per method variant) and a summary printed on the terminal.
 
 Bad grid (unknown scene, camera, estimator, preset, parameter name or value, f-number, metric): one
 line on stderr and exit status 2 before any cluster is started or task submitted.
@@ -37,14 +40,13 @@ from pathlib import Path
 
 from experiments.sweep_table import metric_unit, read_table, summary, write_table
 
-from ._sweep_engine import SweepRun, cell_keys, read_cell, run_sweep, write_cell
+from ._sweep_engine import SweepRun, long_rows, run_sweep, sweep_cases
 from ._sweep_grid import (DEFAULT_METRIC, INFO_COLUMNS, INPUT_COLUMNS, SCENE_CAMERA, Cell, Grid, Render, build_grid,
                           parse_param_value, parse_params)
 
 __all__ = ["DEFAULT_METRIC", "INFO_COLUMNS", "INPUT_COLUMNS", "PROG", "SCENE_CAMERA", "Cell", "Grid", "Render",
-           "SweepRun", "build_grid", "cell_keys", "format_summary", "main", "metric_unit", "parse_param_value",
-           "parse_params", "plot_metric", "read_cell", "read_table", "run_sweep", "summary", "write_cell",
-           "write_table"]
+           "SweepRun", "build_grid", "format_summary", "long_rows", "main", "metric_unit", "parse_param_value",
+           "parse_params", "plot_metric", "read_table", "run_sweep", "summary", "sweep_cases", "write_table"]
 
 PROG = "python -m repro.sweep"
 

@@ -277,7 +277,7 @@ def quick_data(figure: str, *, cached: bool = True, seed: int | None = None):
 
 
 def evaluate_rows(*, cached: bool = True) -> list[dict]:
-    from experiments.evaluation import evaluate_case
+    from experiments.units import evaluate_case
     from repro.evaluate import table_rows
 
     a = EVALUATE_ARGS

@@ -16,7 +16,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_key_libraries_cover_numerics_and_rendering():
-    for pkg in ("numpy", "scipy", "scikit-image", "pyamg", "numba", "mitsuba", "drjit", "pymatting"):
+    for pkg in ("numpy", "scipy", "scikit-image", "pyamg", "numba", "mitsuba", "drjit", "pymatting",
+                "colour-science", "Pillow", "OpenEXR", "tifffile", "imagecodecs"):
         assert pkg in KEY_LIBRARIES
     v = library_versions()
     import numpy
@@ -366,3 +367,30 @@ def test_fingerprint_of_project_packages_ignores_docstrings(tmp_path):
 
             assert _code_meaning(a.read_text()) == _code_meaning(b.read_text()), path
             assert ast.dump(ast.parse(text)) == ast.dump(ast.parse(no_comments))
+
+
+#: Third-party modules imported by method/ and scenes/ that cannot change a number (progress bars, locks,
+#: thread limits: the numbers are computed single-threaded where it matters).
+NUMBER_NEUTRAL = {"threadpoolctl", "tqdm", "filelock"}
+
+
+def test_key_libraries_hold_every_library_method_and_scenes_import():
+    """Every third-party distribution imported anywhere in method/ or scenes/ (at any depth, function-local
+    imports included) is in the cache key, unless it is listed as unable to change a number."""
+    import ast
+    from importlib.metadata import packages_distributions
+
+    dists = {**packages_distributions(), "OpenEXR": ["OpenEXR"]}  # a compiled module the metadata does not list
+    top = set()
+    for pkg in ("method", "scenes"):
+        for path in (ROOT / pkg).rglob("*.py"):
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, ast.Import):
+                    top.update(a.name.split(".")[0] for a in node.names)
+                elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                    top.add(node.module.split(".")[0])
+    third_party = {m for m in top if m in dists and m not in ("method", "scenes", "defocus_cache")}
+    assert {"colour", "PIL", "OpenEXR", "numpy"} <= third_party  # the scan sees function-local imports
+    keyed = {d.lower() for d in KEY_LIBRARIES}
+    missing = sorted(m for m in third_party - NUMBER_NEUTRAL if not any(d.lower() in keyed for d in dists[m]))
+    assert missing == []

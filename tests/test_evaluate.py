@@ -72,7 +72,7 @@ def test_registered_dummy_estimator_shows_up(tmp_path, monkeypatch):
     rows, _ = _read(out)
     assert [r["estimator"] for r in rows] == ["dummy_constant"]
     # σ = 1 px at every edge pixel: the sparse bias is exactly mean(1 − σ_gt) over the scored edges
-    from experiments.evaluation import evaluate_case
+    from experiments.units import evaluate_case
 
     case = evaluate_case("dummy_constant", "planes", f_number=8.0)
     assert case.cached

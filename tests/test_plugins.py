@@ -311,9 +311,9 @@ def test_procedural_scoring_labels_rows_by_preset_and_estimator(monkeypatch):
     seen = []
     monkeypatch.setattr("method.estimate_defocus_map", lambda image, params: seen.append(params.estimator) or "r")
     monkeypatch.setattr("experiments.evaluation.input_image", lambda render, **k: np.zeros((4, 4, 3)))
-    monkeypatch.setattr("experiments.evaluation.evaluate_result", lambda result, render, image: {"m": 1.0})
+    monkeypatch.setattr("experiments.evaluation.evaluate_result", lambda result, render, image, **k: {"m": 1.0})
     monkeypatch.setattr("experiments.evaluation.flatten_metrics", lambda m: m)
-    rows, seconds = pe._score_render(types.SimpleNamespace(), {"aperture": 8.0, "scene": "s"}, plan, 0, [], [])
+    rows, seconds = pe._render_rows(types.SimpleNamespace(), {"aperture": 8.0, "scene": "s"}, plan, 0, [], [])
     assert seen == ["model_fit", "zero_crossing"] and set(seconds) == {"paper+model_fit", "paper+zero_crossing"}
     assert {(r["preset"], r["estimator"]) for r in rows} == {("paper", "model_fit"), ("paper", "zero_crossing")}
     summary = pe.summary_rows([{**r, "split": "dev", "scene_size": "small"} for r in rows
@@ -333,7 +333,7 @@ def test_a_failing_run_keeps_its_traceback(monkeypatch):
     monkeypatch.setattr("method.estimate_defocus_map", buggy)
     monkeypatch.setattr("experiments.evaluation.input_image", lambda render, **k: np.zeros((4, 4, 3)))
     failures, tracebacks = [], []
-    pe._score_render(types.SimpleNamespace(), {"aperture": 8.0, "scene": "s"}, plan, 0, failures, tracebacks)
+    pe._render_rows(types.SimpleNamespace(), {"aperture": 8.0, "scene": "s"}, plan, 0, failures, tracebacks)
     assert failures == ["paper on s f/8 srgb none: NameError: name 'undefined_in_test' is not defined"]
     assert "Traceback" in tracebacks[0] and "in buggy" in tracebacks[0]
 

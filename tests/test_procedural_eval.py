@@ -61,10 +61,21 @@ def _only(root: Path) -> Path:
     return folder
 
 
-def _cells(folder: Path) -> dict:
-    cells = folder / "cells"
-    return {p.name: p.stat().st_mtime_ns for p in cells.glob("*.json") if not p.name.startswith(".")} \
-        if cells.is_dir() else {}
+def _cells(folder=None) -> dict:
+    """``{store folder name: manifest mtime}`` of PLAN's scenes the case store holds (``$DEFOCUS_CACHE_DIR``)."""
+    from experiments.cases import stored_case
+    from experiments.procedural_eval import plan_evaluation
+    from experiments.units import PROCEDURAL
+
+    plan = plan_evaluation(3, split="test", start=100073, presets=["paper"], f_numbers=[2.0], scene_size="small",
+                           spp=16)
+    store = Path(os.environ["DEFOCUS_CACHE_DIR"]) / "figures"
+    out = {}
+    for case in PROCEDURAL.cases(plan):
+        stored = stored_case(PROCEDURAL, plan, case, cache_dir=store)
+        if stored is not None:
+            out[stored.name] = (stored / "manifest.json").stat().st_mtime_ns
+    return out
 
 
 def _popen(args, env):
@@ -161,7 +172,16 @@ def runs(cache_env, tmp_path_factory):
     with contextlib.redirect_stderr(err):
         dask["resume_status"] = _evaluate([*PLAN, "--workers", "1", "--out", str(tmp / "dask"), "-q"])
     dask["resume_stderr"] = err.getvalue()
-    assert _evaluate([*PLAN, "--workers", "1", "--out", str(tmp / "serial"), "-q"]) == 0
+    shared = Path(os.environ["DEFOCUS_CACHE_DIR"])
+    own = tmp / "serial-cache"  # a case store of its own (the renders shared): the scenes are scored again
+    own.mkdir()
+    (own / "renders").symlink_to(shared / "renders", target_is_directory=True)
+    for probes in shared.glob("variant-probes.json"):
+        shutil.copy(probes, own / probes.name)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("DEFOCUS_CACHE_DIR", str(own))
+        assert _evaluate([*PLAN, "--workers", "1", "--out", str(tmp / "serial"), "-q"]) == 0
+        assert len(_cells()) == 3
     serial = _only(tmp / "serial")
     return {"dask": dask, "serial": (serial, _table(serial))}
 

@@ -293,7 +293,7 @@ def test_leaderboard_without_a_dataset_scores_on_the_renders_the_maps_name(tmp_p
     rows = {(r["entry"], r["protocol"]): r for r in board["rows"]}
     assert rows[("truth", "harness")]["all_mae"] == 0.0 and rows[("truth", "rtf")]["nmae"] == 0.0
     assert rows[("paper", "harness")]["n_images"] == 1
-    from experiments.evaluation import evaluate_case
+    from experiments.units import evaluate_case
 
     own = evaluate_case(None, "planes", f_number=8.0, preset="small", method_preset="paper").metrics
     assert abs(rows[("paper", "harness")]["all_mae"] - own["dense"]["all"]["mae"]) <= 1e-9  # = repro.evaluate

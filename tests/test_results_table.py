@@ -198,7 +198,7 @@ def test_a_method_that_raises_on_one_input_is_recorded_and_the_others_go_on(monk
     """No renderer: a synthetic render (a blurred step, σ_gt known); the robust preset made to raise."""
     import method
     from experiments.procedural_eval import FAILED_METRIC, plan_evaluation
-    from experiments.procedural_eval import _score_render as score_render
+    from experiments.procedural_eval import _render_rows as score_render
     from scenes.render import Render
 
     h, w = 48, 64
@@ -209,10 +209,10 @@ def test_a_method_that_raises_on_one_input_is_recorded_and_the_others_go_on(monk
                     sigma_px=sigma, occlusion_boundary=np.zeros((h, w), bool), metadata={})
     real = method.estimate_defocus_map
 
-    def flaky(image, params):
+    def flaky(image, params, **kw):
         if params.estimator == method.DefocusParams.preset("robust").estimator and params != method.DefocusParams():
             raise RuntimeError("did not converge")
-        return real(image, params)
+        return real(image, params, **kw)
 
     monkeypatch.setattr(method, "estimate_defocus_map", flaky)
     plan = plan_evaluation(1, split="dev", presets=["paper", "robust"], f_numbers=[2.0])

@@ -4,7 +4,8 @@ Grid: ``planes`` at the small preset, f/8 and f/4 (two renders), the zero-crossi
 (four cells). Serial (one worker) is the reference; two LocalCluster workers, an external
 ``dask scheduler`` + two ``dask worker`` processes, a run whose worker is SIGKILLed mid-cell, and a run
 interrupted with Ctrl-C then resumed must all give the same table. Every sweep uses a private cache
-(``$DEFOCUS_CACHE_DIR`` under the test's tmp folder): the two renders are made once per module.
+(``$DEFOCUS_CACHE_DIR`` under the test's tmp folder); the sweeps that must compute their cells again get a
+case store of their own that shares the serial run's renders (made once per module).
 Every process a test starts is stopped by the test. The sweeps are marked ``slow`` (``make test`` and CI
 run them; ``make test-fast`` skips them).
 """
@@ -87,16 +88,49 @@ def sweep(env, out, *extra, grid=GRID):
     return proc.returncode, stdout, stderr
 
 
-def _finished_cells(folder):
-    """The finished cell files of a sweep folder: ``*.json`` without the hidden temporary files
-    (``.<name>.tmp.*.json``) of an atomic write in progress, which pathlib's glob also matches."""
-    return [p for p in folder.glob("*.json") if not p.name.startswith(".")] if folder.is_dir() else []
+def _grid(grid=GRID):
+    """The sweep grid of command-line arguments, as ``repro.sweep`` builds it."""
+    from repro.sweep import _parser, build_grid, parse_params
+    from scenes import SCENES
+
+    a = _parser().parse_args([*grid, "--out", "unused"])
+    return build_grid(scenes=a.scenes or list(SCENES), cameras=a.camera, f_numbers=a.fnumber, estimators=a.estimator,
+                      presets=a.preset, params=parse_params(a.param), seeds=a.seeds, scene_preset=a.scene_size,
+                      encodings=a.encoding, metric=a.metric, variant=a.variant)
+
+
+def _finished_cells(env, grid=GRID) -> dict:
+    """``{store folder name: manifest mtime}`` of the grid's cells the case store of ``env`` holds."""
+    from experiments.cases import stored_case
+    from experiments.sweep_cells import UNIT, SweepConfig
+    from repro.sweep import sweep_cases
+
+    g = _grid(grid)
+    store = Path(env["DEFOCUS_CACHE_DIR"]) / "figures"
+    out = {}
+    for case in sweep_cases(g):
+        folder = stored_case(UNIT, SweepConfig(g.variant), case, cache_dir=store)
+        if folder is not None:
+            out[folder.name] = (folder / "manifest.json").stat().st_mtime_ns
+    return out
+
+
+def _own_store(env, folder: Path) -> dict:
+    """``env`` with a case store of its own that shares ``env``'s renders (and Mitsuba variant probes)."""
+    shared = Path(env["DEFOCUS_CACHE_DIR"])
+    folder.mkdir(parents=True, exist_ok=True)
+    (shared / "renders").mkdir(exist_ok=True)
+    (folder / "renders").symlink_to(shared / "renders", target_is_directory=True)
+    probes = shared / "variant-probes.json"
+    if probes.is_file():
+        (folder / probes.name).write_bytes(probes.read_bytes())
+    return {**env, "DEFOCUS_CACHE_DIR": str(folder)}
 
 
 def _table(out):
     from repro.sweep import read_table
 
-    return read_table(Path(out) / "results.parquet")
+    return read_table(Path(out) / "results_wide.parquet")
 
 
 def _ok(rc, stdout, stderr):
@@ -134,49 +168,63 @@ def test_serial_sweep_table_summary_plot_and_deduplicated_renders(serial, env):
     for e in entries:
         key = json.loads((e / "manifest.json").read_text())["key"]
         assert Cache(renders).is_valid(key)
-    # progress, dashboard, summary, plot, per-cell files
-    assert f"{N_CELLS}/{N_CELLS}" in stderr and "dashboard: http" in stderr
+    # progress (cells and renders), summary, plot, the long table, every cell in the case store
+    n_cases = N_CELLS + N_RENDERS
+    assert f"{n_cases}/{n_cases}" in stderr
     assert "paper/zero_crossing alpha=0.5" in stdout and "mean dense_textured_mae" in stdout
     assert (out / "dense_textured_mae.png").stat().st_size > 5000
-    assert len(_finished_cells(out / "cells")) == N_CELLS
+    from experiments.results_table import column_names, read_results
+
+    long, _ = read_results(out / "results.parquet")
+    assert list(long[0]) == list(column_names()) and {r["source"] for r in long} == {"sweep"}
+    wide = {(r["f_number"], r["alpha"]): r["dense_textured_mae"] for r in rows}
+    assert {(r["aperture"], float(r["variant"].split("alpha=")[1])): r["value"] for r in long
+            if r["metric"] == "dense_textured_mae"} == wide  # the wide table is a view of the long one
+    assert len(_finished_cells(env)) == N_CELLS
     assert not list(out.rglob("*.tmp*"))
 
 
 @pytest.mark.slow
 def test_two_local_workers_give_the_serial_table(serial, env, tmp_path):
-    rc, stdout, stderr = sweep(env, tmp_path / "par", "--workers", "2")
+    rc, stdout, stderr = sweep(_own_store(env, tmp_path / "cache"), tmp_path / "par", "--workers", "2")
     _ok(rc, stdout, stderr)
-    assert "LocalCluster with 2 worker(s)" in stderr
+    assert "LocalCluster with 2 worker(s)" in stderr and "dashboard: http" in stderr
     assert _table(tmp_path / "par") == serial[1]
 
 
 @pytest.mark.slow
 def test_same_command_again_reads_every_cell_back(serial, env):
     out = serial[0]
-    before = {p.name: p.stat().st_mtime_ns for p in _finished_cells(out / "cells")}
+    before = _finished_cells(env)
     rc, stdout, stderr = sweep(env, out, "--workers", "1")
     _ok(rc, stdout, stderr)
     assert f"{N_CELLS} of {N_CELLS} cells read back" in stderr and "engine:" not in stderr
-    assert {p.name: p.stat().st_mtime_ns for p in _finished_cells(out / "cells")} == before
+    assert _finished_cells(env) == before and len(before) == N_CELLS
     assert _table(out) == serial[1]
 
 
 @pytest.mark.slow
-def test_changed_key_is_not_read_back(serial, tmp_path):
-    import shutil
+def test_changed_key_is_not_read_back(serial, env):
+    """A cell is read back only under its own key: another variant asked for or another parameter value is
+    computed again; a damaged entry is not a finished cell."""
+    from experiments.cases import stored_case
+    from experiments.sweep_cells import UNIT, SweepConfig
+    from repro.sweep import sweep_cases
 
-    from repro.sweep import read_cell
-
-    out = tmp_path / "copy"
-    shutil.copytree(serial[0] / "cells", out / "cells")
-    for f in sorted(_finished_cells(out / "cells")):
-        key = json.loads(f.read_text())["key"]
-        assert read_cell(out, f.stem, key) is not None
-        for change in ({"code": "0" * 16}, {"variant_requested": "scalar_rgb"},
-                       {"inputs": {**key["inputs"], "alpha": 7.0}}):
-            assert read_cell(out, f.stem, {**key, **change}) is None  # another code / variant / input: recomputed
-    f.write_text(f.read_text()[:40])  # a truncated file is not a finished cell
-    assert read_cell(out, f.stem, key) is None
+    store = Path(env["DEFOCUS_CACHE_DIR"]) / "figures"
+    cases = sweep_cases(_grid())
+    assert all(stored_case(UNIT, SweepConfig(), c, cache_dir=store) is not None for c in cases)
+    assert all(stored_case(UNIT, SweepConfig("scalar_rgb"), c, cache_dir=store) is None for c in cases)
+    other = sweep_cases(_grid([*GRID[:-3], "alpha=7", *GRID[-2:]]))
+    assert all(stored_case(UNIT, SweepConfig(), c, cache_dir=store) is None for c in other)
+    folder = stored_case(UNIT, SweepConfig(), cases[0], cache_dir=store)
+    metrics = folder / "metrics.json"
+    text = metrics.read_text()
+    try:
+        metrics.write_text(text[:40])
+        assert stored_case(UNIT, SweepConfig(), cases[0], cache_dir=store) is None
+    finally:
+        metrics.write_text(text)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -184,7 +232,14 @@ def test_changed_key_is_not_read_back(serial, tmp_path):
 
 
 @pytest.fixture(scope="module")
-def external(env, tmp_path_factory):
+def external_env(serial, env, tmp_path_factory):
+    """A case store of the external cluster's own (the serial run's renders shared)."""
+    return _own_store(env, tmp_path_factory.mktemp("cluster-cache") / "cache")
+
+
+@pytest.fixture(scope="module")
+def external(external_env, tmp_path_factory):
+    env = external_env
     folder = tmp_path_factory.mktemp("cluster")
     sched_file = folder / "scheduler.json"
     dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
@@ -214,7 +269,8 @@ def external(env, tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_external_scheduler_two_workers_one_sigkilled_mid_cell_table_complete(serial, env, external, tmp_path):
+def test_external_scheduler_two_workers_one_sigkilled_mid_cell_table_complete(serial, external_env, external,
+                                                                               tmp_path):
     """The grid on ``dask scheduler`` + two ``dask worker`` processes; while a cell runs, its worker is
     SIGKILLed: the scheduler reruns the cell elsewhere, the table equals the serial one, every render
     cache entry is still valid."""
@@ -222,6 +278,7 @@ def test_external_scheduler_two_workers_one_sigkilled_mid_cell_table_complete(se
 
     from defocus_cache import Cache
 
+    env = external_env
     out = tmp_path / "killed"
     proc = _popen(["repro.sweep", *GRID, "--out", str(out), "--scheduler", external], env)
     killed = None
@@ -229,7 +286,8 @@ def test_external_scheduler_two_workers_one_sigkilled_mid_cell_table_complete(se
         with Client(external, timeout="30s") as client:
             deadline = time.monotonic() + TIMEOUT_S
             while killed is None and proc.poll() is None and time.monotonic() < deadline:
-                busy = [w for w, keys in client.processing().items() if any(str(k).startswith("cell-") for k in keys)]
+                busy = [w for w, keys in client.processing().items()
+                        if any(str(k).startswith("case-sweep-") for k in keys)]
                 if busy:
                     pid = client.run(os.getpid, workers=[busy[0]])[busy[0]]
                     os.kill(pid, signal.SIGKILL)
@@ -258,12 +316,12 @@ def test_ctrl_c_then_resume_reads_finished_cells_back(serial, env, tmp_path):
 
     grid = ["--scenes", "planes", "--fnumber", "8", "--estimator", "zero_crossing", "--param", "alpha=0.5,1,2",
             "--scene-preset", "small"]  # three cells, one render (cached by the serial run)
+    env = _own_store(env, tmp_path / "cache")  # the serial run's renders, none of its cells
     out = tmp_path / "resume"
-    cells = out / "cells"
     proc = _popen(["repro.sweep", *grid, "--out", str(out), "--workers", "1"], env)
     try:
         deadline = time.monotonic() + TIMEOUT_S
-        while proc.poll() is None and not _finished_cells(cells):
+        while proc.poll() is None and not _finished_cells(env, grid):
             assert time.monotonic() < deadline, "no cell finished"
             time.sleep(0.05)
         proc.send_signal(signal.SIGINT)
@@ -275,13 +333,13 @@ def test_ctrl_c_then_resume_reads_finished_cells_back(serial, env, tmp_path):
     assert proc.returncode == 130, f"exit {proc.returncode}: {stderr[-2000:]}"
     assert "interrupted" in stderr
     assert left == [], f"processes left running after Ctrl-C: {left}"
-    done = {p.name: p.stat().st_mtime_ns for p in _finished_cells(cells)}
+    done = _finished_cells(env, grid)
     assert 1 <= len(done) < 3
     assert not (out / "results.parquet").exists()
     rc, stdout, stderr = sweep(env, out, "--workers", "1", grid=grid)
     _ok(rc, stdout, stderr)
     assert f"resuming: {len(done)} of 3 cells read back" in stderr
-    assert {n: m for n, m in ((p.name, p.stat().st_mtime_ns) for p in _finished_cells(cells)) if n in done} == done
+    assert {n: m for n, m in _finished_cells(env, grid).items() if n in done} == done
     rows = _table(out)
     assert len(rows) == 3 and sum(t["resumed"] for t in read_table(out / "timings.parquet")) == len(done)
     ref = {(r["f_number"], r["alpha"]): r for r in serial[1]}
@@ -411,39 +469,31 @@ def test_procedural_scene_names_are_accepted_by_every_scene_axis():
 # --force: every cell recomputed, none read back
 
 
-def _stored_sweep(tmp_path):
-    """A one-render, two-cell grid whose cell files are already in ``tmp_path`` (hand-made results)."""
-    from repro._sweep_engine import cell_keys, write_cell
-    from repro._sweep_grid import build_grid
-    from defocus_cache import hash_key
-
-    grid = build_grid(scenes=["planes"], f_numbers=[8.0], estimators=["zero_crossing"],
-                      params=[("alpha", (0.5, 2.0))])
-    for key in cell_keys(grid):
-        write_cell(tmp_path, hash_key(key), key, {"variant": "scalar_rgb", "metrics": {"dense_textured_mae": 0.25}})
-    return grid
-
-
 class _EngineStarted(Exception):
     pass
 
 
-def test_force_recomputes_every_stored_cell(tmp_path, monkeypatch):
+def test_force_reads_nothing_back_from_the_case_store(tmp_path, monkeypatch):
+    from experiments import cases
     from repro import _runner, sweep as mod
     from repro._sweep_engine import run_sweep
+    from repro._sweep_grid import build_grid
 
-    def refuse(**kw):
+    asked = []
+
+    def refuse(*a, **kw):
         raise _EngineStarted
 
-    monkeypatch.setattr(_runner, "start_client", refuse)
-    grid = _stored_sweep(tmp_path)
-    said = []
-    run = run_sweep(grid, tmp_path, progress=False, log=said.append)  # every cell read back: no engine
-    assert run.n_resumed == run.n_cells == 2 and [r["dense_textured_mae"] for r in run.rows] == [0.25, 0.25]
-    assert said == [f"resuming: 2 of 2 cells read back from {tmp_path / 'cells'}"]
-    said.clear()
-    with pytest.raises(_EngineStarted):  # --force: nothing read back, the engine started for every cell
-        run_sweep(grid, tmp_path, progress=False, log=said.append, force=True)
-    assert said == []
+    monkeypatch.setattr(cases, "stored_case", lambda unit, config, case, **kw: asked.append(case))
+    monkeypatch.setattr(_runner, "run_figures", refuse)
+    grid = build_grid(scenes=["planes"], f_numbers=[8.0], estimators=["zero_crossing"],
+                      params=[("alpha", (0.5, 2.0))])
+    with pytest.raises(_EngineStarted):  # nothing stored: the store is asked for every case, then the runner starts
+        run_sweep(grid, tmp_path, progress=False, log=lambda m: None)
+    assert len(asked) == 2  # the two cells (their render case is a need of theirs)
+    asked.clear()
+    with pytest.raises(_EngineStarted):  # --force: the store is not even asked
+        run_sweep(grid, tmp_path, progress=False, log=lambda m: None, force=True)
+    assert asked == []
     assert mod._parser().parse_args(["--out", "x"]).force is False
     assert mod._parser().parse_args(["--out", "x", "--force"]).force is True

@@ -134,8 +134,10 @@ def _pool_analytic(config: dict, runs: list[dict]) -> dict:
 
 
 def _rendered_case(config: dict, scene_set: str, scene: str, f_number: float) -> dict:
-    """Every preset and every estimator (paper pipeline) on one render, through ``stage_errors``."""
+    """Every preset and every estimator (paper pipeline) on one render: the pipeline run by the one scorer
+    (:func:`experiments.scoring.score_render`), its stages scored by ``stage_errors``."""
     from experiments.evaluation import ground_truth_sigma, input_image
+    from experiments.scoring import score_render
     from experiments.stage_attribution import stage_errors
     from method import DefocusParams
     from scenes import render_scene
@@ -151,7 +153,8 @@ def _rendered_case(config: dict, scene_set: str, scene: str, f_number: float) ->
         t = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            est = stage_errors(image, gt, params=params, valid=valid)["estimated"]
+            result = score_render(render, image, encoding="srgb", params=params).raise_failure().result
+            est = stage_errors(image, gt, params=params, valid=valid, result=result)["estimated"]
         case[kind][name] = {"dense_textured": _slim(est["dense_textured"]), "sparse": _slim(est["sparse"]),
                             "seconds": time.perf_counter() - t}
     return case

@@ -88,7 +88,7 @@ def test_verdict_rules_both_sides():
 def test_markdown_says_which_cells_fail_for_coverage():
     rows = [_row(), _row(cue="region", variant="region: gated", median=None, coverage=0.0)]
     md = lens.lens_markdown(rows, TINY, lens.judge_lens(rows))
-    assert "region cue FAIL (1 cells, 1 of them below the coverage target)" in md
+    assert "region cue FAIL (1 cell, 1 below the coverage target)" in md
     assert "cannot pass by abstaining" in md and "shading" in md
 
 

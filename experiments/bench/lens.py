@@ -337,8 +337,8 @@ def _verdict_word(part) -> str:
         return "n/a"
     if part["pass"]:
         return "pass"
-    low = sum(f["reason"] == "coverage" for f in part["fails"])
-    return f"FAIL ({len(part['fails'])} cells" + (f", {low} of them below the coverage target)" if low else ")")
+    n, low = len(part["fails"]), sum(f["reason"] == "coverage" for f in part["fails"])
+    return f"FAIL ({n} cell{'' if n == 1 else 's'}" + (f", {low} below the coverage target)" if low else ")")
 
 
 def _section(sub, psf, noise, jpeg, sig, head, sep, variants) -> list[str]:

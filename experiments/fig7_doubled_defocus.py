@@ -47,7 +47,11 @@ Notes
    occlusion layers) the same estimated-map (``floor="clamp"``) and oracle rows as
    ``magnified_estimated_R``, ``magnified_oracle_srgb_R`` (the 8-bit sRGB input, blended as R's
    default encoding says: linear light for the scatter) and ``magnified_oracle_linear_R`` (linear
-   radiance in, encoded and quantised like the renders).
+   radiance in, encoded and quantised like the renders). The oracle rows of a renderer that models
+   occlusion are also told what is in front of the focus plane (``in_front``: the f/8 render's depth <
+   its focus distance, :attr:`scenes.render_files.Render.in_front`), so that with the true map and the
+   true depth order their error is the renderer's alone; the estimated rows are not (the method knows
+   no depth).
 7. Cases (:func:`cases`): per scene set × scene a ``stage`` case — both renders and the rows that do not
    depend on the method preset (the naive and filter-aware doubled truth, the unchanged f/8 render, the
    oracle magnifications) — and, needing it, one case per preset of ``config.presets`` (steps 2–3, 5 and
@@ -156,6 +160,8 @@ class _RenderedPair:
         f/4 defocus-only σ is ≤ / > ``config.in_focus_sigma_px``.
     occlusion : ndarray of bool, shape (H, W)
         The f/4 render's occlusion band (within a CoC radius + 1 px of a depth discontinuity).
+    in_front : ndarray of bool, shape (H, W)
+        Pixels nearer than the focus plane (depth < focus distance; both renders share the camera's focus).
     """
 
     image_small: np.ndarray
@@ -168,6 +174,7 @@ class _RenderedPair:
     in_focus: np.ndarray
     defocused: np.ndarray
     occlusion: np.ndarray
+    in_front: np.ndarray
 
     @property
     def regions(self) -> dict:
@@ -199,6 +206,7 @@ def _render_pair(name, config) -> _RenderedPair:
         in_focus=mask & (sigma_d_l <= config.in_focus_sigma_px),
         defocused=mask & (sigma_d_l > config.in_focus_sigma_px),
         occlusion=np.asarray(r_l.occlusion_boundary, dtype=bool),
+        in_front=r_s.in_front,
     )
 
 
@@ -224,15 +232,17 @@ def _score_image(im, pair: _RenderedPair) -> dict:
     return q
 
 
-def _magnify(image, defocus_map, config, renderer, **kwargs):
-    """:func:`method.magnify_defocus` ×k with ``renderer`` and the config's kernel / aperture where it takes one."""
+def _magnify(image, defocus_map, config, renderer, *, in_front=None, **kwargs):
+    """:func:`method.magnify_defocus` ×k with ``renderer`` and the config's kernel / aperture where it takes one,
+    and ``in_front`` (HxW bool, pixels before the focus plane) where the renderer models occlusion."""
     from method import magnify_defocus
     from method.magnify.magnification import MAGNIFICATION_RENDERERS
 
     caps = MAGNIFICATION_RENDERERS.entry(renderer).capabilities
     return magnify_defocus(image, defocus_map, factor=config.factor, renderer=renderer,
                            kernel=config.kernel if "kernel" in caps else None,
-                           aperture=config.aperture if "aperture" in caps else None, **kwargs)
+                           aperture=config.aperture if "aperture" in caps else None,
+                           in_front=in_front if "occlusion" in caps else None, **kwargs)
 
 
 def _suffix(renderer, config) -> str:
@@ -248,8 +258,8 @@ def _preset_independent(pair: _RenderedPair, config) -> tuple[dict, dict, dict]:
     (dict, dict, dict)
         ``truth_rows`` (dense metrics of k·σ_gt(f/8) and the filter-aware doubled truth against
         σ_gt(f/4)), ``images`` (``unchanged_small``, and per renderer ``magnified_oracle_srgb<sx>``,
-        ``magnified_oracle_linear<sx>``, sx = :func:`_suffix`; HxWx3) and their ``quality``
-        (:func:`_score_image`).
+        ``magnified_oracle_linear<sx>``, sx = :func:`_suffix`; HxWx3; a renderer that models occlusion
+        is given ``pair.in_front``) and their ``quality`` (:func:`_score_image`).
     """
     from scenes.render import FILTER_SIGMA_PX
 
@@ -265,9 +275,10 @@ def _preset_independent(pair: _RenderedPair, config) -> tuple[dict, dict, dict]:
         sx = _suffix(renderer, config)
         linear = {} if renderer == config.renderers[0] else {"encoding": "linear"}
         images[f"magnified_oracle_srgb{sx}"] = _magnify(pair.image_small, oracle_map, config, renderer,
-                                                        preprocess=False)
+                                                        preprocess=False, in_front=pair.in_front)
         images[f"magnified_oracle_linear{sx}"] = _encode(_magnify(pair.linear_small, oracle_map, config, renderer,
-                                                                  preprocess=False, **linear), config)
+                                                                  preprocess=False, in_front=pair.in_front,
+                                                                  **linear), config)
     return truth_rows, images, {n: _score_image(im, pair) for n, im in images.items()}
 
 
@@ -347,7 +358,8 @@ def cases(config: Fig7Config) -> tuple:
 
 
 #: Arrays of the stage case the preset cases read (as a :class:`_RenderedPair`).
-_PAIR_FIELDS = ("image_small", "image_large", "gt_small", "gt_large", "mask", "in_focus", "defocused", "occlusion")
+_PAIR_FIELDS = ("image_small", "image_large", "gt_small", "gt_large", "mask", "in_focus", "defocused", "occlusion",
+                "in_front")
 
 
 def compute_case(config: Fig7Config, case, inputs) -> dict:
@@ -358,10 +370,10 @@ def compute_case(config: Fig7Config, case, inputs) -> dict:
     dict
         ``stage``: arrays ``image_small`` / ``image_large`` (the f/8 and f/4 inputs, HxWx3),
         ``gt_small`` / ``gt_large`` (σ_gt, px), ``mask``, ``in_focus``, ``defocused``, ``occlusion``
-        (HxW bool) and the oracle results ``magnified_oracle_srgb<sx>`` / ``magnified_oracle_linear<sx>``
+        ``in_front`` (HxW bool) and the oracle results ``magnified_oracle_srgb<sx>`` / ``magnified_oracle_linear<sx>``
         per renderer (HxWx3); metrics ``maps_vs_gt_large`` (the naive and the filter-aware doubled truth
         against σ_gt(f/4)), ``image_vs_large`` (``unchanged_small`` and the oracle rows), ``gt_range_px``
-        and pixel counts. A preset: arrays ``map_small``, ``map_large``, ``magnified<sx>``,
+        and pixel counts (``in_front_pixels`` among them). A preset: arrays ``map_small``, ``map_large``, ``magnified<sx>``,
         ``magnified_subtract``, ``map_small_subtract``; metrics ``maps_vs_gt_large`` (its maps),
         ``maps_vs_gt_small``, ``k_x_map_small_vs_map_large``, ``image_vs_large`` (its magnified rows),
         ``map_floor_px`` (module Notes).
@@ -376,7 +388,8 @@ def compute_case(config: Fig7Config, case, inputs) -> dict:
                    "gt_range_px": {"small": [float(np.nanmin(gt_s)), float(np.nanmax(gt_s))],
                                    "large": [float(np.nanmin(gt_l)), float(np.nanmax(gt_l))]},
                    "evaluated_pixels": int(pair.mask.sum()), "in_focus_pixels": int(pair.in_focus.sum()),
-                   "defocused_pixels": int(pair.defocused.sum()), "occlusion_pixels": int(pair.occlusion.sum())}
+                   "defocused_pixels": int(pair.defocused.sum()), "occlusion_pixels": int(pair.occlusion.sum()),
+                   "in_front_pixels": int(pair.in_front.sum())}
         arrays = {k: getattr(pair, k) for k in _PAIR_FIELDS}
         arrays.update({k: v.astype(np.float32) for k, v in images.items() if k != "unchanged_small"})
         return {"arrays": arrays, "metrics": metrics, "info": {"upper_bound_note": _UPPER_BOUND_NOTE}}
@@ -394,6 +407,6 @@ _UPPER_BOUND_NOTE = ("oracle map = defocus-only sigma c/4 = sqrt(sigma_gt^2 - si
 
 FIGURE = Figure(
     name="fig7", plot="experiments.plotting.fig7:plot", configs={"quick": QUICK, "full": FULL},
-    cases_fn=cases, case_fn=compute_case, version=6,
+    cases_fn=cases, case_fn=compute_case, version=7,
     title="Doubled defocus: f/8 render magnified x2 vs the real f/4 render (maps and images)",
 )

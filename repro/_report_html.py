@@ -16,13 +16,15 @@ def build_html(infos: dict, table, matrix: dict, *, figures_rel: str, bench: str
                generalisation: dict | None = None, fragile: list | None = None) -> str:
     """A self-contained HTML page (images by relative path); the arguments as in
     :func:`repro._report_markdown.build_markdown`."""
-    from experiments.claims import fragile_claims
+    from experiments.claims import SELF_CHECK_NOTE, fragile_claims
 
     e = html.escape
     fragile = fragile_claims(matrix) if fragile is None else fragile
     rows = _html_claims_table(matrix, fragile) + _html_fragile(fragile)
     details_html = _html_evidence(matrix)
-    legend = " ".join(f"{mark_svg(v)} {e(v)}" for v in MARKS)
+    legend = (" ".join(f"{mark_svg(v)} {e(v)}" for v in MARKS)
+              + f"; a dashed cell ({e(SELF_CHECK_NOTE)}): the harness agreeing with itself (a renderer that implements "
+              "the formula checked, or analytic steps that draw nothing from the scenes they are shown under)")
     sets_html = "<h2>Scene sets</h2><p>The figures are computed on the hand-built scene sets and, where the claim " \
                 "can be computed on it, on the procedural test split; the first image of each figure is its default " \
                 "set, the further images the other sets.</p><ul>" + "".join(
@@ -56,6 +58,7 @@ table {{ border-collapse: collapse; }} td, th {{ border: 1px solid #ccc; padding
 td.reproduced, tr.reproduced td:nth-child(3) {{ color: #1a7f37; }}
 td.not-reproduced, tr.not-reproduced td:nth-child(3) {{ color: #cf222e; }}
 td.partly-reproduced, tr.partly-reproduced td:nth-child(3) {{ color: #9a6700; }}
+td.self-check {{ border: 2px dashed #6e7781; font-style: italic; }}
 svg.mark {{ vertical-align: -3px; }} figure {{ margin: 0 0 1em 0; }} figcaption {{ font-style: italic; }}
 details {{ margin: 0.5em 0; }} summary {{ cursor: pointer; font-weight: bold; }}
 img {{ max-width: 100%; border: 1px solid #eee; }}
@@ -88,10 +91,11 @@ def _html_claims_table(matrix: dict, fragile) -> str:
     texts = cell_texts(matrix, fragile)
 
     def td(c, claim):
-        verdict, note = texts[(c, claim.id)]
+        verdict, note, self_check = texts[(c, claim.id)]
         if verdict is None:
             return f"<td class='same'>{e(note)}</td>"
-        return (f"<td class='{e(verdict.replace(' ', '-'))}'>{mark_svg(verdict)} {e(verdict)}"
+        cls = verdict.replace(" ", "-") + (" self-check" if self_check else "")
+        return (f"<td class='{e(cls)}'>{mark_svg(verdict)} {e(verdict)}"
                 + (f" <small>({e(note)})</small>" if note else "") + "</td>")
 
     body = []
@@ -107,7 +111,7 @@ def _html_claims_table(matrix: dict, fragile) -> str:
 def _html_evidence(matrix: dict) -> str:
     """One collapsible evidence table per column (the first open)."""
     e = html.escape
-    from experiments.claims import cell_sources
+    from experiments.claims import SELF_CHECK_NOTE, cell_sources, is_self_check
 
     sources = cell_sources(matrix)
 
@@ -117,8 +121,10 @@ def _html_evidence(matrix: dict) -> str:
             return (f"<tr class='same'><td>{mark_svg(v.verdict)}</td><td>{e(c.text)}</td><td>=</td>"
                     f"<td>same evaluation as <i>{e(column_label(*src))}</i> (<code>{e(v.evaluation)}</code>)</td></tr>")
         ev = f"<br>Evaluation: <code>{e(v.evaluation)}</code>." if v.evaluation else ""
+        own = (f"<i>{e(SELF_CHECK_NOTE.capitalize())}: {e(c.self_check)}.</i><br>"
+               if is_self_check(c, col[1], v) else "")
         return (f"<tr class='{e(v.verdict.replace(' ', '-'))}'><td>{mark_svg(v.verdict)}</td><td>{e(c.text)}</td>"
-                f"<td><b>{e(v.verdict)}</b></td><td>{e(v.evidence)}{ev}<br><i>Rule: {e(c.rule)}.</i></td></tr>")
+                f"<td><b>{e(v.verdict)}</b></td><td>{own}{e(v.evidence)}{ev}<br><i>Rule: {e(c.rule)}.</i></td></tr>")
 
     details = []
     for j, col in enumerate(matrix):

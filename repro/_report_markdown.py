@@ -4,18 +4,19 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ._report_text import (GENERALISATION_HEADING, KEY_FIGURES, MARKS, PRESET_TABLES_INTRO, cell_texts, column_label,
-                           fig_order, figure_files, mark, md_cell, modes, preset_tables, scene_set_lines)
+from ._report_text import (GENERALISATION_HEADING, KEY_FIGURES, MARKS, PRESET_TABLES_INTRO, SELF_CHECK_LEGEND, cell_texts,
+                           column_label, fig_order, figure_files, mark, md_cell, modes, preset_tables, scene_set_lines)
 
 __all__ = ["build_markdown", "fragile_lines", "md_tables", "md_verdict_cell"]
 
 
 def md_verdict_cell(text) -> str:
-    """A claims-table cell: the mark and verdict (and its note), or the note alone for a repeated cell."""
-    verdict, note = text
+    """A claims-table cell from :func:`repro._report_text.cell_texts`: the mark (bracketed for a harness
+    self-check) and verdict (and its note), or the note alone for a repeated cell."""
+    verdict, note, self_check = text
     if verdict is None:
         return note
-    return f"`{mark(verdict)}` {verdict}" + (f" ({note})" if note else "")
+    return f"`{mark(verdict, self_check=self_check)}` {verdict}" + (f" ({note})" if note else "")
 
 
 def build_markdown(infos: dict, table, matrix: dict, *, figures_rel: str, bench: str | None,
@@ -55,8 +56,8 @@ def build_markdown(infos: dict, table, matrix: dict, *, figures_rel: str, bench:
         "",
         "## The paper's claims, checked",
         "",
-        "Verdict marks: " + ", ".join(f"`{m}` {v}" for v, m in MARKS.items()) + ". One column per method "
-        "preset and scene set; the evidence and the rule of every cell follow.",
+        "Verdict marks: " + ", ".join(f"`{m}` {v}" for v, m in MARKS.items()) + "; " + SELF_CHECK_LEGEND
+        + ". One column per method preset and scene set; the evidence and the rule of every cell follow.",
         "",
     ]
     lines += _claims_table(matrix, fragile)
@@ -126,7 +127,7 @@ def fragile_lines(fragile: list[dict]) -> list[str]:
 
 def _evidence(matrix: dict) -> list[str]:
     """One evidence table per (preset, scene set) column: verdict, evidence and rule of each claim."""
-    from experiments.claims import cell_sources
+    from experiments.claims import SELF_CHECK_NOTE, cell_sources, is_self_check
 
     lines = []
     sources = cell_sources(matrix)
@@ -134,15 +135,20 @@ def _evidence(matrix: dict) -> list[str]:
         lines += [f"### Evidence: {column_label(*col)}", "", "| | claim | verdict | evidence |", "|---|---|---|---|"]
         for claim, v in rows:
             src = sources.get((col, claim.id))
+            own = is_self_check(claim, col[1], v)
+            m = mark(v.verdict, self_check=own)
             if src is not None:
-                lines.append(f"| `{mark(v.verdict)}` | {md_cell(claim.text)} | = | same evaluation as "
+                lines.append(f"| `{m}` | {md_cell(claim.text)} | = | same evaluation as "
                              f"*{column_label(*src)}* (`{v.evaluation}`) |")
                 continue
             ev = f" <br>Evaluation: `{v.evaluation}`." if v.evaluation else ""
-            lines.append(f"| `{mark(v.verdict)}` | {md_cell(claim.text)} | **{v.verdict}** | {md_cell(v.evidence)} "
+            own_text = f"*{SELF_CHECK_NOTE.capitalize()}: {md_cell(claim.self_check)}.* <br>" if own else ""
+            lines.append(f"| `{m}` | {md_cell(claim.text)} | **{v.verdict}** | {own_text}{md_cell(v.evidence)} "
                          f"{ev}<br>*Rule: {md_cell(claim.rule)}.* |")
         counts = {k: sum(1 for _, v in rows if v.verdict == k) for k in MARKS}
-        lines += ["", "Totals: " + ", ".join(f"{k}: {n}" for k, n in counts.items() if n), ""]
+        checks = sum(1 for c, v in rows if is_self_check(c, col[1], v))
+        lines += ["", "Totals: " + ", ".join(f"{k}: {n}" for k, n in counts.items() if n)
+                  + (f" (of these, harness self-checks: {checks})" if checks else ""), ""]
     return lines
 
 

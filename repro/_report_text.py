@@ -6,12 +6,17 @@ from __future__ import annotations
 import html
 from pathlib import Path
 
-__all__ = ["GENERALISATION_HEADING", "KEY_FIGURES", "MARKS", "PRESET_TABLES_INTRO", "cell_texts", "column_label",
+__all__ = ["GENERALISATION_HEADING", "KEY_FIGURES", "MARKS", "PRESET_TABLES_INTRO", "SELF_CHECK_LEGEND", "cell_texts",
+           "column_label",
            "figure_files", "fig_order", "fragile_cells", "mark", "mark_svg", "md_cell", "modes", "preset_tables",
            "scene_set_lines"]
 
 #: Text mark of each verdict (Markdown, README, terminal): ASCII, so it reads in any font.
 MARKS = {"reproduced": "+", "partly reproduced": "~", "not reproduced": "-", "not evaluated": "?", "error": "!"}
+#: The legend of a harness self-check's mark (the verdict's mark in brackets, :func:`mark`).
+SELF_CHECK_LEGEND = ("`(+)`, `(-)`: a harness self-check (the harness agreeing with itself: a renderer that "
+                     "implements the formula checked, or analytic steps that draw nothing from the scenes they are "
+                     "shown under), not held-out evidence for the paper")
 _COLOURS = {"reproduced": "#1a7f37", "partly reproduced": "#9a6700", "not reproduced": "#cf222e",
             "not evaluated": "#6e7781", "error": "#000000"}
 #: Inline SVG path(s) drawn inside a 16x16 circle for each verdict (HTML; no font needed).
@@ -42,9 +47,10 @@ def mark_svg(verdict: str) -> str:
             f"<title>{html.escape(verdict)}</title><circle cx='8' cy='8' r='7' fill='{colour}'/>{glyph}</svg>")
 
 
-def mark(verdict: str) -> str:
-    """The ASCII mark of a verdict."""
-    return MARKS.get(verdict, "!")
+def mark(verdict: str, *, self_check: bool = False) -> str:
+    """The ASCII mark of a verdict; in brackets for a harness self-check (:data:`SELF_CHECK_LEGEND`)."""
+    m = MARKS.get(verdict, "!")
+    return f"({m})" if self_check else m
 
 
 def md_cell(text) -> str:
@@ -63,14 +69,16 @@ def fragile_cells(fragile: list[dict]) -> set:
 
 
 def cell_texts(matrix: dict, fragile: list[dict] = ()) -> dict:
-    """``{(column, claim id): (verdict or None, note)}`` of the claims table.
+    """``{(column, claim id): (verdict or None, note, self check)}`` of the claims table.
 
     A cell with its own evaluation shows its verdict, with the claim's :func:`experiments.claims.scope_note`
     when later cells repeat its evaluation; a cell that repeats an earlier column's evaluation shows no
     verdict and the note ``"="`` (claims that vary with nothing) or ``"= <column>"``; a test-split cell
-    of a fragile claim (:func:`experiments.claims.fragile_claims`) says ``fragile``.
+    of a fragile claim (:func:`experiments.claims.fragile_claims`) says ``fragile``. ``self check`` is
+    True for a harness self-check (:func:`experiments.claims.is_self_check`), whose note then also says
+    :data:`experiments.claims.SELF_CHECK_NOTE`.
     """
-    from experiments.claims import cell_sources, scope_note
+    from experiments.claims import SELF_CHECK_NOTE, cell_sources, is_self_check, scope_note
     from experiments.scene_sets import PROCEDURAL_TEST
 
     sources = cell_sources(matrix)
@@ -80,13 +88,16 @@ def cell_texts(matrix: dict, fragile: list[dict] = ()) -> dict:
     for col, rows in matrix.items():
         for claim, v in rows:
             src = sources.get((col, claim.id))
+            own = is_self_check(claim, col[1], v)
             if src is not None:
-                out[(col, claim.id)] = (None, "=" if not claim.varies_with else f"= {column_label(*src)}")
+                out[(col, claim.id)] = (None, "=" if not claim.varies_with else f"= {column_label(*src)}", own)
                 continue
             note = scope_note(claim, test_split=col[1] == PROCEDURAL_TEST) if (col, claim.id) in repeated else ""
             if col[1] == PROCEDURAL_TEST and any((p, claim.id) in weak for p in (col[0], "paper")):
                 note = "fragile: differs from a hand-built set"
-            out[(col, claim.id)] = (v.verdict, note)
+            if own:
+                note = "; ".join(n for n in (note, SELF_CHECK_NOTE) if n)
+            out[(col, claim.id)] = (v.verdict, note, own)
     return out
 
 

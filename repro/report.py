@@ -46,7 +46,7 @@ from repro._cli import ArgumentParser, CLIError, run_cli
 from ._report_html import build_html
 from ._report_markdown import build_markdown, md_verdict_cell
 from ._report_paths import EVALUATIONS, FIGURES, QUICK, QUICK_EVALUATIONS, QUICK_FIGURES, REPORT
-from ._report_text import MARKS, cell_texts, column_label, mark, md_cell
+from ._report_text import MARKS, SELF_CHECK_LEGEND, cell_texts, column_label, mark, md_cell
 
 __all__ = ["README_END", "README_START", "build_html", "build_markdown", "check_full_mode", "claims_block",
            "figure_modes", "load_figures", "main", "parse_external", "update_readme_block"]
@@ -153,7 +153,8 @@ def claims_block(matrix: dict, *, report_link: str, fragile: list | None = None)
         for c, _ in matrix[columns[0]]:
             rows.append(f"| {md_cell(c.text)} | {c.section} | "
                         + " | ".join(md_verdict_cell(texts[(k, c.id)]) for k in columns) + " |")
-    legend = ("Marks: " + ", ".join(f"`{m}` {v}" for v, m in MARKS.items()) + ". `=`: the same evaluation as "
+    legend = ("Marks: " + ", ".join(f"`{m}` {v}" for v, m in MARKS.items()) + "; " + SELF_CHECK_LEGEND
+              + ". `=`: the same evaluation as "
               "the cell it names (or, alone, as the claim's first cell: a claim independent of presets and scene "
               "sets is computed once). `fragile`: the procedural test split's verdict differs from a hand-built set's.")
     return "\n".join([README_START, "", *rows, "", legend + f" Evidence and numbers for every cell: "
@@ -274,7 +275,7 @@ def main(argv=None) -> int:
         if _committed_target(args.out, readme):
             check_full_mode(infos, table, figures=args.figures)
     from defocus_cache import atomic_write_text
-    from experiments.claims import claim_matrix, claims_document, fragile_claims
+    from experiments.claims import claim_matrix, claims_document, fragile_claims, is_self_check
 
     args.out.mkdir(parents=True, exist_ok=True)
     matrix = claim_matrix(table)
@@ -314,7 +315,9 @@ def main(argv=None) -> int:
         for (p, sset), rows in matrix.items():
             print(f"{column_label(p, sset)}:")
             for c, v in rows:
-                print(f"  [{mark(v.verdict)}] {v.verdict:17s} {c.id}")
+                own = is_self_check(c, sset, v)
+                print(f"  [{mark(v.verdict, self_check=own)}] {v.verdict:17s} {c.id}"
+                      + (" (harness self-check)" if own else ""))
         for f in fragile:
             print(f"fragile: {f['claim']} ({f['preset']}): procedural_test {f['test']['verdict']}, hand-built "
                   + ", ".join(f"{h['scene_set'] or 'hand-built'} {h['verdict']}" for h in f["hand_built"]))

@@ -98,6 +98,15 @@ class Render:
         fields = {f.name for f in dataclasses.fields(ThinLensCamera)}
         return ThinLensCamera(**{k: (tuple(v) if k == "resolution" else v) for k, v in d.items() if k in fields})
 
+    @property
+    def in_front(self) -> np.ndarray:
+        """Pixels nearer than the focus plane, HxW bool: depth z < the camera's focus distance D (metres).
+
+        The pixels a scatter renderer must let spread over what is behind them
+        (:func:`method.magnify.scatter.layer_index`); False where the ray missed (z = inf).
+        """
+        return np.asarray(self.depth, dtype=np.float64) < self.camera.focus_distance_m
+
     def save(self, path) -> Path:
         """Write the EXR and its JSON sidecar (``path`` with suffix ``.json``), atomically.
 

@@ -97,7 +97,14 @@ def test_analytic_verdict_flips_with_the_targets(tiny, monkeypatch):
     v = _judge_with(monkeypatch, measured, TARGET_DENSE_MAE_PX=1e9, TARGET_DENSE_REL_MAE=1e9, TARGET_BIAS_PX=1e9)
     assert v["analytic_pass"] is True and v["overall"] is True
     assert all(b["pass"] in (True, None) for a in v["analytic"] for b in a["bins"])
-    md = markdown.accuracy_markdown({**report, "verdict": v})
+    # the lens section's targets made trivial too (its cues held to no coverage, any error allowed)
+    from experiments.bench import lens
+
+    for key, value in (("edge_min_coverage", 0.0), ("edge_max_rel_bias", 1e9), ("region_max_rel_error", 1e9),
+                       ("region_min_coverage", 0.0), ("dense_min_coverage", 0.0), ("dense_mae_px", 1e9),
+                       ("dense_rel_mae", 1e9)):
+        monkeypatch.setitem(lens.LENS_TARGETS, key, value)
+    md = markdown.accuracy_markdown({**report, "verdict": v, "lens_verdict": lens.judge_lens(report["lens"])})
     assert "**Overall: pass**" in md and "FAIL" not in md
     # impossible MAE target (bias target still trivial): every targeted bin fails on its MAE
     v = _judge_with(monkeypatch, measured, TARGET_DENSE_MAE_PX=-1.0, TARGET_DENSE_REL_MAE=-1.0)
@@ -200,6 +207,34 @@ def test_rendered_and_speed_verdicts_both_sides(monkeypatch):
     assert targets.judge_accuracy(slow)["speed"]["pass"] is False
     monkeypatch.setattr(targets, "TARGET_SPEED_RATIO", 10.0)
     assert targets.judge_accuracy(slow)["speed"]["pass"] is True
+
+
+def test_rendered_verdicts_cannot_pass_by_abstaining(monkeypatch):
+    monkeypatch.setattr(targets, "TARGET_RENDER_DENSE_RATIO", 0.5)
+    assert targets.TARGET_MIN_COVERAGE == 0.5 and targets.targets()["min_coverage"] == 0.5
+    good = {"rendered": {"cases": [_case("portrait", 8.0, 1.0, 0.4, 0.3, 0.5, 0.6)]}}
+    v = targets.judge_accuracy(good)
+    assert v["rendered"]["sparse"]["pass"] is True and v["rendered"]["sparse"]["coverage_ok"] is True
+    # the robust edge measures on fewer than the target share of edge pixels: fails, though more accurate
+    sparse = good["rendered"]["cases"][0]["presets"]["robust"]["sparse"]
+    for cov, ok in ((0.5, True), (0.49, False), (0.0, False)):
+        low = copy.deepcopy(good)
+        low["rendered"]["cases"][0]["presets"]["robust"]["sparse"].update(coverage=cov)
+        v = targets.judge_accuracy(low)
+        assert v["rendered"]["sparse"]["pass"] is ok and v["rendered"]["pass"] is ok, cov
+    # enough coverage but worse than the best estimator still fails
+    worse = copy.deepcopy(good)
+    worse["rendered"]["cases"][0]["presets"]["robust"]["sparse"].update(mae=0.6, coverage=sparse["coverage"])
+    assert targets.judge_accuracy(worse)["rendered"]["sparse"]["pass"] is False
+    # no robust edge measure at all, or no robust dense map where the paper has one: fail, not "n/a"
+    none = copy.deepcopy(good)
+    none["rendered"]["cases"][0]["presets"]["robust"]["sparse"].update(n=0, mae=None, coverage=0.0)
+    assert targets.judge_accuracy(none)["rendered"]["sparse"]["pass"] is False
+    none = copy.deepcopy(good)
+    none["rendered"]["cases"][0]["presets"]["robust"]["dense_textured"].update(n=0, mae=None)
+    v = targets.judge_accuracy(none)
+    assert v["rendered"]["cases"][0]["pass"] is False and v["rendered"]["cases"][0]["ratio"] is None
+    assert v["rendered"]["sets"]["tabletop_stress"]["mean"] is None and v["rendered"]["pass"] is False
 
 
 def test_step_mosaic_geometry():

@@ -197,13 +197,16 @@ def test_report_cells_say_all_presets_and_scene_sets_then_equals():
     texts = cell_texts(matrix)
     eq5 = [texts[(c, "eq5")] for c in COLUMNS]
     # Eq. (5) is computed once for the hand-built sets (the test split would be its own evaluation)
-    assert eq5[0] == ("reproduced", "all presets and hand-built scene sets") and eq5[1:] == [(None, "=")] * 3
+    # (Eq. (5) against a thin-lens renderer is a harness self-check: its note says so)
+    assert eq5[0] == ("reproduced", "all presets and hand-built scene sets; harness self-check, not held-out evidence",
+                      True) and eq5[1:] == [(None, "=", True)] * 3
     refocus = [texts[(c, "refocus")][0] for c in COLUMNS]
     assert refocus == ["reproduced", "not reproduced", "partly reproduced", "reproduced"]
-    assert all(texts[(c, "refocus")][1] == "" for c in COLUMNS)
+    assert all(texts[(c, "refocus")][1:] == ("", False) for c in COLUMNS)
     block = claims_block(matrix, report_link="r.md")
     row = [line for line in block.splitlines() if line.startswith("| " + BY_ID["eq5"].text.replace("|", "\\|"))][0]
-    assert row.endswith("| `+` reproduced (all presets and hand-built scene sets) | = | = | = |")
+    assert row.endswith("| `(+)` reproduced (all presets and hand-built scene sets; harness self-check, not held-out "
+                        "evidence) | = | = | = |")
     md = build_markdown({"fig8": {"mode": "quick"}}, Results(table), matrix, figures_rel="figures", bench=None)
     assert "same evaluation as *paper preset, paper_cameras*" in md
     assert "Evaluation: `fig8/robust/tabletop_stress/quick-0000abcd`" in md
@@ -211,6 +214,76 @@ def test_report_cells_say_all_presets_and_scene_sets_then_equals():
     assert evaluation_problems(doc) == []
     assert doc[1]["verdicts"]["eq5"]["same_as"] == {"preset": "paper", "scene_set": "paper_cameras"}
     assert doc[1]["verdicts"]["refocus"]["same_as"] is None
+
+
+# --- harness self-checks are labelled, held-out evidence is not ---------------------------------------------
+def _self_check_table():
+    """Analytic steps on the hand-built side (reproduced) and on the test split (not reproduced), Eq. (5)."""
+    hand = fig4()
+    test = [dict(r, scene_set="procedural_test") for r in fig4(clean=0.5, curved=0.5, noisy=0.9)
+            if str(r["variant"]).startswith("analytic")]
+    return hand + test + fig10() + fig10_procedural(0.01) + fig8()
+
+
+def test_the_self_check_declarations():
+    from experiments.claims import is_self_check
+
+    assert {c.id for c in CLAIMS if c.self_check} == {"eq5", "eq6", "model_fit_accuracy"}
+    assert is_self_check(BY_ID["eq5"], "paper_cameras") and is_self_check(BY_ID["eq5"], "procedural_test")
+    assert is_self_check(BY_ID["eq6"], None)
+    # the analytic steps are the claim's own evidence on their own, a self-check only as "held-out" evidence
+    assert not is_self_check(BY_ID["model_fit_accuracy"], "paper_cameras")
+    assert is_self_check(BY_ID["model_fit_accuracy"], "procedural_test")
+    assert not any(is_self_check(BY_ID[c], s) for c in ("refocus", "dense_map", "magnified_close")
+                   for s in ("paper_cameras", "procedural_test"))
+    make = type(CLAIMS[0])
+    with pytest.raises(ValueError, match="self_check_scope"):
+        make("x", "s", "fig10", "t", "r", lambda m: None, self_check="why", self_check_scope="sometimes")
+    with pytest.raises(ValueError, match="not computed on the test split"):
+        make("x", "s", "fig10", "t", "r", lambda m: None, self_check="why", self_check_scope="test_split")
+
+
+def test_a_self_check_is_labelled_in_every_output_and_a_real_claim_is_not():
+    from experiments.claims import SELF_CHECK_NOTE
+    from experiments.results_query import Results
+    from repro._report_html import build_html
+    from repro.report import build_markdown, claims_block
+
+    table = _self_check_table()
+    matrix = claim_matrix(table)
+    assert list(matrix) == [("paper", "paper_cameras"), ("paper", "procedural_test")]
+    doc = {e["scene_set"]: e["verdicts"] for e in claims_document(matrix)}
+    assert doc["procedural_test"]["model_fit_accuracy"]["self_check"] == BY_ID["model_fit_accuracy"].self_check
+    assert doc["paper_cameras"]["model_fit_accuracy"]["self_check"] is None
+    assert doc["paper_cameras"]["eq5"]["self_check"] and doc["procedural_test"]["eq5"]["self_check"]
+    assert doc["paper_cameras"]["refocus"]["self_check"] is None
+    assert doc["paper_cameras"]["eq6"]["self_check"] is None  # no rows of fig2: not evaluated, no evidence to label
+    block = claims_block(matrix, report_link="r.md")
+    row = {c: [line for line in block.splitlines() if line.startswith("| " + BY_ID[c].text.replace("|", "\\|"))][0]
+           for c in ("model_fit_accuracy", "refocus", "eq5")}
+    # the test split's cell of the analytic steps: bracketed mark and the note; the hand-built one: neither
+    assert row["model_fit_accuracy"].endswith(f"| `+` reproduced | `(-)` not reproduced ({SELF_CHECK_NOTE}) |")
+    assert row["refocus"].endswith("| `+` reproduced | `?` not evaluated |") and "self-check" not in row["refocus"]
+    assert f"`(+)` reproduced ({SELF_CHECK_NOTE})" in row["eq5"]
+    assert "`(+)`, `(-)`: a harness self-check" in block
+    md = build_markdown({"fig4": {"mode": "quick"}}, Results(table), matrix, figures_rel="figures", bench=None)
+    assert md.count("*Harness self-check, not held-out evidence: ") == 3  # eq5 twice, model fit on the test split
+    assert "(of these, harness self-checks: 2)" in md and "(of these, harness self-checks: 1)" in md
+    page = build_html({"fig4": {"mode": "quick"}}, Results(table), matrix, figures_rel="figures", bench=None)
+    assert page.count("self-check'>") == 3 and "not-reproduced self-check" in page
+
+
+def test_a_self_check_is_never_fragile_and_the_same_disagreement_on_a_real_claim_is(monkeypatch):
+    import dataclasses
+
+    from experiments.claims import matrix as matrix_module
+
+    table = _self_check_table()
+    assert [f["claim"] for f in fragile_claims(claim_matrix(table))] == []  # the test split differs, but only
+    # as a self-check; declared as held-out evidence, the same disagreement is fragile
+    real = tuple(dataclasses.replace(c, self_check="") if c.id == "model_fit_accuracy" else c for c in CLAIMS)
+    monkeypatch.setattr(matrix_module, "CLAIMS", real)
+    assert [f["claim"] for f in fragile_claims(claim_matrix(table))] == ["model_fit_accuracy"]
 
 
 # --- the quick table ---------------------------------------------------------------------------------------

@@ -316,6 +316,78 @@ def test_fig7_doubled_map_vs_f4_map_is_measured_on_the_maps(fig7):
         assert o.metrics["k_x_map_small_vs_map_large/mae"] == pytest.approx(float(d.mean()), rel=1e-4), o.case.label
 
 
+def test_render_in_front_is_depth_before_the_focus_plane():
+    """Render.in_front = depth < the camera's focus distance (from the sidecar), False where the ray missed;
+    a procedural scene has pixels on both sides of the focus plane."""
+    from scenes import render_scene
+
+    r = render_scene("procedural_100000", preset="small", f_number=8.0, seed=0, progress=False)
+    depth = np.asarray(r.depth, dtype=np.float64)
+    focus = float(r.metadata["camera"]["focus_distance_m"])
+    expected = np.isfinite(depth) & (depth < focus)
+    np.testing.assert_array_equal(r.in_front, expected)
+    assert r.in_front.dtype == bool and 0 < r.in_front.mean() < 1
+
+
+def test_fig7_oracle_rows_are_told_what_is_in_front(monkeypatch):
+    """The oracle magnifications of a renderer that models occlusion receive the pair's in_front mask (both
+    the sRGB and the linear oracle); the gather, which has no occlusion, receives none."""
+    from experiments import fig7_doubled_defocus as f7
+
+    calls = []
+
+    def spy(image, defocus_map, *, renderer, in_front=None, **kwargs):
+        calls.append((renderer, in_front))
+        return np.array(image, dtype=np.float64)
+
+    monkeypatch.setattr("method.magnify_defocus", spy)
+    shape = (12, 16)
+    rng = np.random.default_rng(0)
+    front = np.zeros(shape, bool)
+    front[:4] = True
+    gt = np.full(shape, 1.0)
+    flags = np.ones(shape, bool)
+    pair = f7._RenderedPair(image_small=rng.random((*shape, 3)), image_large=rng.random((*shape, 3)),
+                            linear_small=rng.random((*shape, 3)), gt_small=gt, gt_large=2 * gt,
+                            defocus_small=np.sqrt(gt**2 - 1 / 12), mask=flags, in_focus=~flags, defocused=flags,
+                            occlusion=~flags, in_front=front)
+    f7._preset_independent(pair, f7.QUICK)
+    assert [r for r, _ in calls] == ["gather", "gather", "scatter", "scatter"]
+    assert [f is None for _, f in calls[:2]] == [True, True]
+    for _, f in calls[2:]:
+        np.testing.assert_array_equal(f, front)
+
+
+def test_fig7_oracle_scatter_with_in_front_is_no_worse(fig7):
+    """On every quick scene the stored in_front mask is the f/8 render's depth < focus distance, and the
+    scatter oracle told what is in front is at least as close to the f/4 render as the same oracle without
+    it (measured on the quick scenes: +0.0 to +0.46 dB overall, up to +0.9 dB in the occlusion band; the
+    procedural scenes, 20–24 % of their pixels in front, gain +0.16 / +0.46 dB)."""
+    from experiments import fig7_doubled_defocus as f7
+    from scenes import render_scene
+    from scenes.render import FILTER_SIGMA_PX
+
+    cfg = fig7.config
+    for stage in fig7.find(variant="stage"):
+        a = stage.arrays()
+        r = render_scene(stage.case.scene, preset=cfg.preset, f_number=cfg.f_number_small_aperture,
+                         seed=cfg.render_seed, progress=False)
+        front = a["in_front"].astype(bool)
+        np.testing.assert_array_equal(front, np.asarray(r.depth, np.float64) < r.camera.focus_distance_m)
+        assert stage.nested()["in_front_pixels"] == int(front.sum())
+        pair = f7._RenderedPair(linear_small=None, defocus_small=None, **{k: a[k] for k in f7._PAIR_FIELDS})
+        gt = a["gt_small"].astype(np.float64)
+        oracle = np.where(np.isfinite(gt), np.sqrt(np.maximum(gt**2 - FILTER_SIGMA_PX**2, 0.0)), 0.0)
+        with_, without = (f7._score_image(f7._magnify(a["image_small"], oracle, cfg, "scatter", preprocess=False,
+                                                      in_front=f), pair) for f in (front, None))
+        assert with_["psnr_db"] >= without["psnr_db"] - 1e-6, (stage.case.label, with_["psnr_db"], without["psnr_db"])
+        if stage.case.scene_set == "procedural_test":  # an object well in front of the focus in every layout
+            assert with_["psnr_db"] > without["psnr_db"] + 0.1, (stage.case.label, with_, without)
+        # the stored row is the one told what is in front
+        stored = stage.nested()["image_vs_large"]["magnified_oracle_srgb_scatter"]["psnr_db"]
+        assert stored == pytest.approx(with_["psnr_db"], abs=1e-3), stage.case.label
+
+
 def test_fig7_golden(fig7, goldens):
     """Every watched row of the quick fig7 (all presets and scene sets) vs tests/golden/fig7_quick.json."""
     from tests.golden import golden_values

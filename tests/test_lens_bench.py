@@ -42,23 +42,54 @@ def _row(**kw):
 def test_verdict_rules_both_sides():
     good = [_row(), _row(cue="sparse", family="step_edges", median=0.05, coverage=0.95),
             _row(cue="region", variant="region: gated", median=0.05, coverage=0.5),
-            _row(cue="region", variant="region: gated", family="shading", median=3.0, coverage=0.01),
+            # no blur information in smooth shading: abstaining there is right, not judged
+            _row(cue="region", variant="region: gated", family="shading", median=None, coverage=0.0),
             _row(cue="region", variant="region: other", median=3.0, coverage=0.5)]  # not the judged setting
     v = lens.judge_lens(good)
     assert v["pass"] is True and v["edges"]["pass"] and v["region"]["pass"] and v["dense"]["pass"]
-    assert v["region"]["no_measure"] == {"shading": [2.0]}  # too few measures: "no measure", not a failure
+    assert v["region"]["exempt"] == list(lens.REGION_NO_INFORMATION) and "shading" in v["region"]["exempt"]
     # each rule fails on its own
-    for bad, part in ((_row(mae=0.31), "dense"),  # σ ≤ 4: 0.3 px
-                      (_row(sigma=6.0, sigma_gt=6.0, mae=0.61), "dense"),  # σ > 4: 10 % of σ
-                      (_row(cue="sparse", family="step_edges", coverage=0.89), "edges"),
-                      (_row(cue="sparse", family="step_edges", median=0.11), "edges"),
-                      (_row(cue="region", variant="region: gated", median=-0.11, coverage=0.5), "region")):
+    for bad, part, reason in (
+            (_row(mae=0.31), "dense", "error"),  # σ ≤ 4: 0.3 px
+            (_row(sigma=6.0, sigma_gt=6.0, mae=0.61), "dense", "error"),  # σ > 4: 10 % of σ
+            (_row(coverage=0.4, mae=0.1), "dense", "coverage"),  # accurate, but a map with holes
+            (_row(cue="sparse", family="step_edges", coverage=0.89), "edges", "coverage"),
+            (_row(cue="sparse", family="step_edges", median=0.11), "edges", "error"),
+            (_row(cue="region", variant="region: gated", median=-0.11, coverage=0.5), "region", "error"),
+            # a family with blur information where the cue abstains fails, however accurate its few measures
+            (_row(cue="region", variant="region: gated", family="photo", median=0.0, coverage=0.3), "region",
+             "coverage"),
+            (_row(cue="region", variant="region: gated", family="photo", median=None, coverage=0.0), "region",
+             "coverage"),
+            # where there is no information, a measure it does give is still judged
+            (_row(cue="region", variant="region: gated", family="shading", median=3.0, coverage=0.06), "region",
+             "error")):
         v = lens.judge_lens(good + [bad])
         assert v[part]["pass"] is False and v["pass"] is False, bad
-        assert len(v[part]["fails"]) == 1
+        assert [f["reason"] for f in v[part]["fails"]] == [reason], bad
+    # the coverage target on its boundary: measuring on exactly the target share and accurate passes; just
+    # below it fails; enough coverage and a wrong median fails
+    at = lens.LENS_TARGETS["region_min_coverage"]
+    assert at == lens.TARGET_MIN_COVERAGE == 0.5
+    ok = _row(cue="region", variant="region: gated", family="photo", median=0.02, coverage=at)
+    assert lens.judge_lens(good + [ok])["pass"] is True
+    assert lens.judge_lens(good + [{**ok, "coverage": at - 0.01}])["region"]["pass"] is False
+    assert lens.judge_lens(good + [{**ok, "median": 0.2}])["region"]["pass"] is False
+    # only abstaining region rows: the region part is judged (and fails), not "n/a"
+    v = lens.judge_lens([_row(cue="region", variant="region: gated", median=None, coverage=0.0)])
+    assert v["region"]["pass"] is False and v["pass"] is False
     # outside σ 1–8 and at other noise levels the dense target does not apply
     assert lens.judge_lens(good + [_row(sigma=0.5, sigma_gt=0.5, mae=2.0), _row(noise="iso800", mae=2.0)])["pass"]
+    # a tile with no textured pixel is not a dense cell to judge
+    assert lens.judge_lens(good + [_row(n=0, mae=None, coverage=None)])["pass"] is True
     assert lens.judge_lens([])["pass"] is None
+
+
+def test_markdown_says_which_cells_fail_for_coverage():
+    rows = [_row(), _row(cue="region", variant="region: gated", median=None, coverage=0.0)]
+    md = lens.lens_markdown(rows, TINY, lens.judge_lens(rows))
+    assert "region cue FAIL (1 cell, 1 below the coverage target)" in md
+    assert "cannot pass by abstaining" in md and "shading" in md
 
 
 def test_markdown_names_every_section(rows):

@@ -11,15 +11,18 @@ rule, holds), ``"not reproduced"``, ``"not evaluated"`` (the rows or a number ar
 ``"error"`` (the check raised anything else: a failure of the harness, shown as such, never hidden as
 missing data). The matrix of cells, one per method preset × scene set, the evaluation each cell rests
 on and the claims that are fragile (a different verdict on the procedural test split than on a
-hand-built set) are in :mod:`.matrix`.
+hand-built set) are in :mod:`.matrix`. A claim whose evidence is a check of the harness against itself
+(:attr:`Claim.self_check`: Eq. (5) and Eq. (6) against a renderer that implements them; analytic steps
+on the test split) is labelled as such in every cell it concerns and is never a fragile verdict.
 """
 
 from .catalogue import CLAIMS
-from .core import ALL_PRESETS, ALL_SCENE_SETS, AXES, DEFAULT_PRESET, VERDICTS, Claim, Verdict
+from .core import ALL_PRESETS, ALL_SCENE_SETS, AXES, DEFAULT_PRESET, SELF_CHECK_NOTE, VERDICTS, Claim, Verdict
 from .findings import mismatch_findings
 from .matrix import (JUDGED, cell_rows, cell_sources, claim_matrix, claims_document, columns, evaluate_claims,
-                     evaluation_id, evaluation_problems, fragile_claims, scope_note)
+                     evaluation_id, evaluation_problems, fragile_claims, is_self_check, scope_note)
 
-__all__ = ["ALL_PRESETS", "ALL_SCENE_SETS", "AXES", "CLAIMS", "DEFAULT_PRESET", "JUDGED", "VERDICTS", "Claim",
-           "Verdict", "cell_rows", "cell_sources", "claim_matrix", "claims_document", "columns", "evaluate_claims",
-           "evaluation_id", "evaluation_problems", "fragile_claims", "mismatch_findings", "scope_note"]
+__all__ = ["ALL_PRESETS", "ALL_SCENE_SETS", "AXES", "CLAIMS", "DEFAULT_PRESET", "JUDGED", "SELF_CHECK_NOTE", "VERDICTS",
+           "Claim", "Verdict", "cell_rows", "cell_sources", "claim_matrix", "claims_document", "columns",
+           "evaluate_claims", "evaluation_id", "evaluation_problems", "fragile_claims", "is_self_check",
+           "mismatch_findings", "scope_note"]

@@ -8,7 +8,8 @@ from collections.abc import Callable
 
 from ..results_query import MissingData
 
-__all__ = ["ALL_PRESETS", "ALL_SCENE_SETS", "AXES", "DEFAULT_PRESET", "VERDICTS", "Claim", "MissingData", "Verdict"]
+__all__ = ["ALL_PRESETS", "ALL_SCENE_SETS", "AXES", "DEFAULT_PRESET", "SELF_CHECK_NOTE", "SELF_CHECK_SCOPES", "VERDICTS",
+           "Claim", "MissingData", "Verdict"]
 
 VERDICTS = ("reproduced", "partly reproduced", "not reproduced", "not evaluated", "error")
 
@@ -19,6 +20,11 @@ AXES = ("preset", "scene_set")
 #: Evaluation-id parts along an axis the claim does not vary with.
 ALL_PRESETS = "all-presets"
 ALL_SCENE_SETS = "all-scene-sets"
+#: Where a claim's evidence is a harness self-check (:attr:`Claim.self_check_scope`): in every cell, or
+#: on the procedural test split only.
+SELF_CHECK_SCOPES = ("everywhere", "test_split")
+#: How the report labels a cell whose evidence is a harness self-check.
+SELF_CHECK_NOTE = "harness self-check, not held-out evidence"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,12 +62,26 @@ class Claim:
     test_split: bool = False
     # whether the claim is also computed on the procedural test split (scene set "procedural_test"):
     # then that column is its own evaluation even when the claim does not vary with the scene set.
+    self_check: str = ""
+    # non-empty: why the claim's evidence (in the cells of ``self_check_scope``) is a check of the
+    # harness against itself — it agrees by construction (a renderer that implements the formula
+    # checked) or draws nothing from the scenes it is shown under — rather than held-out evidence for
+    # the paper. The verdict is still computed (a failing self-check is a harness bug); the report
+    # labels those cells (SELF_CHECK_NOTE) and they never count as a fragile verdict.
+    self_check_scope: str = "everywhere"
+    # one of SELF_CHECK_SCOPES: "everywhere" or "test_split" (the procedural test split's cells only).
 
     def __post_init__(self):
         bad = [a for a in self.varies_with if a not in AXES]
         if bad or len(set(self.varies_with)) != len(self.varies_with):
             raise ValueError(f"claim {self.id!r}: varies_with={self.varies_with!r} is invalid; allowed: "
                              f"distinct names of {AXES}")
+        if self.self_check_scope not in SELF_CHECK_SCOPES:
+            raise ValueError(f"claim {self.id!r}: self_check_scope={self.self_check_scope!r} is invalid; allowed: "
+                             f"{', '.join(SELF_CHECK_SCOPES)}")
+        if self.self_check_scope == "test_split" and self.self_check and not self.test_split:
+            raise ValueError(f"claim {self.id!r}: self_check_scope='test_split' is invalid for a claim not computed "
+                             "on the test split; allowed: test_split=True, or self_check_scope='everywhere'")
 
 
 # --- thresholds of the rules (named so the rule texts, the tests and the report agree) --------------

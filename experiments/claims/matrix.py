@@ -25,7 +25,7 @@ from .catalogue import CLAIMS
 from .core import ALL_PRESETS, ALL_SCENE_SETS, DEFAULT_PRESET, VERDICTS, Claim, Verdict
 
 __all__ = ["JUDGED", "cell_rows", "cell_sources", "claim_matrix", "claims_document", "columns", "evaluate_claims",
-           "evaluation_id", "evaluation_problems", "fragile_claims", "scope_note"]
+           "evaluation_id", "evaluation_problems", "fragile_claims", "is_self_check", "scope_note"]
 
 #: Verdicts that judge the claim (the others say it could not be judged).
 JUDGED = ("reproduced", "partly reproduced", "not reproduced")
@@ -55,6 +55,15 @@ def columns(table) -> list[tuple[str, str | None]]:
     hand = [s for s in order if s in present] + sorted(s for s in present if s and s not in order and s != test)
     sets = (hand or [None]) + ([test] if test in present else [])
     return [(p, s) for s in sets for p in presets]
+
+
+def is_self_check(claim: Claim, scene_set: str | None, verdict: Verdict | None = None) -> bool:
+    """Whether ``claim``'s cell on ``scene_set`` is a harness self-check (:attr:`Claim.self_check`), not
+    held-out evidence: every cell of a claim whose scope is "everywhere", the test split's cells of one
+    whose scope is "test_split"; never a cell whose ``verdict`` is "not evaluated" (no evidence at all)."""
+    if not claim.self_check or (verdict is not None and verdict.verdict == "not evaluated"):
+        return False
+    return claim.self_check_scope == "everywhere" or scene_set == _test_split()
 
 
 def cell_rows(table, claim: Claim, *, preset: str, scene_set: str | None):
@@ -164,8 +173,9 @@ def cell_sources(matrix) -> dict:
 
 
 def claims_document(matrix) -> list[dict]:
-    """The ``"matrix"`` of ``claims.json``: per column and claim the verdict, evidence, evaluation id, axes
-    and the column whose cell it repeats (``same_as``)."""
+    """The ``"matrix"`` of ``claims.json``: per column and claim the verdict, evidence, evaluation id, axes,
+    ``self_check`` (why the cell is a harness self-check, or None: :func:`is_self_check`) and the column
+    whose cell it repeats (``same_as``)."""
     sources = cell_sources(matrix)
     doc = []
     for (p, sset), rows in matrix.items():
@@ -174,6 +184,7 @@ def claims_document(matrix) -> list[dict]:
             src = sources[((p, sset), c.id)]
             cells[c.id] = {"verdict": v.verdict, "evidence": v.evidence, "evaluation": v.evaluation,
                            "varies_with": list(c.varies_with), "test_split": c.test_split,
+                           "self_check": c.self_check if is_self_check(c, sset, v) else None,
                            "same_as": None if src is None else {"preset": src[0], "scene_set": src[1]}}
         doc.append({"preset": p, "scene_set": sset, "verdicts": cells})
     return doc
@@ -246,12 +257,13 @@ def fragile_claims(matrix) -> list[dict]:
     list of dict
         Per claim and preset: ``claim`` (id), ``preset``, ``test`` (``verdict``, ``evidence``,
         ``evaluation`` on the test split) and ``hand_built`` (the same per hand-built scene set, one
-        entry per distinct evaluation). Only judged verdicts (not "not evaluated" / "error") count.
+        entry per distinct evaluation). Only judged verdicts (not "not evaluated" / "error") count, and
+        no harness self-check (:func:`is_self_check`): it says nothing about unseen scenes.
     """
     test = _test_split()
     out = []
     for claim in CLAIMS:
-        if not claim.test_split:
+        if not claim.test_split or is_self_check(claim, test):
             continue
         presets = list(dict.fromkeys(p for p, _ in matrix))
         for p in presets if "preset" in claim.varies_with else presets[:1]:

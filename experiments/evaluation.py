@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from method.luma import ENCODINGS
+
 from .metrics import (
     dense_metrics,
     in_focus_outlier_fraction,
@@ -54,8 +56,8 @@ __all__ = [
     "validate_estimators",
 ]
 
-#: Input encodings: ``"srgb"`` as a camera stores it, ``"linear"`` the renderer's radiance.
-ENCODINGS = ("srgb", "linear")
+# ENCODINGS (re-exported): the input encodings, method.luma's registry ("srgb" as a camera stores
+# it, "linear" the renderer's radiance); scenes.display.ENCODINGS names the same (a test checks).
 #: Folder under the project cache holding per-case evaluation results.
 EVAL_CACHE_SUBDIR = "evaluate"
 #: Version of :func:`evaluate_case`'s output layout; part of its cache key.
@@ -109,8 +111,7 @@ def input_image(render, *, encoding: str = "srgb", quantize_bits: int | None = 8
     -------
     ndarray, HxWx3, float64 in [0, 1]
     """
-    if encoding not in ENCODINGS:
-        raise ValueError(f"encoding={encoding!r} is invalid; allowed: {list(ENCODINGS)}")
+    ENCODINGS.check(encoding, what="encoding")
     return render.image(encoding=encoding, quantize_bits=quantize_bits, noise=noise, rng=rng)
 
 
@@ -135,39 +136,49 @@ def ground_truth_sigma(render, *, convention: str = "line_spread") -> np.ndarray
     return coc_to_sigma(coc, convention=convention, filter_sigma_px=FILTER_SIGMA_PX)
 
 
-def sparse_estimates(image, estimators, *, params=None) -> tuple[np.ndarray, dict]:
+def sparse_estimates(image, estimators, *, params=None, encoding: str = "srgb") -> tuple[np.ndarray, dict]:
     """Edge pixels (Sec. 3.1) and each estimator's σ there (Sec. 3.2), the edges shared by all.
 
     Parameters
     ----------
     image : ndarray, HxW or HxWx3, float in [0, 1]
+        The input, its values in ``encoding``.
     estimators : sequence of str
         Keys of :data:`method.BLUR_ESTIMATORS`.
-    params : DefocusParams, optional
-        Detector/estimator parameters (paper defaults).
+    params : DefocusParams, optional, keyword-only
+        Detector/estimator parameters (paper defaults): ``measure_light``, ``edge_detector`` and
+        every detector and estimator option apply as in :func:`method.estimate_defocus_map`.
+    encoding : str, keyword-only
+        What the image's values are, key of :data:`method.luma.ENCODINGS` ("srgb" or "linear").
 
     Returns
     -------
     edges : ndarray of bool, HxW
     sigma : dict of str to ndarray, HxW float64
-        σ in px at edge pixels, NaN elsewhere and where the estimator failed.
+        σ in px at edge pixels, NaN elsewhere and where the estimator failed; for each estimator
+        equal to ``estimate_defocus_map(image, params.replace(estimator=name), encoding=encoding)
+        .sparse_sigma``.
 
     Notes
     -----
-    The same stages, in the same order, as :func:`method.estimate_defocus_map` (luminance →
-    :func:`method.detect_edges` → :func:`method.estimate_blur`), but the edge map is computed once.
+    The pipeline's own stages, on the same input: :func:`method.luma.measure_input` (the luminance
+    in ``params.measure_light``) → :func:`method.pipeline.edges_stage` (once, keeping the detector's
+    2nd-derivative responses when an estimator samples them again) →
+    :func:`method.pipeline.blur_stage` with ``params.replace(estimator=name)`` per estimator.
     """
-    from method import DefocusParams, detect_edges, estimate_blur, luminance
+    from method import BLUR_ESTIMATORS, DefocusParams
+    from method.luma import measure_input
+    from method.pipeline import blur_stage, edges_stage
 
     params = DefocusParams() if params is None else params
     names = validate_estimators(estimators)
-    gray = luminance(np.asarray(image, dtype=np.float64))
-    em = detect_edges(gray, sigma1_scales=params.sigma1_scales, sigma2_scales=params.sigma2_scales,
-                      noise_std=params.noise_std, false_positive_rate=params.false_positive_rate)
+    seen = measure_input(image, params, encoding=encoding).seen
+    reuse = [n for n in names if "detector_hessians" in BLUR_ESTIMATORS.entry(n).capabilities]
+    em = edges_stage(seen, params=params.replace(estimator=reuse[0]) if reuse else params)
     out = {}
     for name in names:
-        s = np.asarray(estimate_blur(gray, em, params=params, method=name), dtype=np.float64)
-        out[name] = np.where(em.edges, s, np.nan)
+        sparse, _, _, _ = blur_stage(seen, em, params=params.replace(estimator=name))
+        out[name] = sparse
     return em.edges.copy(), out
 
 
@@ -344,8 +355,7 @@ def evaluate_case(estimator: str | None, scene: str, *, f_number: float = 8.0, p
     if estimator is None:
         estimator = params.estimator
     validate_estimators([estimator])
-    if encoding not in ENCODINGS:
-        raise ValueError(f"encoding={encoding!r} is invalid; allowed: {list(ENCODINGS)}")
+    ENCODINGS.check(encoding, what="encoding")
     from scenes.display import check_noise_level
 
     check_noise_level(noise)
@@ -363,10 +373,11 @@ def evaluate_case(estimator: str | None, scene: str, *, f_number: float = 8.0, p
         image = input_image(render, encoding=encoding, quantize_bits=quantize_bits, noise=noise, rng=int(noise_seed))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", NoEdgesWarning)
-            result = estimate_defocus_map(image, params)
+            result = estimate_defocus_map(image, params, encoding=encoding)
         metrics = evaluate_result(result, render, image=image, convention=convention)
         metrics["stages"] = stage_errors(image, ground_truth_sigma(render, convention=convention), params=params,
-                                         valid=~np.asarray(render.occlusion_boundary, dtype=bool), result=result)
+                                         valid=~np.asarray(render.occlusion_boundary, dtype=bool), result=result,
+                                         encoding=encoding)
         metrics["timings"] = {"render_load_s": t_render, **{f"{k}_s": v for k, v in result.timings.items()}}
         arrays = {"sparse_sigma": result.sparse_sigma, "refined_sigma": result.refined_sigma,
                   "defocus_map": result.defocus_map, "edges": result.edges,

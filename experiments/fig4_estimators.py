@@ -142,7 +142,7 @@ def _rendered_case(config: Fig4Config, case, params, ests) -> dict:
     arrays, groups = {}, []
     for enc in config.encodings:
         image = input_image(render, encoding=enc, quantize_bits=config.quantize_bits)
-        edges, sig = sparse_estimates(image, ests, params=params)
+        edges, sig = sparse_estimates(image, ests, params=params, encoding=enc)
         sel = edges & keep
         arrays[f"{enc}__coc"] = coc[sel]
         for conv in config.conventions:

@@ -210,7 +210,7 @@ def _score_render(render, ids: dict, plan: ProceduralPlan, seed: int, failures: 
                 try:
                     with _single_threaded(), warnings.catch_warnings():
                         warnings.simplefilter("ignore", NoEdgesWarning)
-                        result = estimate_defocus_map(image, params)
+                        result = estimate_defocus_map(image, params, encoding=encoding)
                 except Exception as exc:  # the method failing on a scene is a result: recorded, not fatal
                     failures.append(f"{preset} on {ids['scene']} f/{f_number:g} {encoding} {noise}: "
                                     f"{type(exc).__name__}: {exc}")

@@ -198,7 +198,7 @@ def cell_task(render_info: dict, *, scene: str, f_number: float, scene_preset: s
     t1 = time.perf_counter()
     with _single_threaded(), warnings.catch_warnings():
         warnings.simplefilter("ignore", NoEdgesWarning)
-        result = estimate_defocus_map(image, params)
+        result = estimate_defocus_map(image, params, encoding=encoding)
     t_pipe = time.perf_counter() - t1
     metrics = evaluate_result(result, render, image=image, convention=convention)
     flat = {}

@@ -78,6 +78,7 @@ def format_summary(rows: list[dict], metric: str) -> str:
 
 def _parser():
     from method import BLUR_ESTIMATORS
+    from method.luma import ENCODINGS
     from scenes import CAMERA_PRESETS, SCENES
 
     from ._cli import (ArgumentParser, add_preset_option, add_quiet_option, add_scene_size_option, add_variant_option,
@@ -99,7 +100,7 @@ def _parser():
     p.add_argument("--seeds", nargs="+", type=int_type("--seeds", minimum=0), default=[0], metavar="S",
                    help="render sampler seeds (default: 0)")
     add_scene_size_option(p)
-    p.add_argument("--encoding", nargs="+", default=["srgb"], choices=("srgb", "linear"),
+    p.add_argument("--encoding", nargs="+", default=["srgb"], choices=tuple(ENCODINGS),
                    help="input encodings given to the method (default: srgb)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", type=int_type("--workers"), default=None, metavar="N",

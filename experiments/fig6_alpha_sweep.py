@@ -5,8 +5,10 @@ smoothness term dominate (the map drifts away from the edge measures) while a la
 (noisy) sparse measures closely. Here each map is compared with the rendered ground truth σ_gt.
 
 Beyond the paper, every scene is evaluated for two input encodings: ``"srgb"`` (8-bit sRGB, as a
-camera delivers it — the method's documented input) and ``"linear"`` (8-bit linear radiance), and
-the bias (mean signed error, px) of every map is reported next to its MAE.
+camera delivers it — the method's documented input) and ``"linear"`` (8-bit linear radiance), each
+declared to the method (``encoding=``, so both are measured in the preset's light and differ by where
+the 8-bit quantisation falls), and the bias (mean signed error, px) of every map is reported next to
+its MAE.
 
 Notes
 -----

@@ -15,7 +15,7 @@ Main entry points
 -----------------
 input_image(render, *, encoding, quantize_bits) -> HxWx3 image the method sees.
 ground_truth_sigma(render, *, convention) -> HxW σ_gt (px).
-sparse_estimates(image, estimators, *, params) -> edges + one sparse σ map per estimator (shared edges).
+sparse_estimates(image, estimators, *, params, encoding) -> edges + one sparse σ map per estimator (shared edges).
 evaluate_result(result, render, *, image, convention) -> metrics dict of one pipeline run.
 evaluate_case(estimator, scene, *, f_number, preset, encoding, ...) -> EvaluationCase (cached).
 """

@@ -15,7 +15,7 @@ Main entry points
 -----------------
 input_image(render, *, encoding, quantize_bits) -> HxWx3 image the method sees.
 ground_truth_sigma(render, *, convention) -> HxW σ_gt (px).
-sparse_estimates(image, estimators, *, params) -> edges + one sparse σ map per estimator (shared edges).
+sparse_estimates(image, estimators, *, params, encoding) -> edges + one sparse σ map per estimator (shared edges).
 evaluate_result(result, render, *, image, convention) -> metrics dict of one pipeline run.
 
 The pipeline is run and scored in one place, :func:`experiments.scoring.score_render`; the named-scene
@@ -25,6 +25,8 @@ evaluation's cases are :func:`experiments.units.evaluate_case`.
 from __future__ import annotations
 
 import numpy as np
+
+from method.luma import ENCODINGS
 
 from .metrics import (
     dense_metrics,
@@ -46,8 +48,8 @@ __all__ = [
     "validate_estimators",
 ]
 
-#: Input encodings: ``"srgb"`` as a camera stores it, ``"linear"`` the renderer's radiance.
-ENCODINGS = ("srgb", "linear")
+# ENCODINGS (re-exported): the input encodings, method.luma's registry ("srgb" as a camera stores
+# it, "linear" the renderer's radiance); scenes.display.ENCODINGS names the same (a test checks).
 
 
 def validate_estimators(names) -> tuple[str, ...]:
@@ -97,8 +99,7 @@ def input_image(render, *, encoding: str = "srgb", quantize_bits: int | None = 8
     -------
     ndarray, HxWx3, float64 in [0, 1]
     """
-    if encoding not in ENCODINGS:
-        raise ValueError(f"encoding={encoding!r} is invalid; allowed: {list(ENCODINGS)}")
+    ENCODINGS.check(encoding, what="encoding")
     return render.image(encoding=encoding, quantize_bits=quantize_bits, noise=noise, rng=rng)
 
 
@@ -123,39 +124,49 @@ def ground_truth_sigma(render, *, convention: str = "line_spread") -> np.ndarray
     return coc_to_sigma(coc, convention=convention, filter_sigma_px=FILTER_SIGMA_PX)
 
 
-def sparse_estimates(image, estimators, *, params=None) -> tuple[np.ndarray, dict]:
+def sparse_estimates(image, estimators, *, params=None, encoding: str = "srgb") -> tuple[np.ndarray, dict]:
     """Edge pixels (Sec. 3.1) and each estimator's σ there (Sec. 3.2), the edges shared by all.
 
     Parameters
     ----------
     image : ndarray, HxW or HxWx3, float in [0, 1]
+        The input, its values in ``encoding``.
     estimators : sequence of str
         Keys of :data:`method.BLUR_ESTIMATORS`.
-    params : DefocusParams, optional
-        Detector/estimator parameters (paper defaults).
+    params : DefocusParams, optional, keyword-only
+        Detector/estimator parameters (paper defaults): ``measure_light``, ``edge_detector`` and
+        every detector and estimator option apply as in :func:`method.estimate_defocus_map`.
+    encoding : str, keyword-only
+        What the image's values are, key of :data:`method.luma.ENCODINGS` ("srgb" or "linear").
 
     Returns
     -------
     edges : ndarray of bool, HxW
     sigma : dict of str to ndarray, HxW float64
-        σ in px at edge pixels, NaN elsewhere and where the estimator failed.
+        σ in px at edge pixels, NaN elsewhere and where the estimator failed; for each estimator
+        equal to ``estimate_defocus_map(image, params.replace(estimator=name), encoding=encoding)
+        .sparse_sigma``.
 
     Notes
     -----
-    The same stages, in the same order, as :func:`method.estimate_defocus_map` (luminance →
-    :func:`method.detect_edges` → :func:`method.estimate_blur`), but the edge map is computed once.
+    The pipeline's own stages, on the same input: :func:`method.luma.measure_input` (the luminance
+    in ``params.measure_light``) → :func:`method.pipeline.edges_stage` (once, keeping the detector's
+    2nd-derivative responses when an estimator samples them again) →
+    :func:`method.pipeline.blur_stage` with ``params.replace(estimator=name)`` per estimator.
     """
-    from method import DefocusParams, detect_edges, estimate_blur, luminance
+    from method import BLUR_ESTIMATORS, DefocusParams
+    from method.luma import measure_input
+    from method.pipeline import blur_stage, edges_stage
 
     params = DefocusParams() if params is None else params
     names = validate_estimators(estimators)
-    gray = luminance(np.asarray(image, dtype=np.float64))
-    em = detect_edges(gray, sigma1_scales=params.sigma1_scales, sigma2_scales=params.sigma2_scales,
-                      noise_std=params.noise_std, false_positive_rate=params.false_positive_rate)
+    seen = measure_input(image, params, encoding=encoding).seen
+    reuse = [n for n in names if "detector_hessians" in BLUR_ESTIMATORS.entry(n).capabilities]
+    em = edges_stage(seen, params=params.replace(estimator=reuse[0]) if reuse else params)
     out = {}
     for name in names:
-        s = np.asarray(estimate_blur(gray, em, params=params, method=name), dtype=np.float64)
-        out[name] = np.where(em.edges, s, np.nan)
+        sparse, _, _, _ = blur_stage(seen, em, params=params.replace(estimator=name))
+        out[name] = sparse
     return em.edges.copy(), out
 
 

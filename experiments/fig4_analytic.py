@@ -47,6 +47,7 @@ def _scored(sc, estimators, params, config, border):
     """Estimates at the scored edge pixels of one analytic image: {est: values}."""
     from .evaluation import sparse_estimates
 
+    # the analytic steps are Gaussian-blurred in their values: display (sRGB) values, as declared by default
     edges, sig = sparse_estimates(sc.image, estimators, params=params)
     inner = np.zeros(sc.image.shape, dtype=bool)
     inner[border:-border, border:-border] = True

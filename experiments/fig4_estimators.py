@@ -7,9 +7,11 @@ Every estimator registered in :data:`method.BLUR_ESTIMATORS` that the config nam
   at detected edge pixels, occlusion boundaries excluded; for both input encodings
   (``"srgb"`` as a camera stores it, ``"linear"`` radiance) and both CoC → σ conventions
   (``"line_spread"`` c/4, ``"erf_fit"`` 0.273·c; each ⊕ the box filter's 1/√12 px).
-  The method's model is a *Gaussian*-blurred step in the *pixel values*; the renderer blurs with a
-  *disk* in *linear light* and the camera stores sRGB: the mean signed error per case measures the
-  bias each mismatch causes;
+  The method's model is a *Gaussian*-blurred step in the light the preset measures in (display
+  values for the paper, linear light for robust); the renderer blurs with a *disk* in *linear light*
+  and the camera stores sRGB: the mean signed error per case measures the bias each mismatch causes.
+  Each input's encoding is declared to the method (:func:`method.estimate_defocus_map` ``encoding``),
+  so both encodings are measured in the same light and differ by where the 8-bit quantisation falls;
 * **analytic images** (:mod:`scenes.analytic`, exact Gaussian σ): straight and curved steps for
   σ ∈ ``analytic_sigmas``, and the neighbouring-edge case — a bright bar (opposite-polarity edges)
   and a staircase (same polarity) with spacing D = k·σ — where the paper claims the model fit beats
@@ -24,7 +26,8 @@ Notes
    per-scene metrics (line_spread), binned median |error| vs σ_gt (the error-vs-σ curves).
 3. Analytic families: the detected edge pixels within ``edge_tolerance_px`` of a true edge and
    ``analytic_border_px`` from the image border; errors against the exact σ.
-4. Bias decomposition: encoding effect = bias(srgb) − bias(linear) (same convention); convention
+4. Bias decomposition: encoding effect = bias(srgb) − bias(linear) (same convention; the 8-bit
+   quantisation in display vs linear values, the measure light being the same); convention
    effect = bias(line_spread) − bias(erf_fit) (same encoding and pixels) = mean(σ_erf − σ_ls).
 5. Cases (:func:`cases`): per preset of ``config.presets`` (the paper's, ``robust``'s …) the three
    analytic families (step 3; no scene set), with the preset's parameters (edge detector and
@@ -142,7 +145,7 @@ def _rendered_case(config: Fig4Config, case, params, ests) -> dict:
     arrays, groups = {}, []
     for enc in config.encodings:
         image = input_image(render, encoding=enc, quantize_bits=config.quantize_bits)
-        edges, sig = sparse_estimates(image, ests, params=params)
+        edges, sig = sparse_estimates(image, ests, params=params, encoding=enc)
         sel = edges & keep
         arrays[f"{enc}__coc"] = coc[sel]
         for conv in config.conventions:

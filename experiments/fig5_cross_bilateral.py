@@ -222,6 +222,7 @@ def compute_case(config: Fig5Config, case, inputs) -> dict:
         metrics :func:`bias_sweep`'s for s (``refined``, ``in_focus_outliers``, ``dense``).
     """
     from method import DefocusParams, biased_cross_bilateral
+    from method.luma import to_light
 
     from .evaluation import ground_truth_sigma, input_image, sparse_estimates, validate_estimators
     from .metrics import in_focus_outlier_fraction, sparse_metrics
@@ -244,7 +245,8 @@ def compute_case(config: Fig5Config, case, inputs) -> dict:
     image = input_image(render, encoding=config.encoding, quantize_bits=config.quantize_bits)
     gt = ground_truth_sigma(render, convention=config.convention)
     keep = ~np.asarray(render.occlusion_boundary, dtype=bool)
-    edges, sig = sparse_estimates(image, [config.estimator], params=params)
+    edges, sig = sparse_estimates(image, [config.estimator], params=params, encoding=config.encoding)
+    image = to_light(image, "display", encoding=config.encoding)  # Eq. (3)'s guide, as the pipeline's
     maps = {"before": sig[config.estimator]}
     for stage, bias in (("after_bias", True), ("after_no_bias", False)):
         maps[stage] = biased_cross_bilateral(

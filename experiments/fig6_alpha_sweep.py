@@ -5,8 +5,10 @@ smoothness term dominate (the map drifts away from the edge measures) while a la
 (noisy) sparse measures closely. Here each map is compared with the rendered ground truth σ_gt.
 
 Beyond the paper, every scene is evaluated for two input encodings: ``"srgb"`` (8-bit sRGB, as a
-camera delivers it — the method's documented input) and ``"linear"`` (8-bit linear radiance), and
-the bias (mean signed error, px) of every map is reported next to its MAE.
+camera delivers it — the method's documented input) and ``"linear"`` (8-bit linear radiance), each
+declared to the method (``encoding=``, so both are measured in the preset's light and differ by where
+the 8-bit quantisation falls), and the bias (mean signed error, px) of every map is reported next to
+its MAE.
 
 Notes
 -----
@@ -104,13 +106,14 @@ class StageOutputs:
     timings: dict              # seconds: "shared" (edges + blur + Eq. 3) and one entry per α
 
 
-def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageOutputs:
+def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False, encoding="srgb") -> StageOutputs:
     """Dense defocus maps for several α of Eq. (4), sharing the edge and blur stages.
 
     Parameters
     ----------
     image : ndarray, HxWx3, float in [0, 1]
-        Input photo (the method's reference image and, via luminance, the edge detector's input).
+        Input photo, its values in ``encoding`` (the method's reference image and, via luminance,
+        the edge detector's input).
     alphas : sequence of float
         Data weights α > 0 of Eq. (4).
     params : DefocusParams, optional
@@ -118,6 +121,8 @@ def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageO
         (``DefocusParams()``), or a preset such as ``DefocusParams.preset("robust")``.
     also_from_sparse : bool, keyword-only
         Also propagate the raw sparse measures (skipping Eq. 3) for every α (an ablation).
+    encoding : str, keyword-only
+        What the image's values are, key of :data:`method.luma.ENCODINGS` ("srgb" or "linear").
 
     Returns
     -------
@@ -126,7 +131,7 @@ def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageO
     Notes
     -----
     Runs the stages of :func:`method.estimate_defocus_map` (the same functions of :mod:`method.pipeline`):
-    luminance → :func:`~method.pipeline.edges_stage` → :func:`~method.pipeline.blur_stage` (the blur and,
+    :func:`method.luma.measure_input` (the input in each stage's light) → :func:`~method.pipeline.edges_stage` → :func:`~method.pipeline.blur_stage` (the blur and,
     for presets that weight their measures — ``relaxed_fit_weight`` — the per-measure confidence used by
     both later stages; the edge-isolation weights and the region cue of Eq. (4) when ``params`` use
     them) → the refinement (:func:`method.pipeline.refine_stage`; Eq. 3 as ``params``
@@ -135,8 +140,8 @@ def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageO
     ``params.propagation`` has no α (anything but ``"colorization"``, Eq. 4), it runs once and the
     map is repeated for every α (``timings`` then has one ``"propagation"`` entry).
     """
-    from method import DefocusParams, luminance
-    from method.luma import measure_luminance
+    from method import DefocusParams
+    from method.luma import measure_input
     from method.pipeline import (blur_stage, edge_psf_family, edges_stage, isolation_stage, propagate_stage,
                                  refine_stage, region_stage, straddle_edges)
 
@@ -144,9 +149,8 @@ def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False) -> StageO
     alphas = [float(a) for a in alphas]
     if not alphas or any(not (a > 0) for a in alphas):
         raise ValueError(f"alphas={alphas!r} is invalid; allowed: non-empty sequence of values > 0")
-    rgb = np.asarray(image, dtype=np.float64)
-    gray = luminance(rgb)
-    seen = measure_luminance(rgb, params.measure_light)  # what the edge and blur stages read
+    measured = measure_input(image, params, encoding=encoding)  # what each stage reads, as the pipeline
+    rgb, gray, seen = measured.rgb, measured.gray, measured.seen
     timings = {}
     t0 = time.perf_counter()
     sparse, confidence, edge_map, psf_disk = blur_stage(seen, edges_stage(seen, params=params), params=params)
@@ -247,7 +251,8 @@ def _alpha_tradeoff(image, stages, alphas, regions, params):
     return out
 
 
-def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, also_from_sparse=False, params=None):
+def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, also_from_sparse=False, params=None,
+                   encoding="srgb"):
     """Sweep α on one input and score every map against the render's ground truth.
 
     Parameters
@@ -262,6 +267,8 @@ def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, als
         Also score the ablation that propagates the raw sparse measures (no Eq. 3).
     params : DefocusParams, optional, keyword-only
         Pipeline parameters (default: the paper's); see :func:`sweep_alpha`.
+    encoding : str, keyword-only
+        What the image's values are (:func:`sweep_alpha`).
 
     Returns
     -------
@@ -270,9 +277,11 @@ def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, als
         ``"regions"`` (pixel counts), the errors of the sparse/refined measures at edges, ``"timings"``,
         ``"energy_terms"`` and ``"map_change_px"`` (see :func:`_alpha_tradeoff`).
     """
+    from method.luma import to_light
+
     from .metrics import dense_metrics, region_masks
 
-    stages = sweep_alpha(image, alphas, params, also_from_sparse=also_from_sparse)
+    stages = sweep_alpha(image, alphas, params, also_from_sparse=also_from_sparse, encoding=encoding)
     gt = np.asarray(render.sigma_px, dtype=np.float64)
     regions = region_masks(image, gt, edges=stages.edges, exclude=render.occlusion_boundary,
                            texture_threshold=texture_threshold)
@@ -284,7 +293,8 @@ def evaluate_input(image, render, alphas, *, texture_threshold, rtf_clip_px, als
     args = (gt, regions, stages.refined_sigma, stages.sparse_sigma, stages.edges, rtf_clip_px)
     for a, m in zip(alphas, stages.maps):
         out[f"alpha={float(a):g}"] = _score_map(m, *args)
-    out.update(_alpha_tradeoff(image, stages, alphas, regions, params))
+    guide = to_light(image, "display", encoding=encoding)  # the propagation's affinities read display values
+    out.update(_alpha_tradeoff(guide, stages, alphas, regions, params))
     if also_from_sparse:
         # ablation: the data term sees the raw sparse measures, so fidelity is measured against them
         args = (gt, regions, stages.sparse_sigma, stages.sparse_sigma, stages.edges, rtf_clip_px)
@@ -329,7 +339,8 @@ def compute_case(config: Fig6Config, case, inputs) -> dict:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         stages, metrics = evaluate_input(image, render, config.alphas, texture_threshold=config.texture_threshold,
-                                         rtf_clip_px=config.rtf_clip_px, also_from_sparse=ablation, params=params)
+                                         rtf_clip_px=config.rtf_clip_px, also_from_sparse=ablation, params=params,
+                                         encoding=case.encoding)
     timings = metrics.pop("timings")
     metrics["sigma_gt_range_px"] = {"min": float(np.nanmin(render.sigma_px)), "max": float(np.nanmax(render.sigma_px))}
     metrics["alpha_applies"] = alpha_applies(params)

@@ -45,13 +45,13 @@ Notes
    first (``"gather"``, the paper preset's path, ``config.kernel``) gives the rows above; every
    further renderer R (``"scatter"``: per-pixel disks of ``config.aperture`` in linear light with
    occlusion layers) the same estimated-map (``floor="clamp"``) and oracle rows as
-   ``magnified_estimated_R``, ``magnified_oracle_srgb_R`` (the 8-bit sRGB input, blended as R's
-   default encoding says: linear light for the scatter) and ``magnified_oracle_linear_R`` (linear
-   radiance in, encoded and quantised like the renders). The oracle rows of a renderer that models
-   occlusion are also told what is in front of the focus plane (``in_front``: the f/8 render's depth <
-   its focus distance, :attr:`scenes.render_files.Render.in_front`), so that with the true map and the
-   true depth order their error is the renderer's alone; the estimated rows are not (the method knows
-   no depth).
+   ``magnified_estimated_R``, ``magnified_oracle_srgb_R`` (the 8-bit sRGB input, blended in R's
+   default light: linear light for the scatter) and ``magnified_oracle_linear_R`` (linear radiance
+   in, blended in linear light by every renderer, encoded and quantised like the renders). The oracle
+   rows of a renderer that models occlusion are also told what is in front of the focus plane
+   (``in_front``: the f/8 render's depth < its focus distance, :attr:`scenes.render_files.Render.in_front`),
+   so that with the true map and the true depth order their error is the renderer's alone; the
+   estimated rows are not (the method knows no depth).
 7. Cases (:func:`cases`): per scene set × scene a ``stage`` case — both renders and the rows that do not
    depend on the method preset (the naive and filter-aware doubled truth, the unchanged f/8 render, the
    oracle magnifications) — and, needing it, one case per preset of ``config.presets`` (steps 2–3, 5 and
@@ -119,12 +119,12 @@ QUICK = Fig7Config(preset="small", scene_sets=(*FULL.scene_sets[:2], ("procedura
                                                                                           "procedural_100001"))))
 
 
-def _estimate(image, params=None):
+def _estimate(image, params=None, *, encoding="srgb"):
     from method import estimate_defocus_map
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        return estimate_defocus_map(image, params)
+        return estimate_defocus_map(image, params, encoding=encoding)
 
 
 def _encode(linear, config):
@@ -239,6 +239,7 @@ def _magnify(image, defocus_map, config, renderer, *, in_front=None, **kwargs):
     from method.magnify.magnification import MAGNIFICATION_RENDERERS
 
     caps = MAGNIFICATION_RENDERERS.entry(renderer).capabilities
+    kwargs.setdefault("encoding", config.encoding)
     return magnify_defocus(image, defocus_map, factor=config.factor, renderer=renderer,
                            kernel=config.kernel if "kernel" in caps else None,
                            aperture=config.aperture if "aperture" in caps else None,
@@ -273,7 +274,7 @@ def _preset_independent(pair: _RenderedPair, config) -> tuple[dict, dict, dict]:
     images = {"unchanged_small": pair.image_small}
     for renderer in config.renderers:
         sx = _suffix(renderer, config)
-        linear = {} if renderer == config.renderers[0] else {"encoding": "linear"}
+        linear = {"encoding": "linear", "light": "linear"}  # radiance blended as given, by every renderer
         images[f"magnified_oracle_srgb{sx}"] = _magnify(pair.image_small, oracle_map, config, renderer,
                                                         preprocess=False, in_front=pair.in_front)
         images[f"magnified_oracle_linear{sx}"] = _encode(_magnify(pair.linear_small, oracle_map, config, renderer,
@@ -298,8 +299,8 @@ def _estimated_case(pair: _RenderedPair, params, config) -> tuple[dict, dict, di
 
     k, regions, gt_s, gt_l, img_s = config.factor, pair.regions, pair.gt_small, pair.gt_large, pair.image_small
     t0 = time.perf_counter()
-    res_s = _estimate(img_s, params)
-    res_l = _estimate(pair.image_large, params)
+    res_s = _estimate(img_s, params, encoding=config.encoding)
+    res_l = _estimate(pair.image_large, params, encoding=config.encoding)
     seconds = {"estimate_seconds": time.perf_counter() - t0}
     candidates = {"map_small": res_s.defocus_map, "k_x_map_small": k * res_s.defocus_map,
                   "map_large": res_l.defocus_map}

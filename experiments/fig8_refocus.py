@@ -307,7 +307,7 @@ def _map_case(config: Fig8Config, case, stage: dict) -> dict:
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        est = estimate_defocus_map(stage["image_d1"], params).defocus_map
+        est = estimate_defocus_map(stage["image_d1"], params, encoding=config.encoding).defocus_map
     t_est = time.perf_counter() - t0
     b = preprocess_defocus_map(est, clip_percent=params.map_clip_percent, smoothing=params.map_smoothing,
                                floor="clamp")

@@ -112,8 +112,7 @@ def score_render(render, image, *, encoding: str, params=None, result=None,
     from .evaluation import ENCODINGS, evaluate_result
     from .threads import single_threaded
 
-    if encoding not in ENCODINGS:
-        raise ValueError(f"encoding={encoding!r} is invalid; allowed: {list(ENCODINGS)}")
+    ENCODINGS.check(encoding, what="encoding")
     seconds = 0.0
     if result is None:
         params = DefocusParams() if params is None else params
@@ -121,7 +120,7 @@ def score_render(render, image, *, encoding: str, params=None, result=None,
         try:
             with single_threaded(), warnings.catch_warnings():
                 warnings.simplefilter("ignore", NoEdgesWarning)
-                result = estimate_defocus_map(image, params)
+                result = estimate_defocus_map(image, params, encoding=encoding)
         except Exception as exc:  # the method failing on an input is a result: recorded, not fatal
             return Score(metrics={}, result=None, error=f"{type(exc).__name__}: {exc}", exception=exc,
                          seconds=time.perf_counter() - t0)

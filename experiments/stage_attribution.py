@@ -57,13 +57,13 @@ def _errors(estimate, truth, mask, bins) -> dict:
 
 
 def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, texture_threshold=0.02,
-                 result=None, oracles=True) -> dict:
+                 result=None, oracles=True, encoding="srgb") -> dict:
     """Errors after every stage for the estimated and the two oracle inputs.
 
     Parameters
     ----------
     image : ndarray, HxWx3 or HxW, float in [0, 1]
-        The input the method sees.
+        The input the method sees, its values in ``encoding``.
     sigma_gt : ndarray, HxW, float
         Ground-truth blur σ, px (NaN where undefined).
     params : DefocusParams, keyword-only
@@ -78,6 +78,8 @@ def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, textur
         The pipeline's result for (image, params) if already computed.
     oracles : bool, keyword-only
         Also run the two oracle inputs (False: ``oracle_refine`` and ``oracle_propagate`` are empty).
+    encoding : str, keyword-only
+        What the image's values are, key of :data:`method.luma.ENCODINGS` ("srgb" or "linear").
 
     Returns
     -------
@@ -91,7 +93,8 @@ def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, textur
 
     Notes
     -----
-    1. Run :func:`method.estimate_defocus_map` (unless ``result`` is given).
+    1. Run :func:`method.estimate_defocus_map` with ``encoding`` (unless ``result`` is given); the
+       oracle stages are guided by the same display-light RGB (:func:`method.luma.measure_input`).
     2. Oracle sparse map: σ_gt at the detected edge pixels (``result.edges``), NaN elsewhere.
     3. ``oracle_refine``: :func:`method.pipeline.refine_stage` then
        :func:`method.pipeline.propagate_stage` on it; ``oracle_propagate``: ``propagate_stage``
@@ -99,6 +102,7 @@ def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, textur
     4. Errors per stage and per σ_gt bin, over valid pixels (edges for the sparse/refined stages).
     """
     from method import NoEdgesWarning, estimate_defocus_map
+    from method.luma import measure_input
     from method.pipeline import propagate_stage, refine_stage
 
     from .metrics import region_masks
@@ -111,8 +115,8 @@ def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, textur
     if result is None:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", NoEdgesWarning)
-            result = estimate_defocus_map(image, params)
-    rgb = image if image.ndim == 3 else np.repeat(image[..., None], 3, axis=2)
+            result = estimate_defocus_map(image, params, encoding=encoding)
+    rgb = measure_input(image, params, encoding=encoding).rgb
     edges = np.asarray(result.edges, dtype=bool)
     regions = region_masks(image, gt, edges=edges, exclude=~valid, texture_threshold=texture_threshold)
     at_edges = edges & valid

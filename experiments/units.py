@@ -132,7 +132,7 @@ def _evaluate_case(config: EvaluateConfig, case, inputs) -> dict:
     result, gt = score.result, ground_truth_sigma(render)
     nested = {**score.metrics,
               "stages": stage_errors(image, gt, params=params, valid=~np.asarray(render.occlusion_boundary, dtype=bool),
-                                     result=result),
+                                     result=result, encoding=case.encoding),
               "timings": {"render_load_s": t_render, **{f"{k}_s": v for k, v in result.timings.items()}}}
     key = {"estimator": params.estimator, "method_preset": case.preset, "scene": case.scene,
            "f_number": float(case.aperture), "preset": case.scene_size, "encoding": case.encoding, "quantize_bits": 8,
@@ -216,8 +216,7 @@ def evaluate_case(estimator: str | None, scene: str, *, f_number: float = 8.0, p
     PRESETS.check(method_preset, what="preset")
     if estimator is not None:
         validate_estimators([estimator])
-    if encoding not in ENCODINGS:
-        raise ValueError(f"encoding={encoding!r} is invalid; allowed: {list(ENCODINGS)}")
+    ENCODINGS.check(encoding, what="encoding")
     check_noise_level(noise)
     validate_render_options(scene, preset=preset, f_number=f_number, sigma_convention="line_spread")
     config = EvaluateConfig(presets=(method_preset,), estimators=(estimator,), scenes=(scene,),

@@ -11,6 +11,9 @@ regions), :mod:`method.refine` (Eq. 3), :mod:`method.propagation` (Eq. 4 and the
 are a frozen dataclass in its subpackage (``params.py``). :mod:`method.params` holds :class:`DefocusParams`,
 which composes them, :mod:`method.presets` the named parameter sets (:data:`PRESETS`), and
 :mod:`method.registry` the :class:`~method.registry.Registry` type every choice by name is a key of.
+:mod:`method.luma` holds the input's light: what an image's values are (``ENCODINGS``: ``"srgb"``,
+``"linear"``; ``estimate_defocus_map(image, params, encoding=...)``) and the lights the stages measure
+or blend in (``LIGHTS``: ``"display"``, ``"linear"``).
 """
 
 from .blur import BLUR_ESTIMATORS, REGION_ESTIMATORS, estimate_blur, estimate_region_blur

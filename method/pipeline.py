@@ -31,10 +31,9 @@ from .propagation.cue_fusion import fuse_cues
 from .propagation.data_weights import edge_confidence, propagation_confidence
 from .edges.isolation import isolation_weights
 from .edges.elder_zucker import EdgeMap, detect_edges
-from .luma import LUMA_WEIGHTS, luminance, measure_luminance  # noqa: F401 (LUMA_WEIGHTS re-exported)
+from .luma import LUMA_WEIGHTS, luminance, measure_input  # noqa: F401 (LUMA_WEIGHTS re-exported)
 from .params import DefocusParams
 from .propagation.methods import propagate_blur_measures
-from .validation import validate_image
 
 __all__ = ["DefocusResult", "NoEdgesWarning", "blur_stage", "edge_confidence", "edge_psf_family", "edges_stage",
            "estimate_defocus_map", "isolation_stage", "luminance", "propagate_stage", "propagation_confidence",
@@ -88,15 +87,20 @@ class DefocusResult:
         return "gaussian" if n_disk == 0 else "disk" if n_disk == n else "mixed"
 
 
-def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] | None = None) -> DefocusResult:
+def estimate_defocus_map(image, params=None, *, encoding: str = "srgb",
+                         progress: Callable[[str], None] | None = None) -> DefocusResult:
     """Estimate the spatially varying defocus blur σ of a single photo (Bae & Durand 2007).
 
     Parameters
     ----------
     image : ndarray, HxWx3 or HxW, float in [0, 1]
-        The photo, by default sRGB-encoded as a camera delivers it. Sides ≥ 8 px.
+        The photo, its values in ``encoding``. Sides ≥ 8 px.
     params : DefocusParams, optional
         Pipeline parameters; the paper's defaults when omitted.
+    encoding : str, keyword-only
+        What the image's values are, a key of :data:`method.luma.ENCODINGS`: ``"srgb"`` (default;
+        sRGB-encoded display values, as a camera delivers them) or ``"linear"`` (linear radiance, as
+        a render or an OpenEXR file holds it).
     progress : callable, optional, keyword-only
         Called with each stage's name (see ``STAGES``) as it starts, for progress displays.
 
@@ -109,7 +113,7 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
     Raises
     ------
     ValueError
-        Bad image (wrong shape, dtype, range, NaN/Inf, too small) or bad parameters.
+        Bad image (wrong shape, dtype, range, NaN/Inf, too small), unknown encoding or bad parameters.
 
     Warns
     -----
@@ -118,10 +122,12 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
 
     Notes
     -----
-    1. Luminance (Rec. 709 weights) of the input feeds the edge detector (in the light of
-       ``params.measure_light``: the encoded values, or beyond the paper sRGB decoded to linear
-       light, :func:`method.luma.measure_luminance`); the RGB input is the reference image of the
-       cross-bilateral filter and of the propagation affinities.
+    1. The input is converted once from ``encoding`` into the light each stage measures in
+       (:func:`method.luma.measure_input`): luminance (Rec. 709 weights) in
+       ``params.measure_light`` feeds the edge detector and the blur estimator (the paper: the
+       display values; beyond the paper: linear light); the RGB image in display values is the
+       reference image of the cross-bilateral filter and of the propagation affinities. An sRGB
+       input and its linear radiance give the same map (up to the round-off of the sRGB curve).
     2. Multiscale Elder–Zucker edges with the Eq. (9) thresholds (Sec. 3.1; :func:`edges_stage`);
        for the estimators that sample them again (model fit) the detector keeps its 2nd-derivative
        responses at the σ2 that produced edges.
@@ -139,11 +145,8 @@ def estimate_defocus_map(image, params=None, *, progress: Callable[[str], None] 
     params = DefocusParams() if params is None else params
     if not isinstance(params, DefocusParams):
         raise ValueError(f"params must be a DefocusParams, got {type(params).__name__}")
-    image = validate_image(image)
-    rgb = image if image.ndim == 3 else np.repeat(image[..., None], 3, axis=2)
-    gray = luminance(image)
-    # what the edge and blur stages read (the paper: the encoded luminance itself)
-    seen = gray if params.measure_light == "display" else measure_luminance(image, params.measure_light)
+    measured = measure_input(image, params, encoding=encoding)
+    rgb, gray, seen = measured.rgb, measured.gray, measured.seen
     timings: dict[str, float] = {}
     cpu: dict[str, float] = {}
     t_start = time.perf_counter()

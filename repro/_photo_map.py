@@ -54,7 +54,8 @@ def map_cache_key(photo, params, working_shape_) -> dict:
         "kind": "defocus_map",
         "layout": MAP_CACHE_VERSION,
         "photo_sha256": sha256_file(photo.path),
-        "decoded": {"shape": list(photo.image.shape), "repaired": any("repaired" in n for n in photo.notes)},
+        "decoded": {"shape": list(photo.image.shape), "repaired": any("repaired" in n for n in photo.notes),
+                    "encoding": photo.encoding},
         "params": dataclasses.asdict(params),
         "working_shape": list(working_shape_),
         "code": _code_version(params),
@@ -62,7 +63,7 @@ def map_cache_key(photo, params, working_shape_) -> dict:
     }
 
 
-def _build_map(folder: Path, image, params, progress, preset, *, max_working_pixels):
+def _build_map(folder: Path, image, params, progress, preset, *, max_working_pixels, encoding):
     """Estimate (:func:`method.magnify.upsampling.estimate_defocus_map_at_scale`) and store the
     working-resolution map and its notes in a cache entry ``folder``; return the full-resolution map."""
     from method.magnify.upsampling import estimate_defocus_map_at_scale
@@ -71,7 +72,7 @@ def _build_map(folder: Path, image, params, progress, preset, *, max_working_pix
     # no RNG seeding needed: the pipeline is deterministic (tests/test_determinism_method.py)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", NoEdgesWarning)
-        scaled = estimate_defocus_map_at_scale(image, params, max_working_pixels=max_working_pixels,
+        scaled = estimate_defocus_map_at_scale(image, params, encoding=encoding, max_working_pixels=max_working_pixels,
                                                progress=progress)
     result = scaled.working_result
     no_edges = any(issubclass(w.category, NoEdgesWarning) for w in caught)
@@ -105,6 +106,7 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
     Parameters
     ----------
     photo : repro.photo_io.Photo
+        Its ``encoding`` is passed to the method (and is part of the cache key).
     params : DefocusParams
     max_working_pixels : int, keyword-only
     use_cache : bool, keyword-only
@@ -150,7 +152,8 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
     built = []  # full-resolution maps estimated by this call
 
     def build(folder):
-        built.append(_build_map(Path(folder), image, params, progress, preset, max_working_pixels=max_working_pixels))
+        built.append(_build_map(Path(folder), image, params, progress, preset, max_working_pixels=max_working_pixels,
+                                encoding=photo.encoding))
 
     if use_cache:
         cache = Cache(cache_root() / "maps")
@@ -178,7 +181,7 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
         working = downscale_image(image, (h, w))
         if progress:
             progress("upsample")
-        sigma = upsample_defocus_map(m, working, image, scale=scale)
+        sigma = upsample_defocus_map(m, working, image, scale=scale, encoding=photo.encoding)
     else:
         sigma = m
     return sigma, {"scale": scale, "working_shape": (h, w), "no_edges": bool(meta["no_edges"]),

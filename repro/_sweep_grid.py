@@ -191,7 +191,7 @@ def _check_names(scenes, cameras, presets, estimators, encodings, metric, varian
         hint = " (the render size is --scene-size small|full)" if set(presets) & {"small", "full"} else ""
         raise ValueError(f"{exc}{hint}") from None
     ests = [None] if not estimators else list(validate_estimators(_uniq(estimators)))
-    encodings = Registry("encoding", ENCODINGS).check_all(_uniq(encodings))
+    encodings = ENCODINGS.check_all(_uniq(encodings))
     Registry("metric", [c for c in METRIC_COLUMNS if c != "seconds_total"]).check(metric, what="--metric")
     Registry("Mitsuba variant", VARIANT_CANDIDATES).check(variant, what="--variant", optional=True)
     return scenes, cams, presets, ests, encodings

@@ -1,6 +1,11 @@
 """Estimate the defocus map of a photo (Bae & Durand 2007) and write it.
 
-``python -m repro.estimate PHOTO [-o MAP.exr|MAP.png|MAP.npy] [--preset NAME] [--estimator NAME] [--alpha A]``
+``python -m repro.estimate PHOTO [-o MAP.exr|MAP.png|MAP.npy] [--preset NAME] [--estimator NAME] [--alpha A]
+[--encoding srgb|linear]``
+
+``--encoding`` says what the photo's values are (default from the file type: OpenEXR holds linear
+light, JPEG/PNG/TIFF sRGB display values); the method converts them once into the light each stage
+measures in.
 
 ``--preset`` names a parameter set of ``method.PRESETS``: ``robust`` (the default here: beyond the
 paper, measured better dense maps), ``paper`` (the literal reproduction, ``DefocusParams()``),
@@ -28,6 +33,7 @@ cached estimation and the map writers are :mod:`repro._photo_map`'s, imported fr
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -103,6 +109,7 @@ def by_preset(field: str) -> str:
 def add_estimation_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by repro.estimate and repro.magnify."""
     from method.blur.estimators import BLUR_ESTIMATORS
+    from method.luma import ENCODINGS
     from method.magnify.upsampling import DEFAULT_MAX_WORKING_PIXELS
     from repro.photo_io import DEFAULT_MAX_PIXELS
 
@@ -123,6 +130,10 @@ def add_estimation_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-pixels", type=pixel_count, default=DEFAULT_MAX_PIXELS, metavar="N",
                    help=f"refuse photos over N pixels, checked from the header before decoding "
                         f"(default {DEFAULT_MAX_PIXELS:,})")
+    p.add_argument("--encoding", default=None, choices=tuple(ENCODINGS), metavar="srgb|linear",
+                   help="what the photo's values are: srgb (display values, as a camera delivers them) or "
+                        "linear (linear light). Default: from the file type, linear for OpenEXR, srgb for "
+                        "JPEG, PNG and TIFF. The method converts it once into the light each stage measures in")
     p.add_argument("--repair-nonfinite", action="store_true",
                    help="EXR input: set NaN/-Inf to 0 and +Inf to 1 instead of refusing the file")
     add_force_option(p, what="re-estimate the defocus map even when it is cached (the new map replaces it)")
@@ -194,7 +205,8 @@ def note(prog, message, *, quiet=False) -> None:
 
 @user_input()
 def load_photo(args, *, prog):
-    """Probe (size limits before decoding) and read the photo named by ``args.photo``.
+    """Probe (size limits before decoding) and read the photo named by ``args.photo``; ``--encoding``,
+    when given, replaces the encoding the reader declared from the file type.
 
     Raises :class:`repro._cli.CLIError` for a file the decoders refuse (missing, not an image,
     corrupt, too large or too small, NaN/Inf).
@@ -206,7 +218,9 @@ def load_photo(args, *, prog):
     if min(header.width, header.height) < MIN_IMAGE_SIDE:
         raise CLIError(f"{header.path}: {header.width}x{header.height} px is too small; "
                          f"the smallest supported side is {MIN_IMAGE_SIDE} px")
-    return read_photo(header.path, max_pixels=args.max_pixels, repair_nonfinite=args.repair_nonfinite)
+    photo = read_photo(header.path, max_pixels=args.max_pixels, repair_nonfinite=args.repair_nonfinite)
+    encoding = getattr(args, "encoding", None)
+    return photo if encoding is None else dataclasses.replace(photo, encoding=encoding)
 
 
 def psf_line(info, params) -> str | None:

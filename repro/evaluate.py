@@ -84,6 +84,7 @@ __all__ = ["DEFAULT_OUT", "ID_COLUMNS", "MAP_ID_COLUMNS", "PHOTO_COLUMNS", "PROG
 
 def _parser():
     from method import BLUR_ESTIMATORS, PRESETS
+    from method.luma import ENCODINGS
     from repro._cli import (ArgumentParser, add_force_option, add_plugin_options, add_quiet_option,
                             add_scene_size_option, add_variant_option, float_type)
     from scenes import SCENES
@@ -106,8 +107,9 @@ def _parser():
     add_scene_size_option(p)
     p.add_argument("--stages", action="store_true",
                    help="also print and write the stage attribution (errors after each stage, with oracle inputs)")
-    p.add_argument("--encoding", nargs="+", default=["srgb"], choices=("srgb", "linear"),
-                   help="input encoding(s) given to the method (default: srgb, as a camera stores it)")
+    p.add_argument("--encoding", nargs="+", default=["srgb"], choices=tuple(ENCODINGS),
+                   help="input encoding(s) of the render given to the method and declared to it (default: "
+                        "srgb, as a camera stores it; linear: the radiance)")
     _procedural.add_options(p)
     p.add_argument("--photos", nargs="*", default=None, metavar="NAME",
                    help="score the presets on the real photos with hand-drawn regions instead of the renders "

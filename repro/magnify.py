@@ -3,7 +3,7 @@
 
 ``python -m repro.magnify PHOTO --factor 2 [-o OUT.jpg] [--renderer gather|scatter] [--aperture disk|hexagon]
 [--kernel gaussian|disk] [--map MAP [--png-scale S]] [--save-map MAP.exr] [--floor clamp|subtract|shift]
-[--preset NAME]``
+[--preset NAME] [--encoding srgb|linear]``
 
 ``--preset`` (a key of ``method.PRESETS``; default ``robust``, beyond the paper; ``paper`` is the
 literal reproduction) chooses the parameters of the defocus map and of its Sec. 5 preprocessing, as
@@ -13,7 +13,7 @@ Renderer (``--renderer``, :data:`method.magnify.magnification.MAGNIFICATION_REND
 (the default, except with ``--preset paper``) spreads every pixel's linear light over its own disk
 (``--aperture disk``, default) or hexagon, in occlusion layers (a sharper pixel is nearer), so a sharp
 subject gets no halo of background and highlights become aperture-shaped; ``gather`` (the paper
-preset's path, default with ``--preset paper``) blends a blur stack per pixel in the photo's sRGB
+preset's path, default with ``--preset paper``) blends a blur stack per pixel in display (sRGB)
 values, with ``--kernel gaussian`` (default) or ``disk``. The default was chosen on Fig. 7's
 oracle-map rows (``docs/figures.md``). ``--kernel`` with the scatter and ``--aperture`` with the
 gather are refused.
@@ -30,7 +30,9 @@ Sec. 5 like an estimated one.
 Output (``-o``; default ``<photo folder>/<stem>.magnified-x<factor><photo's extension>``): same size,
 upright (EXIF orientation applied, orientation tag reset), format from the extension (JPEG, PNG,
 TIFF, EXR); 16-bit PNG/TIFF input gives 16-bit PNG/TIFF output, 8-bit input 8-bit output; EXIF and
-ICC profile are passed through to JPEG, 8-bit PNG and TIFF.
+ICC profile are passed through to JPEG, 8-bit PNG and TIFF. ``--encoding`` (default from the file type:
+OpenEXR linear light, the others sRGB) says what the photo's values are; the estimation, the renderer
+and the writer all read it (a linear photo written to JPEG/PNG/TIFF is sRGB-encoded).
 
 Without ``--map`` the defocus map is estimated (or reused from the cache, whatever the factor) as in
 ``repro.estimate``: at most ``--max-working-pixels`` (default 1.5 MP), upsampled edge-aware to full
@@ -314,10 +316,11 @@ def main(argv=None) -> int:
             check_extra_blur(factor, processed, photo.image.shape, name="--factor")
         result = magnify_defocus_tiled(
             photo.image, processed, factor=factor, kernel=kernel, preprocess=False, renderer=renderer,
-            aperture=aperture, tile_pixels=args.tile_pixels, progress=progress,
+            aperture=aperture, tile_pixels=args.tile_pixels, progress=progress, encoding=photo.encoding,
         )
         progress("write")
-        write_photo(out, result, bit_depth=bits, exif=photo.exif, icc_profile=photo.icc_profile)
+        write_photo(out, result, bit_depth=bits, exif=photo.exif, icc_profile=photo.icc_profile,
+                    encoding=photo.encoding)
     finally:
         progress.close()
     shape = f"{aperture or 'disk'} aperture" if renderer == "scatter" else f"{kernel or 'gaussian'} kernel"

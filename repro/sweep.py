@@ -80,6 +80,7 @@ def format_summary(rows: list[dict], metric: str) -> str:
 
 def _parser():
     from method import BLUR_ESTIMATORS
+    from method.luma import ENCODINGS
     from scenes import CAMERA_PRESETS, SCENES
 
     from ._cli import (ArgumentParser, add_force_option, add_plugin_options, add_preset_option, add_quiet_option,
@@ -102,7 +103,7 @@ def _parser():
     p.add_argument("--seeds", nargs="+", type=int_type("--seeds", minimum=0), default=[0], metavar="S",
                    help="render sampler seeds (default: 0)")
     add_scene_size_option(p)
-    p.add_argument("--encoding", nargs="+", default=["srgb"], choices=("srgb", "linear"),
+    p.add_argument("--encoding", nargs="+", default=["srgb"], choices=tuple(ENCODINGS),
                    help="input encodings given to the method (default: srgb)")
     add_engine_options(p, what="cells", one_in_process=False)
     p.add_argument("--metric", default=DEFAULT_METRIC, metavar="COLUMN",

@@ -86,7 +86,9 @@ def test_jpeg_roundtrip(tmp_path):
     assert np.mean(np.abs(photo.image - img)) <= PHOTO_JPEG_ROUNDTRIP_MEAN_ATOL
 
 
-def test_exr_is_linear_and_encoded_to_srgb(tmp_path):
+def test_exr_is_written_linear_and_read_linear(tmp_path):
+    """An sRGB image is decoded to linear light on writing an EXR; reading keeps the linear values
+    and declares them ``encoding="linear"`` (other formats "srgb"); a linear image is written as given."""
     from scenes.display import linear_to_srgb
 
     img = smooth_rgb()
@@ -97,8 +99,15 @@ def test_exr_is_linear_and_encoded_to_srgb(tmp_path):
     np.testing.assert_allclose(linear_to_srgb(stored), img, atol=PHOTO_EXR_ROUNDTRIP_ATOL)
     assert float(stored.mean()) < float(img.mean())  # linear values are darker than encoded ones
     photo = read_photo(path)
-    assert photo.bit_depth == 32 and photo.format == "EXR"
-    np.testing.assert_allclose(photo.image, img, atol=PHOTO_EXR_ROUNDTRIP_ATOL)
+    assert photo.bit_depth == 32 and photo.format == "EXR" and photo.encoding == "linear"
+    np.testing.assert_array_equal(photo.image, stored.astype(np.float64))  # not encoded on reading
+    again = read_photo(write_photo(tmp_path / "b.exr", photo.image, encoding="linear"))
+    np.testing.assert_array_equal(again.image, photo.image)
+    assert read_photo(write_photo(tmp_path / "a.png", img)).encoding == "srgb"
+    png = read_photo(write_photo(tmp_path / "l.png", photo.image, encoding="linear", bit_depth=16))
+    np.testing.assert_allclose(png.image, img, atol=PHOTO_EXR_ROUNDTRIP_ATOL + 0.5 / 65535)  # encoded: 16-bit codes
+    with pytest.raises(ValueError, match="encoding='display' is invalid; allowed: 'linear', 'srgb'"):
+        write_photo(tmp_path / "c.exr", img, encoding="display")
 
 
 def test_grey_exr(tmp_path):

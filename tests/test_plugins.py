@@ -309,7 +309,7 @@ def test_procedural_scoring_labels_rows_by_preset_and_estimator(monkeypatch):
 
     plan = pe.plan_evaluation(2, split="dev", presets=["paper"], estimators=["model_fit", "zero_crossing"])
     seen = []
-    monkeypatch.setattr("method.estimate_defocus_map", lambda image, params: seen.append(params.estimator) or "r")
+    monkeypatch.setattr("method.estimate_defocus_map", lambda image, params, **kw: seen.append(params.estimator) or "r")
     monkeypatch.setattr("experiments.evaluation.input_image", lambda render, **k: np.zeros((4, 4, 3)))
     monkeypatch.setattr("experiments.evaluation.evaluate_result", lambda result, render, image, **k: {"m": 1.0})
     monkeypatch.setattr("experiments.evaluation.flatten_metrics", lambda m: m)
@@ -326,7 +326,7 @@ def test_a_failing_run_keeps_its_traceback(monkeypatch):
 
     from experiments import procedural_eval as pe
 
-    def buggy(image, params):
+    def buggy(image, params, **kw):
         return undefined_in_test  # noqa: F821
 
     plan = pe.plan_evaluation(2, split="dev", presets=["paper"])

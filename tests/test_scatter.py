@@ -103,7 +103,7 @@ def test_sharp_square_before_blurry_background_gets_no_background_radiance():
     assert float(out[..., 0][square].max()) == 0.0 and float(out[..., 0][band].max()) == 0.0
     np.testing.assert_array_equal(out[square], img[square])  # sharp and in front: kept bit for bit
     assert float(out[..., 1][~square].max()) == 0.0  # no halo of the subject
-    gather = magnify_defocus(img, sigma, factor=2.0, encoding="linear", preprocess=False)
+    gather = magnify_defocus(img, sigma, factor=2.0, encoding="linear", light="linear", preprocess=False)
     assert float(gather[..., 1][outside_band].mean()) > 0.05
 
 
@@ -133,8 +133,8 @@ def test_linear_light_keeps_a_highlight_brighter_than_srgb_blending():
     img[20, 20] = 1.0
     sigma = np.full((n, n), 1.5)
     for renderer in ("scatter", "gather"):
-        lin = magnify_defocus(img, sigma, factor=2.0, renderer=renderer, encoding="srgb", preprocess=False)
-        disp = magnify_defocus(img, sigma, factor=2.0, renderer=renderer, encoding="display", preprocess=False)
+        lin = magnify_defocus(img, sigma, factor=2.0, renderer=renderer, light="linear", preprocess=False)
+        disp = magnify_defocus(img, sigma, factor=2.0, renderer=renderer, light="display", preprocess=False)
         ring = (np.hypot(*np.mgrid[-20:21, -20:21]) >= 1) & (np.hypot(*np.mgrid[-20:21, -20:21]) <= 3)
         assert float(lin[..., 0][ring].mean()) > float(disp[..., 0][ring].mean()) + 0.02, renderer
         np.testing.assert_allclose(lin[:5, :5], 0.1, atol=1e-9)
@@ -197,6 +197,8 @@ def test_layers_order_sharper_nearer_and_in_front_first():
     ({"in_front": np.ones((10, 10), bool)}, "in_front applies to the 'scatter' renderer"),
     ({"renderer": "scatter", "in_front": np.ones((9, 10), bool)}, "in_front must be a bool array"),
     ({"renderer": "scatter", "encoding": "log"}, "encoding='log' is invalid"),
+    ({"encoding": "display"}, "encoding='display' is invalid .*allowed: 'linear', 'srgb'"),
+    ({"renderer": "scatter", "light": "srgb"}, "light='srgb' is invalid .*allowed: 'display', 'linear'"),
 ])
 def test_bad_renderer_options(kwargs, needle):
     with pytest.raises(ValueError, match=needle):

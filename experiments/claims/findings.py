@@ -6,15 +6,17 @@ from ..results_query import Results
 
 __all__ = ["mismatch_findings"]
 
-_LABELS = {"encoding_effect": "input encoding: sRGB − linear (mean signed error shift)",
+_LABELS = {"encoding_effect": "input file: 8-bit sRGB − 8-bit linear, declared (mean signed error shift)",
            "convention_effect": "σ convention: line_spread − erf_fit (mean signed error shift)"}
 
 
 def mismatch_findings(table) -> list[dict]:
     """The model's bias shifts, for the paper preset on each figure's first (default) scene set.
 
-    The method assumes a Gaussian-blurred step in the pixel values; the renderer blurs with a disk in
-    linear light and the camera stores sRGB. Returns rows ``{"effect", "estimator", "edges",
+    The method assumes a Gaussian-blurred step in the light it measures in; the renderer blurs with a
+    disk in linear light and the camera stores sRGB. The input's encoding is declared to the method,
+    so both inputs are measured in the preset's light and the encoding effect is that of where the
+    8-bit quantisation falls (the tone curve's own effect is ``measure_light``'s). Returns rows ``{"effect", "estimator", "edges",
     "bias_shift_px"}``: Fig. 4's pooled mean signed error differences (sRGB − linear input, line_spread −
     erf_fit σ convention), and Fig. 6's dense-map bias at α = 0.5 per encoding, mean over the scenes;
     empty when the rows are missing.

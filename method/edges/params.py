@@ -42,9 +42,10 @@ class EdgeParams:
     # Also read by the checked fit's noise allowance and the fusion's island test.
     measure_light: str = "display"
     # the light edges are detected and their blur measured in (key of method.luma.MEASURE_LIGHTS):
-    # "display" (the encoded values, paper) or "linear" (sRGB decoded first: a lens blurs linear
-    # radiance; noise_std is then in linear units). Eq. (3), Eq. (4) and the region cue read the
-    # encoded image either way.
+    # "display" (sRGB-encoded values, paper) or "linear" (linear light: a lens blurs linear radiance;
+    # noise_std is then in linear units). The input is converted into it from its declared encoding
+    # (estimate_defocus_map(encoding=...)). Eq. (3), Eq. (4) and the region cue read display values
+    # either way.
     false_positive_rate: float = 1e-6
     # image-wide false-positive tolerance α_I = 0.0001 %, dimensionless (Sec. 3.1, Eq. 9).
     edge_detector: str = "elder_zucker"

@@ -6,12 +6,12 @@ occlusion layers), :mod:`.refocusing` (deconvolution and re-blur, Fig. 8), :mod:
 at a working resolution, guided upsampling, tiled magnification); :mod:`.params` (:class:`.params.MagnifyParams`).
 """
 
-from .magnification import (MAGNIFICATION_ENCODINGS, MAGNIFICATION_KERNELS, MAGNIFICATION_RENDERERS, MAP_FLOOR_MODES,
+from .magnification import (MAGNIFICATION_KERNELS, MAGNIFICATION_RENDERERS, MAP_FLOOR_MODES,
                             magnify_defocus, preprocess_defocus_map)
 from .refocusing import DECONVOLUTION_METHODS, deconvolve_defocus, refocus
 from .scatter import APERTURES, scatter_blur
 from .params import MagnifyParams
 
-__all__ = ["APERTURES", "DECONVOLUTION_METHODS", "MAGNIFICATION_ENCODINGS", "MAGNIFICATION_KERNELS",
+__all__ = ["APERTURES", "DECONVOLUTION_METHODS", "MAGNIFICATION_KERNELS",
            "MAGNIFICATION_RENDERERS", "MAP_FLOOR_MODES", "MagnifyParams", "deconvolve_defocus", "magnify_defocus",
            "preprocess_defocus_map", "refocus", "scatter_blur"]

@@ -13,12 +13,14 @@ Renderers (:data:`MAGNIFICATION_RENDERERS`), both adding the extra blur σ_e(p):
   composited in occlusion layers (sharper = nearer), normalised by the accumulated weight
   (:mod:`method.magnify.scatter`). Aperture shape: ``aperture``.
 
-Encodings (:data:`MAGNIFICATION_ENCODINGS`): what the image's values are, hence in which space the
-renderer blends them — ``"display"`` (values in [0, 1] blended as given, the paper's path and the
-gather's default), ``"srgb"`` (decoded to linear light by the sRGB transfer function of
-colour-science, blurred, re-encoded; the scatter's default: a lens adds light, not sRGB values) or
-``"linear"`` (linear radiance ≥ 0 that may exceed 1, e.g. a render's highlights; blurred as given
-and returned unclipped).
+Light (the vocabulary of :mod:`method.luma`): ``encoding`` (:data:`method.luma.ENCODINGS`) says what
+the image's values are — ``"srgb"`` (display values in [0, 1], default) or ``"linear"`` (linear
+radiance ≥ 0 that may exceed 1, e.g. a render's highlights; returned unclipped) — and ``light``
+(:data:`method.luma.LIGHTS`) the light the renderer blends in: ``"display"`` (the sRGB-encoded values,
+the paper's path and the gather's default) or ``"linear"`` (linear light, the scatter's default: a
+lens adds light, not sRGB values). When they differ the image goes through the sRGB transfer
+function of colour-science once each way (a linear image blended in display light loses values
+above 1).
 
 Kernels of the gather (:data:`MAGNIFICATION_KERNELS`):
 
@@ -51,11 +53,12 @@ import numpy as np
 from scipy import fft as sfft
 from scipy import ndimage
 
+from ..luma import LIGHTS, light_of
 from ..validation import validate_image, validate_map
 from ..registry import Entry, Registry
 from .scatter import APERTURES, scatter_blur
 
-__all__ = ["MAGNIFICATION_ENCODINGS", "MAGNIFICATION_KERNELS", "MAGNIFICATION_RENDERERS", "MAP_FLOOR_MODES",
+__all__ = ["MAGNIFICATION_KERNELS", "MAGNIFICATION_RENDERERS", "MAP_FLOOR_MODES",
            "check_extra_blur", "magnify_defocus", "preprocess_defocus_map"]
 
 #: Ratio between the σ of consecutive blur-stack levels (levels 0, 0.5 px, 0.5·√2 px, ...).
@@ -318,12 +321,12 @@ def _srgb_encode(x):
     return np.clip(colour.cctf_encoding(np.clip(x, 0.0, 1.0), function="sRGB"), 0.0, 1.0)
 
 
-#: What the image's values are, by name: value = (to the blending space, back), None for as given.
-MAGNIFICATION_ENCODINGS = Registry("encoding", {
-    "display": Entry(None, "values in [0, 1] blended as given (the paper's path)"),
-    "srgb": Entry((_srgb_decode, _srgb_encode), "sRGB values: blended in linear light, re-encoded"),
-    "linear": Entry(None, "linear radiance >= 0, may exceed 1: blended as given, not clipped"),
-})
+def _transfer(encoding: str, light: str):
+    """(to the blending light, back) for an image of ``encoding`` blended in ``light``; None when they agree."""
+    source = light_of(encoding)
+    if source == light:
+        return None
+    return (_srgb_decode, _srgb_encode) if light == "linear" else (_srgb_encode, _srgb_decode)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -335,12 +338,12 @@ class Renderer:
     render : callable
         Keyword options: ``kernel``, ``aperture``, ``in_front``, ``progress`` (each renderer reads
         the ones its entry's capabilities name).
-    default_encoding : str
-        Key of :data:`MAGNIFICATION_ENCODINGS` used when ``encoding=None``.
+    default_light : str
+        Key of :data:`method.luma.LIGHTS` it blends in when ``light=None``.
     """
 
     render: Callable
-    default_encoding: str
+    default_light: str
 
 
 def _render_gather(image, sigma_extra, *, kernel, aperture, in_front, progress):
@@ -357,14 +360,14 @@ MAGNIFICATION_RENDERERS = Registry("magnification renderer", {
     "gather": Entry(Renderer(_render_gather, "display"),
                     "per-pixel interpolation of a blur stack, no occlusion (the paper preset's path)",
                     capabilities={"kernel"}),
-    "scatter": Entry(Renderer(_render_scatter, "srgb"),
+    "scatter": Entry(Renderer(_render_scatter, "linear"),
                      "each pixel spreads its linear radiance over its disk/hexagon, occlusion by σ layers",
                      capabilities={"aperture", "occlusion"}),
 })
 
 
-def _check_renderer_options(renderer, kernel, aperture, in_front, encoding, shape):
-    """(renderer, kernel, aperture, in_front, encoding) validated, defaults filled in; ValueError otherwise."""
+def _check_renderer_options(renderer, kernel, aperture, in_front, light, shape):
+    """(kernel, aperture, in_front, light) validated, defaults filled in; ValueError otherwise."""
     MAGNIFICATION_RENDERERS.check(renderer, what="renderer")
     caps = MAGNIFICATION_RENDERERS.entry(renderer).capabilities
     for name, value, cap in (("kernel", kernel, "kernel"), ("aperture", aperture, "aperture"),
@@ -374,26 +377,25 @@ def _check_renderer_options(renderer, kernel, aperture, in_front, encoding, shap
             raise ValueError(f"{name} applies to the {users} renderer, not to renderer={renderer!r}")
     kernel = MAGNIFICATION_KERNELS.check(kernel or "gaussian", what="kernel")
     aperture = APERTURES.check(aperture or "disk", what="aperture")
-    encoding = MAGNIFICATION_ENCODINGS.check(encoding or MAGNIFICATION_RENDERERS[renderer].default_encoding,
-                                             what="encoding")
+    light = LIGHTS.check(light or MAGNIFICATION_RENDERERS[renderer].default_light, what="light")
     if in_front is not None:
         in_front = np.asarray(in_front)
         if in_front.shape != tuple(shape[:2]) or in_front.dtype != bool:
             raise ValueError(f"in_front must be a bool array of shape {tuple(shape[:2])}, got {in_front.dtype} "
                              f"{in_front.shape}")
-    return kernel, aperture, in_front, encoding
+    return kernel, aperture, in_front, light
 
 
 def magnify_defocus(image, defocus_map, *, factor=2.0, kernel=None, clip_percent=5.0, smoothing=0.005,
-                    floor="clamp", preprocess=True, renderer="gather", aperture=None, encoding=None, in_front=None,
-                    progress: Callable[[str], None] | None = None) -> np.ndarray:
+                    floor="clamp", preprocess=True, renderer="gather", aperture=None, encoding="srgb", light=None,
+                    in_front=None, progress: Callable[[str], None] | None = None) -> np.ndarray:
     """Magnify the defocus of a photo: blur each pixel so its total blur is factor·B(p) (Sec. 5).
 
     Parameters
     ----------
     image : ndarray, HxW or HxWx3, float
-        The photo: values in [0, 1] (``encoding`` ``"display"`` or ``"srgb"``) or linear radiance
-        ≥ 0 (``"linear"``).
+        The photo: sRGB-encoded values in [0, 1] (``encoding="srgb"``) or linear radiance ≥ 0
+        (``"linear"``).
     defocus_map : ndarray, HxW, float
         Dense blur σ B(p), px (the propagated map). With ``preprocess=False`` it must be ≥ 0.
     factor : float, keyword-only
@@ -418,9 +420,12 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel=None, clip_percent
     aperture : str or None, keyword-only
         Scatter only: key of :data:`method.magnify.scatter.APERTURES`, ``"disk"`` (None: the
         default) or ``"hexagon"``.
-    encoding : str or None, keyword-only
-        Key of :data:`MAGNIFICATION_ENCODINGS` (None: the renderer's default, ``"display"`` for the
-        gather, ``"srgb"`` for the scatter).
+    encoding : str, keyword-only
+        What the image's values are, key of :data:`method.luma.ENCODINGS`: ``"srgb"`` (default) or
+        ``"linear"``.
+    light : str or None, keyword-only
+        The light the renderer blends in, key of :data:`method.luma.LIGHTS` (None: the renderer's
+        default, ``"display"`` for the gather, ``"linear"`` for the scatter).
     in_front : ndarray of bool, HxW, optional, keyword-only
         Scatter only: pixels in front of the focus plane (:func:`method.magnify.scatter.layer_index`).
     progress : callable, optional, keyword-only
@@ -435,7 +440,7 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel=None, clip_percent
     ------
     ValueError
         Bad image, map shape mismatch, NaN/Inf, negative map without preprocessing, factor < 1,
-        unknown renderer, kernel, aperture, encoding or floor, an option the renderer does not take,
+        unknown renderer, kernel, aperture, encoding, light or floor, an option the renderer does not take,
         an extra blur σ_e above the image size (:func:`check_extra_blur`).
 
     Notes
@@ -444,19 +449,21 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel=None, clip_percent
        Gaussian blur).
     2. Extra blur per pixel σ_e = √(factor² − 1)·B (Gaussians add in quadrature; for the scatter's
        disks, the per-axis variances add the same way).
-    3. ``encoding="srgb"``: decode to linear light.
+    3. Convert the image from ``encoding`` into ``light`` when they differ (sRGB decoding, or
+       encoding for a linear image blended in display light).
     4. Gather: blur stack, level 0 = the image, levels ℓ ≥ 1 = image ⊛ kernel(σ_ℓ), σ_ℓ = 0.5·√2^(ℓ−1)
        px, up to max σ_e, computed by FFT with symmetric padding; per pixel, linear interpolation
        between the two levels whose kernel variances v_ℓ bracket σ_e² (the second moment of the
        effective kernel is exactly σ_e²; v_ℓ are the measured variances of the discrete kernels).
        Level 0 enters with weight exactly 1 where σ_e = 0, so factor = 1 and a zero map return the
        input bit for bit. Scatter: :func:`method.magnify.scatter.scatter_blur` of σ_e.
-    5. Re-encode (``"srgb"``; a pixel the blur left unchanged is returned as given, bit for bit); clip
-       to [0, 1] (``"display"``: kernels are non-negative, so only round-off is clipped) or to ≥ 0
-       (``"linear"``).
+    5. Convert back to ``encoding`` (a pixel the blur left unchanged is returned as given, bit for
+       bit); clip to [0, 1] (``encoding="srgb"``: kernels are non-negative, so only round-off is
+       clipped) or to ≥ 0 (``"linear"``).
     """
-    kernel, aperture, in_front, encoding = _check_renderer_options(renderer, kernel, aperture, in_front, encoding,
-                                                                   np.shape(image))
+    light_of(encoding)
+    kernel, aperture, in_front, light = _check_renderer_options(renderer, kernel, aperture, in_front, light,
+                                                                np.shape(image))
     image = validate_image(image, min_side=1, check_range=encoding != "linear")
     if encoding == "linear" and image.size and float(image.min()) < 0:
         raise ValueError(f"image (linear radiance) must be >= 0, got min {float(image.min()):.6g}")
@@ -479,7 +486,7 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel=None, clip_percent
     if factor == 1.0 or not np.any(sigma_extra > 0):
         return image64.copy()
     img3 = image64 if image64.ndim == 3 else image64[..., None]
-    transfer = MAGNIFICATION_ENCODINGS[encoding]
+    transfer = _transfer(encoding, light)
     work = transfer[0](img3) if transfer else img3
     out = MAGNIFICATION_RENDERERS[renderer].render(work, sigma_extra, kernel=kernel, aperture=aperture,
                                                    in_front=in_front, progress=progress)

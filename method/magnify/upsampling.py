@@ -23,23 +23,12 @@ from collections.abc import Callable
 import numpy as np
 from scipy import ndimage
 
-from ..luma import LUMA_WEIGHTS
+from ..luma import LUMA_WEIGHTS, light_of, to_light
 from ..validation import MIN_IMAGE_SIDE, validate_image, validate_map
 
-__all__ = [
-    "DEFAULT_MAX_WORKING_PIXELS",
-    "GUIDED_EPS",
-    "GUIDED_RADIUS",
-    "ScaledDefocusResult",
-    "downscale_image",
-    "estimate_defocus_map_at_scale",
-    "guided_upsample",
-    "magnify_defocus_tiled",
-    "prefilter_sigma",
-    "upsample_defocus_map",
-    "working_shape",
-    "working_to_full_sigma",
-]
+__all__ = ["DEFAULT_MAX_WORKING_PIXELS", "GUIDED_EPS", "GUIDED_RADIUS", "ScaledDefocusResult",
+           "downscale_image", "estimate_defocus_map_at_scale", "guided_upsample", "magnify_defocus_tiled",
+           "prefilter_sigma", "upsample_defocus_map", "working_shape", "working_to_full_sigma"]
 
 #: Default working-resolution budget, px (≈ 1.5 MP, e.g. 1500 × 1000). The estimator's target is
 #: ≤ 5 s and ≤ 3 GiB at 1 MP, growing about linearly with the pixel count, so 1.5 MP stays within
@@ -299,7 +288,7 @@ def guided_upsample(low_map, low_image, full_image, *, radius=GUIDED_RADIUS, eps
     return np.clip(out, lo, hi, out=out)
 
 
-def estimate_defocus_map_at_scale(image, params=None, *, max_working_pixels=DEFAULT_MAX_WORKING_PIXELS,
+def estimate_defocus_map_at_scale(image, params=None, *, encoding="srgb", max_working_pixels=DEFAULT_MAX_WORKING_PIXELS,
                                   progress: Callable[[str], None] | None = None,
                                   remove_prefilter=True) -> ScaledDefocusResult:
     """Estimate a photo's defocus map at a working resolution within a pixel budget.
@@ -307,10 +296,13 @@ def estimate_defocus_map_at_scale(image, params=None, *, max_working_pixels=DEFA
     Parameters
     ----------
     image : ndarray, HxWx3 or HxW, float in [0, 1]
-        The full-resolution photo (sRGB-encoded). Sides ≥ MIN_IMAGE_SIDE.
+        The full-resolution photo, its values in ``encoding``. Sides ≥ MIN_IMAGE_SIDE.
     params : DefocusParams, optional
         Pipeline parameters (paper defaults when omitted). Scale-dependent ones (σ1/σ2 scales,
         window sizes) apply in working px.
+    encoding : str, keyword-only
+        Key of :data:`method.luma.ENCODINGS` ("srgb", default, or "linear"), passed to
+        :func:`method.pipeline.estimate_defocus_map`; the downscaling averages the values as given.
     max_working_pixels : int, keyword-only
         Estimate at full resolution when H·W fits; otherwise at the largest same-aspect size that
         does (:func:`working_shape`).
@@ -340,6 +332,7 @@ def estimate_defocus_map_at_scale(image, params=None, *, max_working_pixels=DEFA
     """
     from ..pipeline import estimate_defocus_map  # imported late: keeps this module light
 
+    light_of(encoding)
     image = validate_image(image)
     (h, w), scale = working_shape(image.shape, max_working_pixels=max_working_pixels)
 
@@ -348,17 +341,19 @@ def estimate_defocus_map_at_scale(image, params=None, *, max_working_pixels=DEFA
             progress(stage)
 
     if scale == 1.0:
-        result = estimate_defocus_map(image, params, progress=progress)
+        result = estimate_defocus_map(image, params, encoding=encoding, progress=progress)
         return ScaledDefocusResult(result.defocus_map, 1.0, (h, w), result)
     note("downscale")
     small = downscale_image(image, (h, w))
-    result = estimate_defocus_map(small, params, progress=progress)
+    result = estimate_defocus_map(small, params, encoding=encoding, progress=progress)
     note("upsample")
-    full = upsample_defocus_map(result.defocus_map, small, image, scale=scale, remove_prefilter=remove_prefilter)
+    full = upsample_defocus_map(result.defocus_map, small, image, scale=scale, remove_prefilter=remove_prefilter,
+                                encoding=encoding)
     return ScaledDefocusResult(full, scale, (h, w), result)
 
 
-def upsample_defocus_map(working_map, working_image, full_image, *, scale, remove_prefilter=True) -> np.ndarray:
+def upsample_defocus_map(working_map, working_image, full_image, *, scale, remove_prefilter=True,
+                         encoding="srgb") -> np.ndarray:
     """Bring a working-resolution defocus map to the full photo: σ conversion + guided upsampling.
 
     Parameters
@@ -373,6 +368,9 @@ def upsample_defocus_map(working_map, working_image, full_image, *, scale, remov
         Working / full linear scale s (from :func:`working_shape`).
     remove_prefilter : bool, keyword-only
         See :func:`working_to_full_sigma`.
+    encoding : str, keyword-only
+        Key of :data:`method.luma.ENCODINGS` of both images; the guide is their luma in display
+        light (:func:`method.luma.to_light`), as for an sRGB photo.
 
     Returns
     -------
@@ -383,6 +381,7 @@ def upsample_defocus_map(working_map, working_image, full_image, *, scale, remov
     if scale == 1.0 and working_map.shape == full_image.shape[:2]:
         return np.asarray(working_map, dtype=np.float64).copy()
     sigma = working_to_full_sigma(working_map, scale, remove_prefilter=remove_prefilter)
+    working_image, full_image = (to_light(im, "display", encoding=encoding) for im in (working_image, full_image))
     return np.maximum(guided_upsample(sigma, working_image, full_image), 0.0)
 
 
@@ -416,7 +415,7 @@ def _halo(sigma_extra_max: float, renderer: str = "gather") -> int:
 
 def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel=None, clip_percent=5.0,
                           smoothing=0.005, preprocess=True, tile_pixels=DEFAULT_TILE_PIXELS,
-                          renderer="gather", aperture=None, encoding=None,
+                          renderer="gather", aperture=None, encoding="srgb", light=None,
                           progress: Callable[[str], None] | None = None) -> np.ndarray:
     """:func:`method.magnify.magnification.magnify_defocus` for large photos, in overlapping tiles.
 
@@ -426,7 +425,7 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel=None, clip_p
         The full-resolution photo.
     defocus_map : ndarray, HxW, float
         Dense blur σ, px of ``image``.
-    factor, kernel, clip_percent, smoothing, preprocess, renderer, aperture, encoding : keyword-only
+    factor, kernel, clip_percent, smoothing, preprocess, renderer, aperture, encoding, light : keyword-only
         As :func:`method.magnify.magnification.magnify_defocus` (factor ≥ 1).
     tile_pixels : int, keyword-only
         Pixels of one tile, halo included; bounds the working memory (≈ 290 B/px). A photo that fits
@@ -437,7 +436,7 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel=None, clip_p
 
     Returns
     -------
-    ndarray, same shape as ``image``, float64 in [0, 1]
+    ndarray, same shape as ``image``, float64 in [0, 1] (≥ 0 with ``encoding="linear"``)
 
     Notes
     -----
@@ -463,7 +462,7 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel=None, clip_p
     def call(img, mp, label):
         inner = None if progress is None else (lambda stage: progress(f"{label}: {stage}"))
         return magnify_defocus(img, mp, factor=factor, kernel=kernel, preprocess=False, renderer=renderer,
-                               aperture=aperture, encoding=encoding, progress=inner)
+                               aperture=aperture, encoding=encoding, light=light, progress=inner)
 
     H, W = image.shape[:2]
     if H * W <= tile_pixels or m.shape != (H, W):

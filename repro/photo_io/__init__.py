@@ -1,7 +1,8 @@
 """Reading and writing photographers' image files: JPEG, PNG, TIFF (8/16-bit) and OpenEXR.
 
-The method wants a float image in [0, 1], display-encoded (sRGB), HxW or HxWx3. This module turns
-a file into that (:func:`read_photo`) and back (:func:`write_photo`), keeping what a photographer
+The method wants a float image in [0, 1], HxW or HxWx3, and its encoding (sRGB display values or
+linear light). This module turns a file into that (:func:`read_photo`, ``Photo.encoding``) and back
+(:func:`write_photo`), keeping what a photographer
 expects kept: orientation (EXIF), bit depth (16-bit PNG/TIFF in → 16-bit out), grey stays grey,
 EXIF and ICC metadata pass through where the format allows.
 
@@ -15,8 +16,8 @@ Decoders
   RGB PNG and cannot write one).
 * TIFF: ``tifffile`` (8/16-bit, float, RGB or grey, chunky or planar); palette/CMYK TIFFs go
   through Pillow.
-* EXR: the ``OpenEXR`` 3.x API. EXR holds *linear* light: it is encoded with the sRGB transfer
-  function (:func:`scenes.display.linear_to_srgb`) on reading and decoded on writing.
+* EXR: the ``OpenEXR`` 3.x API. EXR holds *linear* light: it is read as such (``encoding``
+  "linear"); on writing, an image in another encoding is sRGB-decoded (:func:`scenes.display.srgb_to_linear`).
 
 The pixel budget (``max_pixels``) is checked from the file header, before any pixel is decoded,
 so a 100-megapixel header costs nothing; Pillow's own ``DecompressionBombError`` is caught too.

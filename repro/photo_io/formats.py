@@ -57,7 +57,7 @@ class Photo:
     Attributes
     ----------
     image : ndarray, HxWx3 or HxW, float64 in [0, 1]
-        Display-encoded (sRGB) values, upright (EXIF orientation applied), alpha dropped.
+        The stored values in ``encoding``, upright (EXIF orientation applied), alpha dropped.
     bit_depth : int
         Bits per sample of the source: 8, 16, or 32 for floating-point sources (EXR, float TIFF).
     format : str
@@ -70,6 +70,9 @@ class Photo:
         The source's EXIF block with its orientation reset to 1 (pixels are already upright).
     icc_profile : bytes or None
         The source's embedded ICC profile, passed through on writing.
+    encoding : str
+        What the values are, a key of :data:`method.luma.ENCODINGS`: "srgb" (display values: JPEG,
+        PNG, TIFF) or "linear" (linear light: OpenEXR).
     """
 
     image: np.ndarray
@@ -79,6 +82,7 @@ class Photo:
     notes: tuple[str, ...] = ()
     exif: bytes | None = None
     icc_profile: bytes | None = None
+    encoding: str = "srgb"
 
     @property
     def is_grey(self) -> bool:

@@ -221,8 +221,6 @@ def _to_unit(arr: np.ndarray, path: Path, notes: list[str]) -> tuple[np.ndarray,
 def _read_exr(path: Path, notes: list[str], repair_nonfinite: bool) -> tuple[np.ndarray, int]:
     import OpenEXR
 
-    from scenes.display import linear_to_srgb
-
     try:
         channels = {k: np.asarray(v.pixels) for k, v in OpenEXR.File(str(path)).channels().items()}
     except Exception as exc:
@@ -256,7 +254,7 @@ def _read_exr(path: Path, notes: list[str], repair_nonfinite: bool) -> tuple[np.
     over = float(np.mean(arr > 1.0))
     if over > 0:
         notes.append(f"{path.name}: {100 * over:.2g}% of linear samples above 1.0 clipped to white")
-    return linear_to_srgb(arr), 32
+    return np.clip(arr, 0.0, 1.0), 32  # linear light, as stored (Photo.encoding "linear")
 
 
 def _read_png16(path: Path, notes: list[str]) -> np.ndarray:
@@ -341,7 +339,7 @@ def read_photo(path, *, max_pixels=DEFAULT_MAX_PIXELS, repair_nonfinite=False) -
     ----------
     path : str or Path
         JPEG, PNG (8/16-bit, grey, RGB, palette, with or without alpha), TIFF (8/16-bit, float,
-        grey or RGB), OpenEXR (linear light; encoded to sRGB), or any other format Pillow reads.
+        grey or RGB), OpenEXR (linear light, kept linear), or any other format Pillow reads.
     max_pixels : int or None, keyword-only
         Pixel budget (width × height) checked from the header *before* decoding; None disables it
         (Pillow's decompression-bomb guard still applies to Pillow formats).
@@ -351,7 +349,9 @@ def read_photo(path, *, max_pixels=DEFAULT_MAX_PIXELS, repair_nonfinite=False) -
     Returns
     -------
     Photo
-        ``image`` is float64, HxWx3 (colour) or HxW (grey), in [0, 1], display-encoded.
+        ``image`` is float64, HxWx3 (colour) or HxW (grey), in [0, 1], its values as stored:
+        ``encoding`` "linear" for OpenEXR (linear light, values above 1 clipped), "srgb" for every
+        other format (display values, as a camera delivers them).
 
     Raises
     ------
@@ -366,6 +366,8 @@ def read_photo(path, *, max_pixels=DEFAULT_MAX_PIXELS, repair_nonfinite=False) -
     2. Read the header only and compare width × height with ``max_pixels``.
     3. Decode with the decoder suited to the format and bit depth (see the module docstring).
     4. Drop alpha (noted), scale integers by 255 or 65535, apply the EXIF orientation.
+    5. Declare the encoding from the format (OpenEXR "linear", others "srgb"); the photo tools'
+       ``--encoding`` overrides it.
     """
     header = probe_photo(path)
     _check_budget(header, max_pixels)
@@ -391,7 +393,7 @@ def read_photo(path, *, max_pixels=DEFAULT_MAX_PIXELS, repair_nonfinite=False) -
         image = apply_orientation(image, orientation)
     image = np.ascontiguousarray(image, dtype=np.float64)
     return Photo(image=image, bit_depth=bits, format=kind, path=path, notes=tuple(notes),
-                 exif=exif, icc_profile=icc)
+                 exif=exif, icc_profile=icc, encoding="linear" if kind == "EXR" else "srgb")
 
 
 def _tiff_metadata(path: Path) -> tuple[bytes | None, bytes | None]:

@@ -59,20 +59,23 @@ def _quantise(image: np.ndarray, bits: int, *, rows=256) -> np.ndarray:
     return out
 
 
-def write_photo(path, image, *, bit_depth=None, exif=None, icc_profile=None) -> Path:
+def write_photo(path, image, *, bit_depth=None, exif=None, icc_profile=None, encoding="srgb") -> Path:
     """Write a float image in [0, 1] to a file whose format follows the extension, atomically.
 
     Parameters
     ----------
     path : str or Path
         Destination: ``.jpg``/``.jpeg`` (8-bit), ``.png`` or ``.tif``/``.tiff`` (8 or 16-bit),
-        ``.exr`` (float32, linear: the values are sRGB-decoded). Its folder must exist.
-    image : ndarray, HxWx3 or HxW, float in [0, 1]
-        Display-encoded (sRGB) values; grey images are written as grey.
+        ``.exr`` (float32, linear light). Its folder must exist.
+    image : ndarray, HxWx3 or HxW, float in [0, 1] (≥ 0 for ``encoding="linear"``)
+        Values in ``encoding``; grey images are written as grey.
     bit_depth : int, optional, keyword-only
         8 or 16 for PNG/TIFF (default 8); ignored for JPEG (always 8) and EXR (float).
     exif, icc_profile : bytes, optional, keyword-only
         Metadata passed through to JPEG, 8-bit PNG and TIFF (16-bit PNG carries none).
+    encoding : str, keyword-only
+        What the values are (:data:`method.luma.ENCODINGS`): "srgb" (default; sRGB-decoded for an
+        EXR) or "linear" (written as given to an EXR, sRGB-encoded for the other formats).
 
     Returns
     -------
@@ -104,11 +107,19 @@ def write_photo(path, image, *, bit_depth=None, exif=None, icc_profile=None) -> 
         if bits not in (8, 16):
             raise PhotoError(f"bit_depth={bit_depth!r} invalid for {suffix}; allowed: 8 or 16")
 
+    from method.luma import ENCODINGS
+
+    if encoding not in ENCODINGS:
+        raise PhotoError(f"encoding={encoding!r} is invalid; allowed: {ENCODINGS.allowed()}")
     if suffix == ".exr":
         from scenes.display import srgb_to_linear
 
-        linear = srgb_to_linear(image).astype(np.float32)
+        linear = (np.maximum(image, 0.0) if encoding == "linear" else srgb_to_linear(image)).astype(np.float32)
         return _write_exr_channels(path, {"RGB" if image.ndim == 3 else "Y": linear})
+    if encoding == "linear":
+        from scenes.display import linear_to_srgb
+
+        image = linear_to_srgb(image)
 
     data = _quantise(image, bits)
     with atomic_write(path) as tmp:

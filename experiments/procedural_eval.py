@@ -28,7 +28,7 @@ __all__ = ["FAILED_METRIC", "PROCEDURAL_EVAL_VERSION", "SOURCE", "ProceduralPlan
            "noise_seed", "plan_evaluation", "scene_key", "score_scene", "summary_rows"]
 
 #: Version of :func:`score_scene`'s output; part of every scene's resume key.
-PROCEDURAL_EVAL_VERSION = 1
+PROCEDURAL_EVAL_VERSION = 2  # 2: the trivial baselines (experiments.baselines) as rows
 #: The ``source`` column of the family's rows.
 SOURCE = "procedural"
 #: Metric of every (render, input, preset): 1 when the method raised on it (its other metrics are then
@@ -195,6 +195,7 @@ def _score_render(render, ids: dict, plan: ProceduralPlan, seed: int, failures: 
 
     from method import DefocusParams, NoEdgesWarning, estimate_defocus_map
 
+    from .baselines import baseline_rows
     from .evaluation import evaluate_result, flatten_metrics, input_image
 
     rows, seconds = [], dict.fromkeys(plan.presets, 0.0)
@@ -203,6 +204,7 @@ def _score_render(render, ids: dict, plan: ProceduralPlan, seed: int, failures: 
         for noise in plan.noises:
             image = input_image(render, encoding=encoding, quantize_bits=8, noise=noise,
                                 rng=noise_seed(seed, f_number, noise))
+            rows += baseline_rows(render, {**ids, "encoding": encoding, "noise": noise}, image=image)
             for preset in plan.presets:
                 t0 = time.perf_counter()
                 params = DefocusParams.preset(preset)

@@ -7,7 +7,8 @@ their own stores: :func:`experiments.evaluation.evaluate_case`'s cache, the proc
 resume files). :func:`unit` finds a figure or a unit by name (what a Dask worker does with a task's name).
 
 * ``evaluate`` (``repro.evaluate`` on named scenes): one case per scene × aperture × encoding × noise ×
-  preset × estimator of an :class:`EvaluateConfig` (:func:`experiments.evaluation.evaluate_case`).
+  preset × estimator of an :class:`EvaluateConfig` (:func:`experiments.evaluation.evaluate_case`), and
+  one per trivial baseline (:func:`experiments.baselines.baseline_case`).
 * ``procedural`` (``repro.evaluate --procedural``): one case per scene seed of a
   :class:`experiments.procedural_eval.ProceduralPlan` (:func:`experiments.procedural_eval.score_scene`).
 * ``accuracy`` (``repro.bench --accuracy``): :data:`experiments.bench.accuracy.ACCURACY_UNIT`.
@@ -64,6 +65,14 @@ class EvaluateConfig:
     # Mitsuba variant requested.
     force: bool = False
     # recompute even when experiments.evaluation.evaluate_case has the case cached.
+    baselines: tuple[str, ...] = dataclasses.field(default_factory=lambda: _all_baselines())
+    # trivial baselines scored beside the presets (experiments.baselines.BASELINES; default: all).
+
+
+def _all_baselines() -> tuple[str, ...]:
+    from .baselines import BASELINES
+
+    return tuple(BASELINES)
 
 
 def _evaluate_cases(config: EvaluateConfig) -> tuple:
@@ -72,14 +81,20 @@ def _evaluate_cases(config: EvaluateConfig) -> tuple:
     return tuple(Case("evaluate", scene=s, preset=pr, aperture=float(n), encoding=enc, noise=nz, estimator=e,
                       scene_size=config.scene_size)
                  for s in config.scenes for n in config.f_numbers for enc in config.encodings for nz in config.noises
-                 for pr in config.presets for e in config.estimators)
+                 for pr in (*config.presets, *config.baselines)
+                 for e in ((None,) if pr in config.baselines else config.estimators))
 
 
 def _evaluate_case(config: EvaluateConfig, case, inputs) -> dict:
     """:func:`experiments.evaluation.evaluate_case` of one case (its own cache); metrics numbers, and in
     ``info`` the case's key, whether it was cached and its nested metrics (stage attribution included)."""
+    from .baselines import baseline_case, is_baseline
     from .evaluation import evaluate_case
 
+    if is_baseline(case.preset):
+        key, metrics = baseline_case(case.preset, case.scene, f_number=case.aperture, scene_size=config.scene_size,
+                                     encoding=case.encoding, noise=case.noise, variant=config.variant)
+        return {"metrics": metrics, "info": {"key": key, "cached": False, "metrics": metrics}}
     ev = evaluate_case(case.estimator, case.scene, f_number=case.aperture, preset=config.scene_size,
                        encoding=case.encoding, noise=case.noise, method_preset=case.preset, variant=config.variant,
                        force=config.force)

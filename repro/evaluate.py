@@ -18,7 +18,9 @@ For every combination, the scene is rendered (cached), the whole pipeline runs w
 encoding, keyed also by the code fingerprint), and the errors against the render's σ_gt are
 tabulated, per method preset (:data:`method.PRESETS`) and estimator: the sparse blur measure at edge pixels, after the cross-bilateral filter, the dense map
 over all / edge / textured pixels, RTF-normalised errors and the in-focus outlier fraction
-(occlusion boundaries excluded everywhere). The table is printed and written to
+(occlusion boundaries excluded everywhere). The trivial baselines (:mod:`experiments.baselines`:
+constant maps at the scene's median σ_gt and at the pixel filter's floor; their dense metrics only) are
+rows of the same table. The table is printed and written to
 ``<out>/evaluate.csv`` and ``<out>/evaluate.json`` (atomically).
 
 ``--noise`` adds the sensor noise levels (:data:`scenes.display.NOISE_LEVELS`) as an axis. ``--procedural N``
@@ -69,7 +71,7 @@ from ._evaluate_table import (ID_COLUMNS, METRIC_COLUMNS, SHOWN, STAGE_ID_COLUMN
 PROG = "python -m repro.evaluate"
 DEFAULT_OUT = Path("report") / "evaluate"
 __all__ = ["DEFAULT_OUT", "ID_COLUMNS", "MAP_ID_COLUMNS", "METRIC_COLUMNS", "PHOTO_COLUMNS", "PROG", "SHOWN",
-           "STAGE_ID_COLUMNS", "format_stage_table", "format_table", "main", "main_maps", "main_photos", "photo_rows",
+           "STAGE_ID_COLUMNS", "evaluate_named", "format_stage_table", "format_table", "main", "main_maps", "main_photos", "photo_rows",
            "stage_table_rows", "table_rows", "write_csv_json", "write_outputs", "write_stage_outputs"]
 
 
@@ -148,9 +150,9 @@ def _evaluate_cases(args, presets, estimators, scenes, f_numbers, encodings, noi
     :class:`experiments.evaluation.EvaluationCase`-like records (key, metrics, cached) in grid order."""
     import types
 
-    from experiments.units import EVALUATE, EvaluateConfig
+    from experiments.units import EvaluateConfig
 
-    from ._runner import FigureJob, engine_choice, run_figures
+    from ._runner import engine_choice
 
     config = EvaluateConfig(presets=tuple(presets), estimators=tuple(estimators), scenes=tuple(scenes),
                             f_numbers=tuple(float(n) for n in f_numbers), scene_size=args.scene_size,
@@ -158,12 +160,24 @@ def _evaluate_cases(args, presets, estimators, scenes, f_numbers, encodings, noi
     # in this process unless asked: an estimator registered at run time is seen only here
     workers = 1 if args.workers is None and args.scheduler is None else args.workers
     workers, scheduler = engine_choice(workers, args.scheduler, command=PROG)
+    data = evaluate_named(config, workers=workers, scheduler=scheduler, progress=not args.quiet)
+    return [types.SimpleNamespace(key=o.info["key"], metrics=o.info["metrics"], cached=o.info["cached"])
+            for o in data.outputs.values()], data
+
+
+def evaluate_named(config, *, workers=1, scheduler=None, progress=True):
+    """Every case of an :class:`experiments.units.EvaluateConfig` (presets and baselines on named scenes)
+    through the case runner; returns the run's figure data (``outputs`` in grid order, ``rows()`` the long
+    results rows)."""
+    from experiments.units import EVALUATE
+
+    from ._runner import FigureJob, run_figures
+
     (run,) = run_figures([FigureJob(EVALUATE, config, "evaluate")], workers=workers, scheduler=scheduler,
-                         progress=not args.quiet, desc="evaluate")
+                         progress=progress, desc="evaluate")
     if run.error is not None:
         raise RuntimeError(f"an evaluation case failed: {run.error}\n{run.traceback}")
-    return [types.SimpleNamespace(key=o.info["key"], metrics=o.info["metrics"], cached=o.info["cached"])
-            for o in run.data.outputs.values()], run.data
+    return run.data
 
 
 def main(argv=None) -> int:

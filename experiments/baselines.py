@@ -8,7 +8,7 @@ estimate: its ``sparse_*``, ``refined_*``, ``dense_edges_*`` and ``in_focus_outl
 empty (a constant has no edge pixels to be scored at); only the dense metrics are meaningful.
 
 Registered baselines (:data:`BASELINES`, a :class:`method.registry.Registry`; a new one is one function
-``sigma(render, truth) -> float`` plus one entry):
+``sigma(truth, occlusion) -> float`` plus one entry):
 
 * ``const_median_gt``: the scene's median σ_gt over the scored pixels (occlusion boundaries excluded),
   an *oracle* constant: it knows the ground truth's median, which no method sees.
@@ -24,23 +24,25 @@ import numpy as np
 
 from method.registry import Entry, Registry
 
-__all__ = ["BASELINES", "baseline_case", "baseline_metrics", "baseline_result", "baseline_rows", "baseline_sigma", "is_baseline"]
+__all__ = ["BASELINES", "baseline_case", "baseline_maps", "baseline_metrics", "baseline_result", "baseline_rows",
+           "baseline_sigma", "is_baseline"]
 
 
-def _median_gt(render, truth) -> float:
+def _median_gt(truth, occlusion) -> float:
     """Median σ_gt (px) over the pixels with a finite σ_gt off the occlusion boundaries (an oracle)."""
-    keep = np.isfinite(truth) & ~np.asarray(render.occlusion_boundary, dtype=bool)
+    keep = np.isfinite(truth) & ~occlusion
     return float(np.median(truth[keep])) if keep.any() else float("nan")
 
 
-def _floor(render, truth) -> float:
+def _floor(truth, occlusion) -> float:
     """σ of the box pixel filter alone (px): the σ_gt of a pixel in perfect focus."""
     from scenes.render import FILTER_SIGMA_PX
 
     return float(FILTER_SIGMA_PX)
 
 
-#: Baselines by name: value ``sigma(render, truth) -> float`` (px), the constant of the map.
+#: Baselines by name: value ``sigma(truth, occlusion) -> float`` (px), the constant of the map, from σ_gt
+#: (HxW, px, NaN where undefined) and the occlusion boundaries (HxW bool, excluded).
 BASELINES = Registry("baseline", {
     "const_median_gt": Entry(_median_gt, "constant map at the scene's median σ_gt (oracle: it knows the truth's median)"),
     "const_floor": Entry(_floor, "constant map at the pixel filter's floor, 1/√12 ≈ 0.289 px (everything in focus)"),
@@ -62,7 +64,8 @@ def baseline_sigma(name: str, render, *, convention: str = "line_spread") -> flo
     """
     from .evaluation import ground_truth_sigma
 
-    return BASELINES.resolve(name, what="baseline")(render, ground_truth_sigma(render, convention=convention))
+    return BASELINES.resolve(name, what="baseline")(ground_truth_sigma(render, convention=convention),
+                                                    np.asarray(render.occlusion_boundary, dtype=bool))
 
 
 def baseline_result(name: str, render, *, convention: str = "line_spread"):
@@ -152,3 +155,17 @@ def baseline_case(name: str, scene: str, *, f_number: float, scene_size: str = "
     key = {"estimator": None, "method_preset": name, "scene": scene, "f_number": float(f_number),
            "preset": scene_size, "encoding": encoding, "noise": noise}
     return key, baseline_metrics(name, render, image=image)
+
+
+def baseline_maps(truth, name: str):
+    """``image name -> (constant map, label)`` of baseline ``name`` on the images of ``truth`` (an
+    :class:`experiments.external_maps.DatasetTruth` or ``RenderTruth``), for
+    :func:`experiments.external_maps.score_maps` (the leaderboard)."""
+    fn = BASELINES.resolve(name, what="baseline")
+
+    def get(image):
+        gt = truth.ground_truth(image)
+        sigma = np.asarray(gt["sigma"], dtype=np.float64)
+        return np.full(sigma.shape, fn(sigma, np.asarray(gt["occlusion"], dtype=bool))), f"baseline {name}: {image}"
+
+    return get

@@ -132,6 +132,7 @@ TOP_FOLDERS = ("method", "scenes", "experiments", "repro", "tests", "docs", "ben
 GENERATED = {
     "report/figures/": "repro/figures.py",            # python -m repro.figures (default --out)
     "report/evaluate": "repro/evaluate.py",            # python -m repro.evaluate (default --out)
+    "report/compare": "repro/compare.py",              # python -m repro.compare (default --out)
     "report/leaderboard.json": "repro/report.py",      # python -m repro.report --external
     "tests/_failures/": "tests/test_render_reference.py",  # images of a failed comparison (git-ignored)
 }

@@ -40,6 +40,13 @@ def test_evaluate_one_scene_writes_csv_and_json(tmp_path, capsys, goldens):
     assert "model_fit" in printed and "gradient_ratio" in printed and "evaluate.csv" in printed
     rows, js = _read(out)
     assert list(rows[0]) == [*ID_COLUMNS, *METRIC_COLUMNS]
+    from experiments.baselines import BASELINES
+
+    # the trivial baselines are rows of the table too, after the estimators: dense metrics only
+    assert [r["method_preset"] for r in rows[3:]] == list(BASELINES)
+    for r in js["rows"][3:]:
+        assert np.isfinite(r["dense_textured_mae"]) and r["sparse_mae"] is None and r["estimator"] is None
+    rows, js["rows"] = rows[:3], js["rows"][:3]
     assert [r["estimator"] for r in rows] == ["model_fit", "zero_crossing", "gradient_ratio"]
     assert js["columns"] == [*ID_COLUMNS, *METRIC_COLUMNS] and len(js["rows"]) == 3
     for r in js["rows"]:

@@ -178,16 +178,17 @@ def main(argv=None) -> int:
     split = getattr(source, "split", None)
     if split == "fresh" and args.scene_seed_start is None:
         print(f"fresh seeds drawn: {source.start}..{source.start + source.n - 1}", file=sys.stderr)
-    t0 = time.perf_counter()
+    from experiments.dataset import git_commit
+
+    t0, commit = time.perf_counter(), git_commit()  # the code that runs (before any file changes meanwhile)
     rows, where = _rows(args, presets, source, out, workers, scheduler)
     from experiments.compare import compare_rows, format_comparison
-    from experiments.dataset import git_commit
     from experiments.registry import to_jsonable
 
     records = compare_rows(rows, a, b, n_resamples=10_000, seed=0)
     wall = time.perf_counter() - t0
     command = " ".join(["python -m repro.compare", *map(shlex.quote, sys.argv[1:] if argv is None else argv)])
-    meta = {"a": a, "b": b, "command": command, "commit": git_commit(),
+    meta = {"a": a, "b": b, "command": command, "commit": commit,
             "date_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
             "scene_size": args.scene_size, "wall_s": wall, **where}
     from experiments.results_table import write_results

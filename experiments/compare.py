@@ -121,7 +121,8 @@ def paired_values(rows: Iterable[dict], a: str, b: str) -> dict:
     -------
     dict
         ``{(aperture, encoding, noise, metric): (scenes, values of a, values of b)}``: lists in the rows'
-        scene order; bias metrics as absolute values under the name ``|metric|``.
+        scene order; bias metrics as absolute values under the name ``|metric|``; groups where no scene has
+        both values are left out.
     """
     per: dict[tuple, dict] = {}
     for r in rows:
@@ -135,7 +136,8 @@ def paired_values(rows: Iterable[dict], a: str, b: str) -> dict:
     out = {}
     for key, scenes in per.items():
         both = [s for s, v in scenes.items() if a in v and b in v]
-        out[key] = (both, [scenes[s][a] for s in both], [scenes[s][b] for s in both])
+        if both:  # a metric only one of them has (a baseline's missing sparse metrics) is not compared
+            out[key] = (both, [scenes[s][a] for s in both], [scenes[s][b] for s in both])
     return out
 
 

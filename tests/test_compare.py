@@ -112,6 +112,7 @@ def test_compare_rows_pairs_scenes_and_compares_bias_by_its_size():
     rows = _rows([0.5, -0.4, 0.6], [0.1, 0.1, -0.1], metric="dense_all_bias")
     rows.append({"scene": "s9", "preset": "paper", "aperture": 8.0, "encoding": "srgb", "noise": "none",
                  "metric": "dense_all_bias", "value": 0.3})  # B failed on s9: not paired
+    rows += [r for r in _rows([1.0, 2.0], [1.0, 2.0], metric="sparse_mae") if r["preset"] == "paper"]  # A's only
     (rec,) = compare_rows(rows, "paper", "robust", n_resamples=500)
     assert rec["metric"] == "|dense_all_bias|" and rec["n_scenes"] == 3
     assert rec["mean_a"] == pytest.approx(0.5) and rec["mean_b"] == pytest.approx(0.1)

@@ -155,7 +155,7 @@ def compare_rows(rows: Iterable[dict], a: str, b: str, *, alpha: float = 0.05, p
     alpha, power : float, keyword-only
         Interval level (1 − α) and the power of :func:`scenes_for_power`.
     target_half_width : float, keyword-only
-        Half-width of :func:`scenes_for_half_width` (the metric's unit; px for the errors).
+        Half-width (px) of :func:`scenes_for_half_width`, given for the metrics in px only.
     n_resamples, seed : int, keyword-only
         Paired bootstrap resamples and seed (the same rows give the same intervals).
 
@@ -164,22 +164,23 @@ def compare_rows(rows: Iterable[dict], a: str, b: str, *, alpha: float = 0.05, p
     list of dict
         ``aperture``, ``encoding``, ``noise``, ``metric``, ``unit``, ``direction``, ``n_scenes``, ``mean_a``,
         ``mean_b``, ``mean_diff`` (B − A), ``sd_diff``, ``ci_low``, ``ci_high``, ``half_width``, ``verdict``,
-        ``n_for_power``, ``n_for_half_width``; sorted by aperture (descending f-number) then metric.
+        ``n_for_power``, ``n_for_half_width`` (None for a metric not in px); sorted by aperture (descending f-number) then metric.
     """
     from .results_table import metric_unit, paired_difference
 
     out = []
     for (aperture, encoding, noise, metric), (scenes, va, vb) in paired_values(rows, a, b).items():
         d = paired_difference(va, vb, confidence=1.0 - alpha, n_resamples=n_resamples, seed=seed)
-        way = direction(metric.strip("|"))
+        way, unit = direction(metric.strip("|")), metric_unit(metric.strip("|"))
         hw = None if d["ci_low"] is None else (d["ci_high"] - d["ci_low"]) / 2.0
         out.append({"aperture": aperture, "encoding": encoding, "noise": noise, "metric": metric,
-                    "unit": metric_unit(metric.strip("|")), "direction": way, "n_scenes": len(scenes),
+                    "unit": unit, "direction": way, "n_scenes": len(scenes),
                     "mean_a": float(np.mean(va)) if va else None, "mean_b": float(np.mean(vb)) if vb else None,
                     "mean_diff": d["value"], "sd_diff": d["sd"], "ci_low": d["ci_low"], "ci_high": d["ci_high"],
                     "half_width": hw, "verdict": verdict(d["ci_low"], d["ci_high"], way),
                     "n_for_power": scenes_for_power(d["value"], d["sd"], alpha=alpha, power=power),
-                    "n_for_half_width": scenes_for_half_width(len(scenes), hw, target=target_half_width)})
+                    "n_for_half_width": scenes_for_half_width(len(scenes), hw, target=target_half_width)
+                    if unit == "px (σ)" else None})
     return sorted(out, key=lambda r: (-(r["aperture"] or 0.0), str(r["encoding"]), str(r["noise"]), r["metric"]))
 
 

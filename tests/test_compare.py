@@ -101,6 +101,9 @@ def test_compare_rows_verdicts_both_ways():
     assert rec["verdict"] == "worse" and rec["mean_diff"] == pytest.approx(0.3, abs=0.05)
     assert rec["half_width"] == pytest.approx((rec["ci_high"] - rec["ci_low"]) / 2)
     assert rec["n_for_power"] == scenes_for_power(rec["mean_diff"], rec["sd_diff"])
+    assert rec["n_for_half_width"] == scenes_for_half_width(a.size, rec["half_width"])
+    (nmae,) = compare_rows(_rows(a, b, metric="rtf_nmae"), "paper", "robust", n_resamples=200)
+    assert nmae["n_for_half_width"] is None  # the ±0.15 px target is for metrics in px
     (better,) = compare_rows(_rows(b, a), "paper", "robust", n_resamples=2000)
     assert better["verdict"] == "better"
     a0, b0 = _paired(0.0)

@@ -136,7 +136,7 @@ def _scatter(records, rows, a, b, metric, out_stem):
         if r["ci_low"] is None:
             continue
         _, va, vb = pairs[(ap, enc, noise, metric)]
-        panels.append((f"f/{ap:g}\n{b} − {a} = {r['mean_diff']:+.3f} [{r['ci_low']:+.3f}, {r['ci_high']:+.3f}] {r['unit']}",
+        panels.append((f"f/{ap:g}: {b} − {a} = {r['mean_diff']:+.3f}\n95 % [{r['ci_low']:+.3f}, {r['ci_high']:+.3f}]",
                        va, vb))
     if not panels:
         return []

@@ -13,7 +13,7 @@ def plot_scatter(panels, out_stem, *, a: str, b: str, metric: str, unit: str):
     Parameters
     ----------
     panels : list of (str, sequence of float, sequence of float)
-        Per panel: its title (e.g. ``"f/8\nB − A = -0.05 [-0.09, -0.01]"``), A's and B's values per
+        Per panel: its title (e.g. ``"f/8: B − A = -0.05\n95 % [-0.09, -0.01]"``), A's and B's values per
         scene (the same scenes, in the same order), in ``unit``.
     out_stem : path
         Output stem (``.png`` and ``.pdf`` are written).
@@ -29,7 +29,7 @@ def plot_scatter(panels, out_stem, *, a: str, b: str, metric: str, unit: str):
     import numpy as np
 
     n = max(1, len(panels))
-    fig, axes = new_figure(1, n, width_in=2.6 * n + 0.4, height_in=2.9, squeeze=False)
+    fig, axes = new_figure(1, n, width_in=3.0 * n + 0.4, height_in=2.9, squeeze=False)
     for ax, (title, va, vb) in zip(axes[0], panels):
         va, vb = np.asarray(va, dtype=float), np.asarray(vb, dtype=float)
         hi = float(np.nanmax(np.concatenate([va, vb, [0.0]]))) * 1.05 or 1.0
@@ -41,7 +41,7 @@ def plot_scatter(panels, out_stem, *, a: str, b: str, metric: str, unit: str):
         ax.set_title(title, fontsize=8)
         ax.set_xlabel(f"{a}: {metric} ({unit})", fontsize=8)
         ax.set_ylabel(f"{b}: {metric} ({unit})", fontsize=8)
-        ax.legend(loc="upper left", frameon=False, fontsize=7)
+        ax.legend(loc="lower right", frameon=False, fontsize=7)
         ax.tick_params(labelsize=7)
     fig.suptitle(f"{b} against {a} per scene: below the line, {b} has the lower {metric}", fontsize=9)
     return save_figure(fig, out_stem)

@@ -121,7 +121,9 @@ def _rows(args, presets, source, out: Path, workers, scheduler) -> tuple[list[di
     config = EvaluateConfig(presets=presets, scenes=tuple(scenes), f_numbers=tuple(f_numbers),
                             scene_size=args.scene_size, variant=args.variant, force=args.force)
     data = evaluate_named(config, workers=workers, scheduler=scheduler, progress=not args.quiet)
-    return [{**r, "source": "scenes"} for r in data.rows()], {"scenes": list(scenes)}
+    # the case runner's rows name nested metrics with "/" (dense/textured/mae); the tables use "_"
+    return ([{**r, "source": "scenes", "metric": r["metric"].replace("/", "_")} for r in data.rows()],
+            {"scenes": list(scenes)})
 
 
 def _scatter(records, rows, a, b, metric, out_stem):

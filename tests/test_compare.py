@@ -213,3 +213,18 @@ def test_compare_two_dev_scenes_end_to_end(tmp_path):
     assert (out / "compare.png").is_file() and (out / "rows.csv").is_file()
     assert "dense_textured_mae" in res.stdout and "scenes for ±0.15 px" in res.stdout
     assert not any(r["metric"].startswith("sparse") for r in doc["records"])  # a constant has no sparse values
+
+
+@pytest.mark.slow
+@pytest.mark.render
+def test_compare_two_named_scenes_against_a_baseline(tmp_path):
+    out = tmp_path / "out"
+    res = run_in_process("repro.compare", ["paper", "const_floor", "--scenes", "planes", "portrait_garden",
+                                           "--fnumber", "8", "--scene-size", "small", "--workers", "1", "-q",
+                                           "--out", str(out)])
+    assert res.returncode == 0, res.stderr
+    doc = json.loads((out / "compare.json").read_text())
+    assert doc["scenes"] == ["planes", "portrait_garden"]
+    by = {r["metric"]: r for r in doc["records"]}
+    assert by["dense_textured_mae"]["n_scenes"] == 2  # the runner's dense/textured/mae, named as in the tables
+    assert "sparse_mae" not in by

@@ -228,3 +228,13 @@ def test_compare_two_named_scenes_against_a_baseline(tmp_path):
     by = {r["metric"]: r for r in doc["records"]}
     assert by["dense_textured_mae"]["n_scenes"] == 2  # the runner's dense/textured/mae, named as in the tables
     assert "sparse_mae" not in by
+
+
+def test_the_ablation_bench_shows_dev_only():
+    from experiments.bench.ablation import ABLATION_CONFIG, ablation_markdown
+
+    assert set(ABLATION_CONFIG["procedural"]) == {"dev", "scene_preset"}  # no held-out seeds beside every variant
+    row = {"label": "robust", "lens": {"mean_mae": 1.0, "fails": 1, "cells": 2}, "renders": {"heron f/8": 0.5},
+           "photos": {"coffee": {"auc": 0.8, "share": 0.1}}, "procedural": {"dev": 0.865}}
+    md = ablation_markdown({"rows": [row], "config": ABLATION_CONFIG, "date": "d", "runtime_s": 60.0})
+    assert "procedural dev: mean MAE" in md and "| 0.865 |" in md and "dev / test" not in md

@@ -76,6 +76,11 @@ def validate(args):
     from method import PRESETS
 
     a, b = check_pair(args.a, args.b, presets=PRESETS, baselines=BASELINES)
+    from ._evaluate_table import METRIC_COLUMNS
+
+    plotted = [m for m in METRIC_COLUMNS if m != "seconds_total"]
+    if args.metric not in plotted:
+        raise ValueError(f"--metric {args.metric!r} is invalid; allowed: {', '.join(plotted)}")
     presets = tuple(n for n in (a, b) if n in PRESETS) or ("paper",)  # two baselines: paper carries the renders
     if (args.procedural is None) == (args.scenes is None):
         raise ValueError("give one scene source; allowed: --procedural N --split dev|test|fresh, or --scenes NAME ...")

@@ -189,6 +189,7 @@ def test_judgement_log_counts_runs(tmp_path):
     (["paper", "robust"], "give one scene source"),
     (["paper", "robust", "--scenes", "planes"], "a paired interval needs two scenes"),
     (["paper", "robust", "--scenes", "planes", "nowhere"], "unknown scene(s) 'nowhere'"),
+    (["paper", "robust", "--scenes", "planes", "portrait", "--metric", "mae"], "--metric 'mae' is invalid; allowed"),
 ])
 def test_bad_input_is_one_line_and_exit_2(args, message, tmp_path):
     res = run_in_process("repro.compare", [*args, "--out", str(tmp_path / "out")])

@@ -75,7 +75,7 @@ def test_registered_dummy_estimator_shows_up(tmp_path, monkeypatch):
     assert _run(["--estimator", "dummy_constant", "--scenes", "planes", "--fnumber", "8",
                  "--out", str(out)]) == 0
     rows, _ = _read(out)
-    assert [r["estimator"] for r in rows] == ["dummy_constant"]
+    assert [r["estimator"] for r in rows] == ["dummy_constant", "", ""]  # then the two trivial baselines
     # σ = 1 px at every edge pixel: the sparse bias is exactly mean(1 − σ_gt) over the scored edges
     from experiments.evaluation import evaluate_case
 
@@ -156,7 +156,8 @@ def test_evaluate_presets_and_stages(tmp_path, capsys):
     assert "oracle_propagate" in printed and "stages.csv" in printed
     rows, js = _read(out)
     assert [(r["method_preset"], r["estimator"]) for r in rows] == [("paper", "model_fit"),
-                                                                    ("robust", "model_fit_checked")]
+                                                                    ("robust", "model_fit_checked"),
+                                                                    ("const_median_gt", ""), ("const_floor", "")]
     assert rows[0]["dense_textured_mae"] != rows[1]["dense_textured_mae"]
     stages = json.loads((out / "stages.json").read_text())["rows"]
     got = {(r["method_preset"], r["input"], r["stage"]) for r in stages}

@@ -1,5 +1,6 @@
-"""A leaderboard of defocus maps: every method preset and every external map folder, one row each, per
-scene set and protocol (:mod:`experiments.external_maps`).
+"""A leaderboard of defocus maps: every method preset, every trivial baseline (:mod:`experiments.baselines`:
+constant maps at the image's median σ_gt and at the pixel filter's floor) and every external map folder,
+one row each, per scene set and protocol (:mod:`experiments.external_maps`).
 
 The presets' maps are computed here, by :func:`method.estimate_defocus_map` with the preset's
 parameters on each image's 8-bit sRGB input (the exported PNG, or the render quantised the same way):
@@ -52,7 +53,8 @@ def preset_maps(truth, preset: str):
 
 
 def check_external(external: dict, *, presets=None) -> None:
-    """ValueError (one line) unless every entry of ``external`` is a folder under a name no preset has.
+    """ValueError (one line) unless every entry of ``external`` is a folder under a name no preset or
+    baseline has.
 
     Parameters
     ----------
@@ -63,16 +65,18 @@ def check_external(external: dict, *, presets=None) -> None:
     """
     from method import PRESETS
 
-    clash = sorted(set(external) & set(presets if presets is not None else PRESETS))
+    from .baselines import BASELINES
+
+    clash = sorted(set(external) & {*(presets if presets is not None else PRESETS), *BASELINES})
     if clash:
-        raise ValueError(f"external name(s) {', '.join(map(repr, clash))} are invalid (a preset's name); "
+        raise ValueError(f"external name(s) {', '.join(map(repr, clash))} are invalid (a preset's or baseline's name); "
                          "allowed: any other name")
     for name, folder in external.items():
         if not Path(folder).is_dir():
             raise ValueError(f"--external {name}={folder}: not a folder; allowed: a folder of NAME.npy|npz|exr|png maps")
 
 
-def build_leaderboard(truth, *, presets=None, external: Mapping[str, Path] | None = None, protocols=None,
+def build_leaderboard(truth, *, presets=None, baselines=None, external: Mapping[str, Path] | None = None, protocols=None,
                       threshold_px: float = DETECTION_THRESHOLD_PX, png_scale: float = PNG_SCALE) -> dict:
     """Score every preset and external folder on the images of ``truth``.
 
@@ -81,6 +85,8 @@ def build_leaderboard(truth, *, presets=None, external: Mapping[str, Path] | Non
     truth : experiments.external_maps.DatasetTruth or RenderTruth
     presets : sequence of str, optional, keyword-only
         Keys of :data:`method.PRESETS` (default: all).
+    baselines : sequence of str, optional, keyword-only
+        Keys of :data:`experiments.baselines.BASELINES` (default: all; ``()`` for none).
     external : mapping str -> path, optional, keyword-only
         Entry name -> folder of maps ``NAME.npy|npz|exr|png``. A name may not be a preset's.
     protocols : sequence of str, optional, keyword-only
@@ -93,13 +99,16 @@ def build_leaderboard(truth, *, presets=None, external: Mapping[str, Path] | Non
     dict
         ``table``: the per-image scores as rows of the long results table (:func:`_long_rows`);
         ``rows``: from them (:func:`leaderboard_rows`), one per entry × scene set × protocol, ``{"entry",
-        "kind" ("preset"|"external"), "scene_set", "protocol", "n_images", <HEADLINE metric>: mean}``; ``problems``: one line per map
+        "kind" ("preset"|"baseline"|"external"), "scene_set", "protocol", "n_images", <HEADLINE metric>: mean}``; ``problems``: one line per map
         that could not be scored, naming the entry and the file; ``ground_truth``, ``protocols``,
         ``detection_threshold_px``, ``png_scale``, ``scene_sets`` (set -> images).
     """
     from method import PRESETS
 
+    from .baselines import BASELINES, baseline_maps
+
     presets = PRESETS.check_all(dict.fromkeys(presets if presets is not None else PRESETS), what="preset")
+    baselines = list(BASELINES) if baselines is None else (BASELINES.check_all(baselines) if baselines else [])
     protocols = PROTOCOLS.check_all(dict.fromkeys(protocols if protocols is not None else PROTOCOLS),
                                     what="protocol")
     external = dict(external or {})
@@ -111,6 +120,8 @@ def build_leaderboard(truth, *, presets=None, external: Mapping[str, Path] | Non
         sets[ALL_SCENES] = list(truth.names)
     scored = [(p, "preset", score_maps(preset_maps(truth, p), truth, protocols=protocols, threshold_px=threshold_px))
               for p in presets]
+    scored += [(b, "baseline", score_maps(baseline_maps(truth, b), truth, protocols=protocols,
+                                          threshold_px=threshold_px)) for b in baselines]
     scored += [(n, "external", score_folder(f, truth, protocols=protocols, threshold_px=threshold_px,
                                             png_scale=png_scale)) for n, f in external.items()]
     problems, table = [], []
@@ -124,14 +135,14 @@ def build_leaderboard(truth, *, presets=None, external: Mapping[str, Path] | Non
 
 def _long_rows(entry: str, kind: str, rows) -> list[dict]:
     """Per-image scores of one entry as rows of the long results table (:mod:`experiments.results_table`):
-    ``source`` ``leaderboard``, ``variant`` ``<kind>:<entry>``, ``preset`` the entry's when a preset,
+    ``source`` ``leaderboard``, ``variant`` ``<kind>:<entry>``, ``preset`` the entry's when a preset or baseline,
     ``scene`` the image, ``metric`` ``<protocol>/<name>``."""
     from .results_table import metric_rows
 
     out = []
     for r in rows:
         ids = {"evaluation_id": "leaderboard", "source": "leaderboard", "scene_set": scene_set_of(r["scene"]),
-               "scene": r["image"], "variant": f"{kind}:{entry}", "preset": entry if kind == "preset" else None}
+               "scene": r["image"], "variant": f"{kind}:{entry}", "preset": entry if kind != "external" else None}
         nums = {f"{r['protocol']}/{k}": v for k, v in r.items() if k not in ("image", "scene", "protocol", "map")
                 and isinstance(v, (int, float)) and not isinstance(v, bool)}
         out += metric_rows(ids, nums)
@@ -172,10 +183,11 @@ def leaderboard_rows(table, sets: dict, protocols) -> list[dict]:
 
 def leaderboard_intro(board: dict) -> str:
     """One paragraph: what the leaderboard's rows are and where the ground truth comes from."""
-    return ("One row per method preset and external map folder, per scene set and protocol: the mean over the "
-            f"images of the per-image metric. Ground truth: {board['ground_truth']}; occlusion bands excluded. "
-            "Presets: the method on each image's 8-bit sRGB input (as `repro.estimate --preset NAME` on the "
-            "exported PNG). Protocols: docs/dataset.md."
+    return ("One row per method preset, trivial baseline and external map folder, per scene set and protocol: the "
+            f"mean over the images of the per-image metric. Ground truth: {board['ground_truth']}; occlusion bands "
+            "excluded. Presets: the method on each image's 8-bit sRGB input (as `repro.estimate --preset NAME` on the "
+            "exported PNG). Baselines: a constant map at the image's median σ_gt (const_median_gt, an oracle) and at "
+            "the pixel filter's floor 0.289 px (const_floor); a method should beat both. Protocols: docs/dataset.md."
             + (f" Not scored: {len(board['problems'])} map(s) (listed in leaderboard.json)." if board["problems"] else ""))
 
 

@@ -29,7 +29,7 @@ __all__ = ["FAILED_METRIC", "PROCEDURAL_EVAL_VERSION", "SOURCE", "ProceduralPlan
            "noise_seed", "plan_evaluation", "score_scene", "summary_rows"]
 
 #: Version of :func:`score_scene`'s output; part of every scene's case key (:data:`experiments.units.PROCEDURAL`).
-PROCEDURAL_EVAL_VERSION = 2  # 2: stored in the one case store
+PROCEDURAL_EVAL_VERSION = 3  # 2: stored in the one case store; 3: the trivial baselines (experiments.baselines) as rows
 #: The ``source`` column of the family's rows.
 SOURCE = "procedural"
 #: Ground-truth facts of a render stored as rows (metadata ``stats`` key → metric name).
@@ -195,6 +195,7 @@ def _render_rows(render, ids: dict, plan: ProceduralPlan, seed: int, failures: l
     gets one :data:`FAILED_METRIC` row of 1, a line in ``failures`` and its traceback in ``tracebacks``."""
     from method import DefocusParams
 
+    from .baselines import baseline_rows
     from .evaluation import input_image
     from .scoring import score_render
 
@@ -204,6 +205,7 @@ def _render_rows(render, ids: dict, plan: ProceduralPlan, seed: int, failures: l
         for noise in plan.noises:
             image = input_image(render, encoding=encoding, quantize_bits=8, noise=noise,
                                 rng=noise_seed(seed, f_number, noise))
+            rows += baseline_rows(render, {**ids, "encoding": encoding, "noise": noise}, image=image)
             for preset, estimator in plan.runs():
                 t0, label = time.perf_counter(), _run_label(preset, estimator)
                 params = DefocusParams.preset(preset)

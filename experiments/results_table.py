@@ -28,7 +28,7 @@ from types import MappingProxyType
 import numpy as np
 
 __all__ = ["COLUMNS", "GROUP_COLUMNS", "RESULTS_META_KEY", "SCHEMA_VERSION", "SUMMARY_METRICS", "Column",
-           "column_names", "difference", "mean_interval", "metric_rows", "metric_unit", "read_results",
+           "column_names", "difference", "mean_interval", "metric_rows", "metric_unit", "paired_difference", "read_results",
            "read_results_csv", "summarise", "write_results"]
 
 #: Version of the table's columns; in every table's metadata.
@@ -249,14 +249,15 @@ def read_results_csv(path) -> list[dict]:
     return _upgrade(names, rows, path)
 
 
-def _interval(samples: tuple, statistic, *, confidence: float, n_resamples: int, seed: int):
-    """(low, high) percentile-bootstrap interval of ``statistic`` (None, None with too few scenes)."""
+def _interval(samples: tuple, statistic, *, confidence: float, n_resamples: int, seed: int, paired: bool = False):
+    """(low, high) percentile-bootstrap interval of ``statistic`` (None, None with too few scenes); ``paired``
+    resamples the same scene indices in every sample."""
     from scipy.stats import bootstrap
 
     if min(len(s) for s in samples) < 2:
         return None, None
     res = bootstrap(samples, statistic, confidence_level=confidence, n_resamples=n_resamples, method="percentile",
-                    vectorized=True, paired=False, random_state=np.random.default_rng(seed))
+                    vectorized=True, paired=paired, random_state=np.random.default_rng(seed))
     return float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 
@@ -354,3 +355,47 @@ def difference(first: Iterable[float], second: Iterable[float], *, confidence: f
     lo, hi = _interval((a, b), _difference_of_means, confidence=confidence, n_resamples=n_resamples, seed=seed)
     return {"value": float(b.mean() - a.mean()), "ci_low": lo, "ci_high": hi, "n_first": int(a.size),
             "n_second": int(b.size)}
+
+
+def paired_difference(first: Iterable[float], second: Iterable[float], *, confidence: float = 0.95,
+                      n_resamples: int = 9999, seed: int = 0) -> dict:
+    """mean(second − first) over paired values (the same scenes) with a paired bootstrap interval.
+
+    Parameters
+    ----------
+    first, second : iterable of float, (n,)
+        Per-scene values of two variants on the same scenes, in the same order, finite.
+    confidence, n_resamples, seed : keyword-only
+        As :func:`summarise`.
+
+    Returns
+    -------
+    dict
+        ``value`` (mean of the differences), ``sd`` (their sample standard deviation, ddof 1; None below
+        two pairs), ``ci_low``, ``ci_high`` (None below two pairs), ``n_pairs``.
+
+    Raises
+    ------
+    ValueError
+        ``first`` and ``second`` of different lengths.
+
+    Notes
+    -----
+    Each resample draws n scene indices with replacement and takes both variants' values of those scenes
+    (:func:`scipy.stats.bootstrap` with ``paired=True``, percentile interval): the scene-to-scene
+    spread that both variants share cancels, unlike :func:`difference`.
+    """
+    a = np.asarray([float(v) for v in first], dtype=np.float64)
+    b = np.asarray([float(v) for v in second], dtype=np.float64)
+    if a.shape != b.shape:
+        raise ValueError(f"paired values of lengths {a.size} and {b.size} are invalid; allowed: the same scenes in both")
+    if a.size == 0:
+        return {"value": None, "sd": None, "ci_low": None, "ci_high": None, "n_pairs": 0}
+    d = b - a
+    if d.size > 1 and np.all(d == d[0]):  # every resample gives the same mean: the interval is that point
+        lo = hi = float(d[0])
+    else:
+        lo, hi = _interval((a, b), _difference_of_means, confidence=confidence, n_resamples=n_resamples, seed=seed,
+                           paired=True)
+    return {"value": float(d.mean()), "sd": float(d.std(ddof=1)) if d.size > 1 else None, "ci_low": lo, "ci_high": hi,
+            "n_pairs": int(a.size)}

@@ -9,7 +9,8 @@ its cases by that name.
 
 * ``evaluate`` (``repro.evaluate`` on named scenes): one case per scene × aperture × encoding × noise ×
   preset × estimator of an :class:`EvaluateConfig` (:func:`evaluate_case`, scored by
-  :func:`experiments.scoring.score_render`).
+  :func:`experiments.scoring.score_render`), and one per trivial baseline
+  (:func:`experiments.baselines.baseline_case`).
 * ``procedural`` (``repro.evaluate --procedural``): one case per scene seed of a
   :class:`experiments.procedural_eval.ProceduralPlan` (:func:`experiments.procedural_eval.score_scene`).
 * ``sweep`` (``repro.sweep``): one case per render and per cell of a sweep grid
@@ -73,10 +74,18 @@ class EvaluateConfig:
     # sensor noise levels (scenes.display.NOISE_LEVELS).
     variant: str | None = None
     # Mitsuba variant requested.
+    baselines: tuple[str, ...] = dataclasses.field(default_factory=lambda: _all_baselines())
+    # trivial baselines scored beside the presets (experiments.baselines.BASELINES; default: all).
 
 
 #: Version of the named-scene evaluation's case output; part of its cache key.
-EVAL_VERSION = 3  # 3: stored in the one case store, metrics flattened as the results table names them
+EVAL_VERSION = 4  # 4: the trivial baselines as cases (experiments.baselines)
+
+
+def _all_baselines() -> tuple[str, ...]:
+    from .baselines import BASELINES
+
+    return tuple(BASELINES)
 
 
 def _evaluate_cases(config: EvaluateConfig) -> tuple:
@@ -85,7 +94,8 @@ def _evaluate_cases(config: EvaluateConfig) -> tuple:
     return tuple(Case("evaluate", scene=s, preset=pr, aperture=float(n), encoding=enc, noise=nz, estimator=e,
                       scene_size=config.scene_size)
                  for s in config.scenes for n in config.f_numbers for enc in config.encodings for nz in config.noises
-                 for pr in config.presets for e in config.estimators)
+                 for pr in (*config.presets, *config.baselines)
+                 for e in ((None,) if pr in config.baselines else config.estimators))
 
 
 def _evaluate_params(case):
@@ -98,9 +108,15 @@ def _evaluate_params(case):
 
 def _evaluate_key(config: EvaluateConfig, case) -> dict:
     """What shapes one evaluate case's numbers beyond its fields: the parameters, the estimator's own source
-    (an estimator registered at run time from outside ``method/``), the variant asked, input and σ_gt choices."""
-    from .evaluation import estimator_fingerprint
+    (an estimator registered at run time from outside ``method/``), the variant asked, input and σ_gt choices
+    (a baseline: its name; its code is in :func:`experiments.cache_keys.code_fingerprint`)."""
+    from .baselines import is_baseline
     from .cache_keys import to_jsonable
+    from .evaluation import estimator_fingerprint
+
+    if is_baseline(case.preset):
+        return {"variant_requested": config.variant, "baseline": case.preset, "quantize_bits": 8,
+                "convention": "line_spread", "noise_seed": 0}
 
     params = _evaluate_params(case)
     return {"variant_requested": config.variant, "params": to_jsonable(params), "quantize_bits": 8,
@@ -118,10 +134,17 @@ def _evaluate_case(config: EvaluateConfig, case, inputs) -> dict:
     from scenes import render_scene
     from scenes.backend import select_variant
 
+    from .baselines import baseline_case, is_baseline
     from .evaluation import ground_truth_sigma, input_image
     from .scoring import score_render
     from .stage_attribution import stage_errors
 
+    if is_baseline(case.preset):
+        key, nested = baseline_case(case.preset, case.scene, f_number=case.aperture, scene_size=case.scene_size,
+                                    encoding=case.encoding, noise=case.noise, variant=select_variant(config.variant))
+        from .evaluation import flatten_metrics
+
+        return {"metrics": {"pipeline_failed": 0.0, **flatten_metrics(nested)}, "info": {"key": key, "metrics": nested}}
     params = _evaluate_params(case)
     t0 = time.perf_counter()
     render = render_scene(case.scene, preset=case.scene_size, f_number=case.aperture,
@@ -221,7 +244,7 @@ def evaluate_case(estimator: str | None, scene: str, *, f_number: float = 8.0, p
     validate_render_options(scene, preset=preset, f_number=f_number, sigma_convention="line_spread")
     config = EvaluateConfig(presets=(method_preset,), estimators=(estimator,), scenes=(scene,),
                             f_numbers=(float(f_number),), scene_size=preset, encodings=(encoding,), noises=(noise,),
-                            variant=variant)
+                            variant=variant, baselines=())
     (case,) = _evaluate_cases(config)
     return EvaluationCase.of(run_case(EVALUATE, config, case, force=force, use_cache=use_cache))
 

@@ -119,6 +119,7 @@ COMMANDS: dict[str, str] = {
     "figures": "compute the paper's figures and their metrics (report/figures)",
     "render": "render a scene with its ground truth (Mitsuba 3, cached)",
     "evaluate": "compare blur estimators against the rendered ground truth",
+    "compare": "rank two presets or baselines on the same scenes, with paired confidence",
     "estimate": "estimate the defocus map of a photo",
     "magnify": "magnify the defocus of a photo",
     "report": "write the report (claims and figures) from the figures' metrics",

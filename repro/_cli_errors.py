@@ -90,6 +90,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
 COMMAND_EXTRAS: dict[str, tuple[str, ...]] = {
     "repro.render": ("render",),
     "repro.figures": ("render",),
+    "repro.compare": ("render",),
     "repro.sweep": ("sweep", "render"),
 }
 

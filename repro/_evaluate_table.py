@@ -93,6 +93,8 @@ def stage_table_rows(cases) -> list[dict]:
 
     rows = []
     for case in cases:
+        if "stages" not in case.metrics:  # a trivial baseline: no stages
+            continue
         ids = {c: case.key["preset" if c == "scene_preset" else c] for c in STAGE_ID_COLUMNS}
         rows += stage_rows(case.metrics["stages"], **ids)
     return rows

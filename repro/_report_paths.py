@@ -5,7 +5,8 @@ figures and the results table of a full ``python -m repro.figures`` run) and ``r
 procedural evaluations the report shows) — changes only on purpose: full-mode figures, ``python -m
 repro.report`` from them, and a procedural evaluation sent there explicitly (``python -m repro.evaluate
 --procedural N --split dev|test --out report/evaluations``). Exploratory runs write under :data:`QUICK`
-(``report/quick/``, git-ignored): ``repro.figures --quick``, ``repro.evaluate`` (every mode) and the report
+(``report/quick/``, git-ignored): ``repro.figures --quick``, ``repro.evaluate`` (every mode), ``repro.compare``
+(its judgements on fresh scenes are logged in the committed ``report/judgements.*``) and the report
 of quick figures (``repro.report --figures report/quick/figures``). Paths are relative to the working folder.
 """
 
@@ -27,3 +28,5 @@ QUICK_FIGURES = QUICK / "figures"
 QUICK_EVALUATE = QUICK / "evaluate"
 #: ``repro.evaluate --procedural`` default ``--out`` (one folder per evaluation in it).
 QUICK_EVALUATIONS = QUICK / "evaluations"
+#: ``repro.compare`` default ``--out``.
+QUICK_COMPARE = QUICK / "compare"

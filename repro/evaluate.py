@@ -19,7 +19,9 @@ the one case store per estimator, scene, f-number, preset, encoding and noise, k
 fingerprint), and the errors against the render's σ_gt are
 tabulated, per method preset (:data:`method.PRESETS`) and estimator: the sparse blur measure at edge pixels, after the cross-bilateral filter, the dense map
 over all / edge / textured pixels, RTF-normalised errors and the in-focus outlier fraction
-(occlusion boundaries excluded everywhere). The table is printed and written to
+(occlusion boundaries excluded everywhere). The trivial baselines (:mod:`experiments.baselines`:
+constant maps at the scene's median σ_gt and at the pixel filter's floor; their dense metrics only) are
+rows of the same table. The table is printed and written to
 ``<out>/evaluate.csv`` and ``<out>/evaluate.json`` (atomically). Every mode writes under the git-ignored
 ``report/quick/`` unless ``--out`` says otherwise (named scenes, ``--photos``, ``--maps``:
 ``report/quick/evaluate``; ``--procedural``: ``report/quick/evaluations``): an evaluation never changes
@@ -78,7 +80,7 @@ PROG = "python -m repro.evaluate"
 #: Default ``--out`` of the named-scene, ``--photos`` and ``--maps`` evaluations (git-ignored: exploratory).
 DEFAULT_OUT = QUICK_EVALUATE
 __all__ = ["DEFAULT_OUT", "ID_COLUMNS", "MAP_ID_COLUMNS", "PHOTO_COLUMNS", "PROG", "SHOWN",
-           "STAGE_ID_COLUMNS", "format_stage_table", "format_table", "main", "main_maps", "main_photos", "photo_rows",
+           "STAGE_ID_COLUMNS", "evaluate_named", "format_stage_table", "format_table", "main", "main_maps", "main_photos", "photo_rows",
            "stage_table_rows", "table_rows", "write_csv_json", "write_outputs", "write_stage_outputs"]
 
 
@@ -163,20 +165,32 @@ def _evaluate_cases(args, presets, estimators, scenes, f_numbers, encodings, noi
     :class:`experiments.units.EvaluationCase`-like records (key, metrics, cached) in grid order."""
     import types
 
-    from experiments.units import EVALUATE, EvaluateConfig
+    from experiments.units import EvaluateConfig
 
-    from ._runner import FigureJob, engine_choice, run_figures
+    from ._runner import engine_choice
 
     config = EvaluateConfig(presets=tuple(presets), estimators=tuple(estimators), scenes=tuple(scenes),
                             f_numbers=tuple(float(n) for n in f_numbers), scene_size=args.scene_size,
                             encodings=tuple(encodings), noises=tuple(noises), variant=args.variant)
     workers, scheduler = engine_choice(args.workers, args.scheduler, command=PROG)
+    data = evaluate_named(config, workers=workers, scheduler=scheduler, force=args.force, progress=not args.quiet)
+    return [types.SimpleNamespace(key=o.info["key"], metrics=o.info["metrics"], cached=o.cached)
+            for o in data.outputs.values()], data
+
+
+def evaluate_named(config, *, workers=None, scheduler=None, force=False, progress=True):
+    """Every case of an :class:`experiments.units.EvaluateConfig` (presets and baselines on named scenes)
+    through the case runner (``workers`` None: one per core); returns the run's figure data (``outputs`` in
+    grid order, ``rows()`` the long results rows)."""
+    from experiments.units import EVALUATE
+
+    from ._runner import FigureJob, run_figures
+
     (run,) = run_figures([FigureJob(EVALUATE, config, "evaluate")], workers=workers, scheduler=scheduler,
-                         force=args.force, progress=not args.quiet, desc="evaluate")
+                         force=force, progress=progress, desc="evaluate")
     if run.error is not None:
         raise RuntimeError(f"an evaluation case failed: {run.error}\n{run.traceback}")
-    return [types.SimpleNamespace(key=o.info["key"], metrics=o.info["metrics"], cached=o.cached)
-            for o in run.data.outputs.values()], run.data
+    return run.data
 
 
 def main(argv=None) -> int:

@@ -166,8 +166,8 @@ CACHED = ("figures", "render", "evaluate", "estimate", "magnify", "sweep", "data
 def test_console_script_is_declared():
     meta = tomllib.loads((ROOT / "pyproject.toml").read_text())
     assert meta["project"]["scripts"] == {"defocus-repro": "repro._cli:console_main"}
-    assert set(COMMANDS) == {"figures", "render", "evaluate", "estimate", "magnify", "report", "bench", "sweep",
-                             "dataset"}
+    assert set(COMMANDS) == {"figures", "render", "evaluate", "compare", "estimate", "magnify", "report", "bench",
+                             "sweep", "dataset"}
     for name in ("figures", "render", "evaluate", "estimate", "magnify", "report", "bench", "dataset"):
         assert name in AVAILABLE
 
@@ -324,7 +324,7 @@ def test_single_output_files_are_o_output_and_folders_out(capsys):
     for name in ("render", "estimate", "magnify"):
         text = _help(name, capsys)
         assert re.search(r"-o (\w+), --output \1", text) and not re.search(r"--out\b(?!put)", text), name
-    for name in ("figures", "evaluate", "report", "bench", "sweep", "dataset"):
+    for name in ("figures", "evaluate", "report", "bench", "sweep", "dataset", "compare"):
         text = _help(name, capsys)
         assert "--out DIR" in text and "--output" not in text, name
 
@@ -332,7 +332,7 @@ def test_single_output_files_are_o_output_and_folders_out(capsys):
 def test_workers_has_one_default_in_every_tool(capsys):
     """Every tool that runs cases in parallel takes --workers N (alias --jobs), default one per core, said in --help."""
     tools = [name for name in AVAILABLE if "--workers" in _help(name, capsys)]
-    assert sorted(tools) == ["bench", "evaluate", "figures", "sweep"]
+    assert sorted(tools) == ["bench", "compare", "evaluate", "figures", "sweep"]
     for name in tools:
         text = " ".join(_help(name, capsys).split())
         assert "--workers N, --jobs N" in text and "(default: one per core;" in text, name

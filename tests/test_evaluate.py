@@ -41,6 +41,13 @@ def test_evaluate_one_scene_writes_csv_and_json(tmp_path, capsys, goldens):
     assert "model_fit" in printed and "gradient_ratio" in printed and "evaluate.csv" in printed
     rows, js = _read(out)
     assert list(rows[0]) == [*ID_COLUMNS, *METRIC_COLUMNS]
+    from experiments.baselines import BASELINES
+
+    # the trivial baselines are rows of the table too, after the estimators: dense metrics only
+    assert [r["method_preset"] for r in rows[3:]] == list(BASELINES)
+    for r in js["rows"][3:]:
+        assert np.isfinite(r["dense_textured_mae"]) and r["sparse_mae"] is None and r["estimator"] is None
+    rows, js["rows"] = rows[:3], js["rows"][:3]
     assert [r["estimator"] for r in rows] == ["model_fit", "zero_crossing", "gradient_ratio"]
     assert js["columns"] == [*ID_COLUMNS, *METRIC_COLUMNS] and len(js["rows"]) == 3
     for r in js["rows"]:
@@ -70,7 +77,7 @@ def test_registered_dummy_estimator_shows_up(tmp_path, monkeypatch):
     assert _run(["--estimator", "dummy_constant", "--scenes", "planes", "--fnumber", "8", "--workers", "1",
                  "--out", str(out)]) == 0
     rows, _ = _read(out)
-    assert [r["estimator"] for r in rows] == ["dummy_constant"]
+    assert [r["estimator"] for r in rows] == ["dummy_constant", "", ""]  # then the two trivial baselines
     # σ = 1 px at every edge pixel: the sparse bias is exactly mean(1 − σ_gt) over the scored edges
     from experiments.units import evaluate_case
 
@@ -151,7 +158,8 @@ def test_evaluate_presets_and_stages(tmp_path, capsys):
     assert "oracle_propagate" in printed and "stages.csv" in printed
     rows, js = _read(out)
     assert [(r["method_preset"], r["estimator"]) for r in rows] == [("paper", "model_fit"),
-                                                                    ("robust", "model_fit_checked")]
+                                                                    ("robust", "model_fit_checked"),
+                                                                    ("const_median_gt", ""), ("const_floor", "")]
     assert rows[0]["dense_textured_mae"] != rows[1]["dense_textured_mae"]
     stages = json.loads((out / "stages.json").read_text())["rows"]
     got = {(r["method_preset"], r["input"], r["stage"]) for r in stages}

@@ -279,7 +279,8 @@ def test_round_trip_ground_truth_and_estimate_maps_match_the_harness(tmp_path, c
                                    "--workers", "1", "--out", str(tmp_path / "own"), "-q"], prog="repro.evaluate") == 0
     capsys.readouterr()
     ext = {r["protocol"]: r for r in json.loads((tmp_path / "ext" / "maps.json").read_text())["rows"]}
-    (own,) = json.loads((tmp_path / "own" / "evaluate.json").read_text())["rows"]
+    own, *baselines = json.loads((tmp_path / "own" / "evaluate.json").read_text())["rows"]
+    assert [r["method_preset"] for r in baselines] == ["const_median_gt", "const_floor"]
     for ours, theirs in (("dense_all_mae", ext["harness"]["all_mae"]), ("dense_all_bias", ext["harness"]["all_bias"]),
                          ("dense_all_rmse", ext["harness"]["all_rmse"]),
                          ("dense_textured_mae", ext["harness"]["textured_mae"]),

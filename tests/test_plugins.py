@@ -311,6 +311,7 @@ def test_procedural_scoring_labels_rows_by_preset_and_estimator(monkeypatch):
     seen = []
     monkeypatch.setattr("method.estimate_defocus_map", lambda image, params, **kw: seen.append(params.estimator) or "r")
     monkeypatch.setattr("experiments.evaluation.input_image", lambda render, **k: np.zeros((4, 4, 3)))
+    monkeypatch.setattr("experiments.baselines.baseline_rows", lambda render, ids, **k: [])
     monkeypatch.setattr("experiments.evaluation.evaluate_result", lambda result, render, image, **k: {"m": 1.0})
     monkeypatch.setattr("experiments.evaluation.flatten_metrics", lambda m: m)
     rows, seconds = pe._render_rows(types.SimpleNamespace(), {"aperture": 8.0, "scene": "s"}, plan, 0, [], [])
@@ -332,6 +333,7 @@ def test_a_failing_run_keeps_its_traceback(monkeypatch):
     plan = pe.plan_evaluation(2, split="dev", presets=["paper"])
     monkeypatch.setattr("method.estimate_defocus_map", buggy)
     monkeypatch.setattr("experiments.evaluation.input_image", lambda render, **k: np.zeros((4, 4, 3)))
+    monkeypatch.setattr("experiments.baselines.baseline_rows", lambda render, ids, **k: [])
     failures, tracebacks = [], []
     pe._render_rows(types.SimpleNamespace(), {"aperture": 8.0, "scene": "s"}, plan, 0, failures, tracebacks)
     assert failures == ["paper on s f/8 srgb none: NameError: name 'undefined_in_test' is not defined"]

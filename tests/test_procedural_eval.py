@@ -201,7 +201,8 @@ def test_serial_table_summary_and_records(runs):
         assert by[(s, "sparse_n")] > 50 and 0 < by[(s, "dense_textured_mae")] < 5
     assert read_results_csv(folder / "results.csv") == rows
     summary = json.loads((folder / "summary.json").read_text())
-    (mae,) = [g for g in summary["summary"] if g["metric"] == "dense_textured_mae"]
+    (mae,) = [g for g in summary["summary"] if g["metric"] == "dense_textured_mae" and g["preset"] == "paper"]
+    assert {g["preset"] for g in summary["summary"]} == {"paper", "const_median_gt", "const_floor"}  # baselines too
     assert mae["n_scenes"] == 3 and mae["ci_low"] <= mae["mean"] <= mae["ci_high"]
     run = json.loads((folder / "run.json").read_text())
     assert run["seeds"] == [100073, 100075] and "--scene-seed-start 100073" in run["rerun"]

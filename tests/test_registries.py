@@ -61,7 +61,7 @@ def test_new_estimator_through_repro_evaluate(monkeypatch, tmp_path, capsys):
     assert main(["--estimator", "my_idea", "model_fit", "--scenes", "tilted_plane", "--fnumber", "8", "--workers", "1",
                  "--out", str(out)]) == 0
     rows = json.loads((out / "evaluate.json").read_text())["rows"]
-    assert [r["estimator"] for r in rows] == ["my_idea", "model_fit"]
+    assert [r["estimator"] for r in rows] == ["my_idea", "model_fit", None, None]  # then the trivial baselines
     mine = rows[0]
     assert mine["sparse_n"] > 50 and mine["dense_all_mae"] is not None
     # a constant 1.25 px at every edge: the sparse measure's median error is |1.25 − σ_gt| there, not 0

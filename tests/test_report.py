@@ -238,6 +238,11 @@ def test_leaderboard_one_row_per_entry_scene_set_and_protocol(tmp_path):
     assert rows[("const", "all", "harness")]["n_images"] == 1
     assert rows[("const", "all", "harness")]["all_mae"] == pytest.approx(np.mean(np.abs(1.0 - sigma)))
     assert rows[("exact", "all", "detection")]["accuracy"] == 1.0
+    # the trivial baselines are rows too: a constant at the filter's floor 1/√12 px and at the median σ_gt
+    assert rows[("const_floor", "all", "harness")]["kind"] == "baseline"
+    assert rows[("const_floor", "all", "harness")]["all_mae"] == pytest.approx(np.mean(np.abs(sigma - 12 ** -0.5)))
+    assert rows[("const_median_gt", "all", "harness")]["all_mae"] == pytest.approx(
+        np.mean(np.abs(sigma - np.median(sigma))))
     assert {r["kind"] for r in board["rows"] if r["entry"] in PRESETS} == {"preset"}
     missing, misnamed = sorted(board["problems"])
     assert missing.startswith("const: ") and names[0] in missing
@@ -272,7 +277,7 @@ def test_report_cli_external_writes_the_leaderboard(tmp_path, capsys):
 
 @pytest.mark.parametrize("argv, fragment", [
     (["--external", "nofolder"], "--external 'nofolder' is invalid; allowed: NAME=MAPDIR"),
-    (["--external", "paper=MAPS", "--dataset", "DATA"], "external name(s) 'paper' are invalid (a preset's name)"),
+    (["--external", "paper=MAPS", "--dataset", "DATA"], "external name(s) 'paper' are invalid (a preset's or baseline's name)"),
     (["--dataset", "DATA"], "--dataset is invalid without --external"),
 ])
 def test_report_cli_bad_external_one_line(tmp_path, capsys, argv, fragment):

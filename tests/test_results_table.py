@@ -217,9 +217,9 @@ def test_a_method_that_raises_on_one_input_is_recorded_and_the_others_go_on(monk
     monkeypatch.setattr(method, "estimate_defocus_map", flaky)
     plan = plan_evaluation(1, split="dev", presets=["paper", "robust"], f_numbers=[2.0])
     failures = []
-    rows, seconds = score_render(render, {"scene": "procedural_0", "aperture": 2.0}, plan, 0, failures)
+    rows, seconds = score_render(render, {"scene": "procedural_0", "aperture": 2.0}, plan, 0, failures, [])
     failed = {r["preset"]: r["value"] for r in rows if r["metric"] == FAILED_METRIC}
-    assert failed == {"paper": 0.0, "robust": 1.0}
+    assert failed == {"paper": 0.0, "robust": 1.0, "const_median_gt": 0.0, "const_floor": 0.0}  # baselines never fail
     assert [r["metric"] for r in rows if r["preset"] == "robust"] == [FAILED_METRIC]
     assert any(r["metric"] == "sparse_mae" for r in rows if r["preset"] == "paper")
     assert len(failures) == 1 and "robust on procedural_0 f/2" in failures[0] and "did not converge" in failures[0]

@@ -193,7 +193,7 @@ def main(argv=None) -> int:
     t0, commit = time.perf_counter(), git_commit()  # the code that runs (before any file changes meanwhile)
     rows, where = _rows(args, presets, source, out, workers, scheduler)
     from experiments.compare import compare_rows, format_comparison
-    from experiments.registry import to_jsonable
+    from experiments.cache_keys import to_jsonable
 
     records = compare_rows(rows, a, b, n_resamples=10_000, seed=0)
     wall = time.perf_counter() - t0

@@ -103,7 +103,8 @@ def test_readme_recipe_installed_with_pip_is_scored_on_dask_workers(tmp_path):
     with table.open() as f:
         rows = [r for r in csv.DictReader(f) if r["metric"] == "dense_textured_mae"]
     got = {(r["preset"], r["estimator"], r["seed"]) for r in rows}
-    assert got == {("paper", est, s) for est in ("model_fit", name) for s in ("0", "1")}, got
+    baselines = {(b, "", s) for b in ("const_median_gt", "const_floor") for s in ("0", "1")}  # scored beside them
+    assert got == {("paper", est, s) for est in ("model_fit", name) for s in ("0", "1")} | baselines, got
     assert all(r["value"] not in ("", "nan") for r in rows), rows
     failed = [r for r in csv.DictReader(table.open()) if r["metric"] == "pipeline_failed" and float(r["value"]) != 0]
     assert not failed, failed

@@ -137,7 +137,7 @@ def baseline_rows(render, ids, *, image, names=None) -> list[dict]:
 def baseline_case(name: str, scene: str, *, f_number: float, scene_size: str = "small", encoding: str = "srgb",
                   noise: str = "none", noise_seed: int = 0, variant: str | None = None) -> tuple[dict, dict]:
     """Baseline ``name`` on a named scene's render (cached), scored on the input
-    :func:`experiments.evaluation.evaluate_case` gives the presets (8 bits, the same noise seed).
+    :func:`experiments.units.evaluate_case` gives the presets (8 bits, the same noise seed).
 
     Returns
     -------

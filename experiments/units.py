@@ -135,15 +135,13 @@ def _evaluate_case(config: EvaluateConfig, case, inputs) -> dict:
     from scenes.backend import select_variant
 
     from .baselines import baseline_case, is_baseline
-    from .evaluation import ground_truth_sigma, input_image
+    from .evaluation import flatten_metrics, ground_truth_sigma, input_image
     from .scoring import score_render
     from .stage_attribution import stage_errors
 
     if is_baseline(case.preset):
         key, nested = baseline_case(case.preset, case.scene, f_number=case.aperture, scene_size=case.scene_size,
                                     encoding=case.encoding, noise=case.noise, variant=select_variant(config.variant))
-        from .evaluation import flatten_metrics
-
         return {"metrics": {"pipeline_failed": 0.0, **flatten_metrics(nested)}, "info": {"key": key, "metrics": nested}}
     params = _evaluate_params(case)
     t0 = time.perf_counter()

@@ -106,7 +106,8 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
     Parameters
     ----------
     photo : repro.photo_io.Photo
-        Its ``encoding`` is passed to the method (and is part of the cache key).
+        Its ``encoding`` is passed to the method (and is part of the cache key); linear values above 1
+        are estimated as 1.
     params : DefocusParams
     max_working_pixels : int, keyword-only
     use_cache : bool, keyword-only
@@ -142,7 +143,9 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
     from scenes.backend import cache_root
     from defocus_cache import Cache
 
-    image = photo.image
+    # linear highlights above 1 (an EXR's) are seen as white by the estimation, whose edges and fits
+    # read values in [0, 1]; the magnifier gets them unclipped
+    image = np.minimum(photo.image, 1.0)
     H, W = image.shape[:2]
     (h, w), scale = working_shape(image.shape, max_working_pixels=max_working_pixels)
     if scale < 1:

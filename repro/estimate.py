@@ -220,7 +220,12 @@ def load_photo(args, *, prog):
                          f"the smallest supported side is {MIN_IMAGE_SIDE} px")
     photo = read_photo(header.path, max_pixels=args.max_pixels, repair_nonfinite=args.repair_nonfinite)
     encoding = getattr(args, "encoding", None)
-    return photo if encoding is None else dataclasses.replace(photo, encoding=encoding)
+    if encoding is None:
+        return photo
+    if encoding != "linear" and photo.image.size and float(photo.image.max()) > 1.0:  # display values are <= 1
+        photo = dataclasses.replace(photo, image=np.minimum(photo.image, 1.0),
+                                    notes=(*photo.notes, f"--encoding {encoding}: values above 1 clipped to 1"))
+    return dataclasses.replace(photo, encoding=encoding)
 
 
 def psf_line(info, params) -> str | None:

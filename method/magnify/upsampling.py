@@ -47,8 +47,7 @@ GUIDED_RADIUS = 2
 GUIDED_EPS = 1e-3
 
 
-#: Rows of the full-resolution output computed at once (bounds temporary memory to a few strips).
-_STRIP_ROWS = 512
+_STRIP_ROWS = 512  # rows of the full-resolution output computed at once (bounds temporary memory)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -415,8 +414,8 @@ def _halo(sigma_extra_max: float, renderer: str = "gather") -> int:
 
 def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel=None, clip_percent=5.0,
                           smoothing=0.005, preprocess=True, tile_pixels=DEFAULT_TILE_PIXELS,
-                          renderer="gather", aperture=None, encoding="srgb", light=None,
-                          progress: Callable[[str], None] | None = None) -> np.ndarray:
+                          renderer="gather", aperture=None, encoding="srgb", light=None, in_front=None,
+                          progress: Callable[[str], None] | None = None, **subject) -> np.ndarray:
     """:func:`method.magnify.magnification.magnify_defocus` for large photos, in overlapping tiles.
 
     Parameters
@@ -427,12 +426,13 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel=None, clip_p
         Dense blur σ, px of ``image``.
     factor, kernel, clip_percent, smoothing, preprocess, renderer, aperture, encoding, light : keyword-only
         As :func:`method.magnify.magnification.magnify_defocus` (factor ≥ 1).
+    in_front, **subject : keyword-only
+        Passed on to ``magnify_defocus`` per tile: HxW arrays cut to it, ``focus_point`` (x, y) in its coordinates.
     tile_pixels : int, keyword-only
         Pixels of one tile, halo included; bounds the working memory (≈ 290 B/px). A photo that fits
         is magnified in one call, exactly as :func:`~method.magnify.magnification.magnify_defocus` does.
     progress : callable, optional, keyword-only
-        Called with ``"magnify i/n"`` before each tile (``"magnify i/n: scatter layer j/m"`` within
-        a tile of the scatter renderer).
+        Called with ``"magnify i/n"`` before each tile (``"magnify i/n: scatter layer j/m"`` within a scatter tile).
 
     Returns
     -------
@@ -440,16 +440,15 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel=None, clip_p
 
     Notes
     -----
-    1. Preprocess the whole map once (Sec. 5: percentile clip, clamp ≥ 0, Gaussian blur with
-       σ = smoothing·max(H, W)) — global operations, so never per tile.
-    2. Halo = the farthest reach of the blur the map needs (:func:`_halo`: gather 4·√2·max σ_e + 2 px,
-       scatter 2.5·max σ_e + 3 px).
-    3. Square cores of side √tile_pixels − 2·halo (≥ 256 px); each core is magnified with its halo
-       of real neighbouring pixels (``preprocess=False``) and the halo is dropped. Inside the photo a
-       core pixel sees exactly the data the whole-image call would; at the photo's borders the
-       magnifier's padding (gather) or renormalisation (scatter) is the same. Results agree with the
-       whole-image call up to FFT round-off (and, for the gather, rarely, a blur-stack level a tile
-       does not build: ≲ 1e-3 of a level difference).
+    1. Preprocess the whole map once (Sec. 5: percentile clip, clamp ≥ 0, Gaussian blur, σ = smoothing·max(H, W))
+       — global operations, so never per tile.
+    2. Halo = the farthest reach of the blur the map needs (:func:`_halo`: gather 4·√2·max σ_e + 2 px, scatter
+       2.5·max σ_e + 3 px).
+    3. Square cores of side √tile_pixels − 2·halo (≥ 256 px); each core is magnified with its halo of real
+       neighbouring pixels (``preprocess=False``) and the halo is dropped. Inside the photo a core pixel sees
+       exactly the data the whole-image call would; at the photo's borders the magnifier's padding (gather) or
+       renormalisation (scatter) is the same. Results agree with the whole-image call up to FFT round-off (and,
+       for the gather, rarely, a blur-stack level a tile does not build: ≲ 1e-3 of a level difference).
     """
     from .magnification import check_extra_blur, magnify_defocus, preprocess_defocus_map
 
@@ -459,10 +458,13 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel=None, clip_p
     if not (isinstance(tile_pixels, (int, np.integer)) and tile_pixels >= 256 * 256):
         raise ValueError(f"tile_pixels={tile_pixels!r} invalid; allowed: integer >= {256 * 256}")
 
-    def call(img, mp, label):
+    def call(img, mp, label, y0=0, x0=0):
         inner = None if progress is None else (lambda stage: progress(f"{label}: {stage}"))
+        cut = {k: (v[0] - x0, v[1] - y0) if k == "focus_point" and v is not None else
+               np.asarray(v)[y0:y0 + mp.shape[0], x0:x0 + mp.shape[1]] if np.ndim(v) == 2 else v
+               for k, v in {"in_front": in_front, **subject}.items()}
         return magnify_defocus(img, mp, factor=factor, kernel=kernel, preprocess=False, renderer=renderer,
-                               aperture=aperture, encoding=encoding, light=light, progress=inner)
+                               aperture=aperture, encoding=encoding, light=light, progress=inner, **cut)
 
     H, W = image.shape[:2]
     if H * W <= tile_pixels or m.shape != (H, W):
@@ -493,6 +495,6 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel=None, clip_p
             a0, a1 = max(0, y0 - halo), min(H, y1 + halo)
             b0, b1 = max(0, x0 - halo), min(W, x1 + halo)
             tile = call(np.ascontiguousarray(image[a0:a1, b0:b1]), np.ascontiguousarray(m[a0:a1, b0:b1]),
-                        f"magnify {i}/{n}")
+                        f"magnify {i}/{n}", a0, b0)
             out[y0:y1, x0:x1] = tile[y0 - a0:y1 - a0, x0 - b0:x1 - b0]
     return out

@@ -1,7 +1,7 @@
 """Reading and writing photographers' image files: JPEG, PNG, TIFF (8/16-bit) and OpenEXR.
 
-The method wants a float image in [0, 1], HxW or HxWx3, and its encoding (sRGB display values or
-linear light). This module turns a file into that (:func:`read_photo`, ``Photo.encoding``) and back
+The method wants a float image, HxW or HxWx3, and its encoding (sRGB display values in [0, 1], or
+linear light ≥ 0, whose highlights above 1 an OpenEXR file keeps). This module turns a file into that (:func:`read_photo`, ``Photo.encoding``) and back
 (:func:`write_photo`), keeping what a photographer
 expects kept: orientation (EXIF), bit depth (16-bit PNG/TIFF in → 16-bit out), grey stays grey,
 EXIF and ICC metadata pass through where the format allows.

@@ -56,8 +56,9 @@ class Photo:
 
     Attributes
     ----------
-    image : ndarray, HxWx3 or HxW, float64 in [0, 1]
-        The stored values in ``encoding``, upright (EXIF orientation applied), alpha dropped.
+    image : ndarray, HxWx3 or HxW, float64
+        The stored values in ``encoding``, upright (EXIF orientation applied), alpha dropped: in
+        [0, 1], except linear light (OpenEXR), ≥ 0 with its highlights above 1 kept.
     bit_depth : int
         Bits per sample of the source: 8, 16, or 32 for floating-point sources (EXR, float TIFF).
     format : str

@@ -251,10 +251,14 @@ def _read_exr(path: Path, notes: list[str], repair_nonfinite: bool) -> tuple[np.
             )
         arr = np.where(np.isnan(arr) | np.isneginf(arr), 0.0, np.where(np.isposinf(arr), 1.0, arr))
         notes.append(f"{path.name}: repaired {n_bad} NaN/Inf sample(s) (NaN, -Inf → 0; +Inf → 1)")
+    negative = float(np.mean(arr < 0.0))
+    if negative > 0:
+        notes.append(f"{path.name}: {100 * negative:.2g}% of linear samples below 0 raised to 0")
     over = float(np.mean(arr > 1.0))
     if over > 0:
-        notes.append(f"{path.name}: {100 * over:.2g}% of linear samples above 1.0 clipped to white")
-    return np.clip(arr, 0.0, 1.0), 32  # linear light, as stored (Photo.encoding "linear")
+        notes.append(f"{path.name}: {100 * over:.2g}% of linear samples above 1.0 kept (highlights, up to "
+                     f"{float(arr.max()):.4g})")
+    return np.maximum(arr, 0.0), 32  # linear light, as stored, highlights unclipped (Photo.encoding "linear")
 
 
 def _read_png16(path: Path, notes: list[str]) -> np.ndarray:
@@ -333,13 +337,13 @@ def _read_pillow(path: Path, notes: list[str]) -> tuple[np.ndarray, int, bytes |
 
 
 def read_photo(path, *, max_pixels=DEFAULT_MAX_PIXELS, repair_nonfinite=False) -> Photo:
-    """Read a photo into a float image in [0, 1], upright, alpha dropped.
+    """Read a photo into a float image (in [0, 1]; an EXR's linear light ≥ 0), upright, alpha dropped.
 
     Parameters
     ----------
     path : str or Path
         JPEG, PNG (8/16-bit, grey, RGB, palette, with or without alpha), TIFF (8/16-bit, float,
-        grey or RGB), OpenEXR (linear light, kept linear), or any other format Pillow reads.
+        grey or RGB), OpenEXR (linear light, kept linear and unclipped), or any other format Pillow reads.
     max_pixels : int or None, keyword-only
         Pixel budget (width × height) checked from the header *before* decoding; None disables it
         (Pillow's decompression-bomb guard still applies to Pillow formats).
@@ -349,9 +353,9 @@ def read_photo(path, *, max_pixels=DEFAULT_MAX_PIXELS, repair_nonfinite=False) -
     Returns
     -------
     Photo
-        ``image`` is float64, HxWx3 (colour) or HxW (grey), in [0, 1], its values as stored:
-        ``encoding`` "linear" for OpenEXR (linear light, values above 1 clipped), "srgb" for every
-        other format (display values, as a camera delivers them).
+        ``image`` is float64, HxWx3 (colour) or HxW (grey), its values as stored: ``encoding``
+        "linear" for OpenEXR (linear light ≥ 0, highlights above 1 kept, negative samples raised to
+        0), "srgb" for every other format (display values in [0, 1], as a camera delivers them).
 
     Raises
     ------

@@ -87,6 +87,7 @@ def _parser() -> ArgumentParser:
     from method.magnify.scatter import APERTURES
     from method.magnify.upsampling import DEFAULT_TILE_PIXELS
     from repro._cli import float_type
+    from repro.photo_io.highlights import DEFAULT_HIGHLIGHT_GAIN
 
     p = ArgumentParser(
         prog=PROG,
@@ -130,6 +131,25 @@ def _parser() -> ArgumentParser:
     p.add_argument("--png-scale", type=float_type("--png-scale"), default=None, metavar="S",
                    help=f"with a .png --map: the PNG holds σ × S (default {DEFAULT_PNG_SCALE:g}, as repro.evaluate "
                         "--maps reads it)")
+    p.add_argument("--focus-point", default=None, metavar="X,Y",
+                   help="a pixel on the subject (column X, row Y of the upright photo, origin top left): the "
+                        "floor is read there and, with --depth, the focus depth")
+    p.add_argument("--keep-sharp", default=None, metavar="MASK",
+                   help="a mask image (PNG, JPEG, TIFF; the photo's size or aspect ratio), white where the "
+                        "subject must stay sharp")
+    p.add_argument("--depth", default=None, metavar="DEPTH",
+                   help="scatter only: what is in front of the subject, from a depth map (any unit) or a signed "
+                        "defocus map (negative in front), .npy/.npz/.exr, the photo's size or aspect ratio: pixels "
+                        "nearer than the focus depth (read at --focus-point, else where the map is sharpest) are "
+                        "in front. Without it a blurrier pixel is taken to be behind the subject")
+    p.add_argument("--highlights", nargs="?", const=str(DEFAULT_HIGHLIGHT_GAIN), default=None, metavar="GAIN",
+                   help="scatter only, JPEG/PNG/TIFF photos: recover clipped highlights before the blur, with "
+                        "an inverse tone curve whose near-white values rise smoothly to GAIN x white in linear "
+                        f"light (default {DEFAULT_HIGHLIGHT_GAIN:g}), so bright points bloom into aperture "
+                        "shapes. An EXR keeps its highlights without it")
+    p.add_argument("--html", default=None, metavar="PAGE",
+                   help="also write one self-contained .html page: before/after sliders on the whole photo, "
+                        "zoomed on the subject and on the background, the defocus map as an overlay")
     p.add_argument("--save-map", default=None, metavar="MAP",
                    help="also write the defocus map: .exr (float σ px), .png (preview) or .npy")
     p.add_argument("--bit-depth", type=int, choices=(8, 16), default=None,
@@ -193,10 +213,8 @@ def read_given_map(path, shape, *, png_scale: float = DEFAULT_PNG_SCALE):
 
     Notes
     -----
-    Resize rule: an h×w map fits an H×W photo when h = round(w·H/W) or w = round(h·W/H) (the photo
-    scaled by one factor, each side rounded to whole pixels). It is resized to H×W by bilinear
-    interpolation of pixel centres (``skimage.transform.resize``, order 1, edge mode, anti-aliased
-    when shrinking) and its σ multiplied by s = W / w (px of the map → px of the photo).
+    Resize rule: :func:`repro._magnify_inputs.fit_to_photo` (the photo's size, or its aspect ratio:
+    resized bilinearly), then σ multiplied by s = W / w (px of the map → px of the photo).
     """
     from experiments.external_maps import read_map
 
@@ -213,19 +231,12 @@ def read_given_map(path, shape, *, png_scale: float = DEFAULT_PNG_SCALE):
                          "at every pixel")
     if sigma.size and float(sigma.min()) < 0:
         raise CLIError(f"--map {path}: negative σ (min {float(sigma.min()):.4g} px); allowed: σ >= 0 px")
-    (H, W), (h, w) = shape[:2], sigma.shape
-    if (h, w) == (H, W):
-        return sigma, None
-    if h < 1 or w < 1 or not (h == round(w * H / W) or w == round(h * W / H)):
-        hint = (" (the photo is read upright, EXIF orientation applied: transpose the map?)"
-                if (h, w) == (W, H) else "")
-        raise CLIError(f"--map {path}: {w}x{h} px does not fit the photo's {W}x{H} px{hint}; allowed: the "
-                         "photo's size or its aspect ratio (resized, σ scaled)")
-    from skimage.transform import resize
+    from repro._magnify_inputs import fit_to_photo
 
-    s = W / w
-    resized = resize(sigma, (H, W), order=1, mode="edge", anti_aliasing=s < 1, preserve_range=True) * s
-    return np.maximum(resized, 0.0), f"--map {w}x{h} px resized to the photo's {W}x{H} px, σ × {s:.4g}"
+    fitted, resized, s = fit_to_photo(sigma, shape, what=f"--map {path}")
+    if resized is None:
+        return fitted, None
+    return np.maximum(fitted * s, 0.0), f"{resized}, σ × {s:.4g}"
 
 
 def parse_factor(text) -> float:
@@ -267,15 +278,123 @@ def _check_map_flags(args) -> None:
         raise CLIError(f"--png-scale applies to a .png --map only, not to {args.map}")
 
 
+def parse_gain(text) -> float | None:
+    """--highlights GAIN as a float ≥ 1 (None without the flag; CLIError naming the value otherwise)."""
+    if text is None:
+        return None
+    try:
+        gain = float(text)
+    except ValueError:
+        raise CLIError(f"--highlights {text!r} is not a number; allowed: a gain >= 1 (x white)") from None
+    if not (math.isfinite(gain) and gain >= 1.0):
+        raise CLIError(f"--highlights {text} is invalid; allowed: a finite gain >= 1 (x white)")
+    return gain
+
+
+def _check_scatter_flags(args, renderer: str) -> None:
+    """--depth and --highlights need the scatter's occlusion and linear light (CLIError otherwise)."""
+    from method.magnify.magnification import MAGNIFICATION_RENDERERS
+
+    entry = MAGNIFICATION_RENDERERS[renderer]
+    for flag, given, ok in (("--depth", args.depth, "occlusion" in MAGNIFICATION_RENDERERS.entry(renderer).capabilities),
+                            ("--highlights", args.highlights, entry.default_light == "linear")):
+        if given is not None and not ok:
+            raise CLIError(f"{flag} applies to the scatter renderer, not to --renderer {renderer}; allowed: "
+                           f"--renderer scatter {flag} ..., or --renderer {renderer} without {flag}")
+
+
+def _output_paths(args, photo_path: Path, factor: float) -> tuple[Path, Path | None, Path | None]:
+    """(photo, --save-map, --html) outputs, checked before any work; CLIError for a clash or a bad path."""
+    from repro.photo_io import OUTPUT_SUFFIXES
+
+    out = Path(args.output) if args.output else default_output_path(photo_path, factor)
+    out = check_output_path(out, photo=photo_path, overwrite=args.overwrite, suffixes=OUTPUT_SUFFIXES, flag="output")
+    taken = {out.resolve(): "the output photo"}
+    paths = []
+    for flag, given, suffixes in (("--save-map", args.save_map, MAP_OUTPUT_SUFFIXES), ("--html", args.html, (".html",))):
+        path = None
+        if given:
+            path = check_output_path(given, photo=photo_path, overwrite=args.overwrite, suffixes=suffixes, flag=flag)
+            if path.resolve() in taken:
+                raise CLIError(f"{flag} {path} is {taken[path.resolve()]}'s path; choose another name")
+            taken[path.resolve()] = flag
+        paths.append(path)
+    return out, *paths
+
+
+def _subject(args, photo, *, prog):
+    """(focus point, keep-sharp mask, depth map) of the command line, read and checked (CLIError)."""
+    from repro._magnify_inputs import parse_focus_point, read_depth, read_keep_sharp
+
+    shape = photo.image.shape
+    point = None if args.focus_point is None else parse_focus_point(args.focus_point, shape)
+    mask = None if args.keep_sharp is None else read_keep_sharp(args.keep_sharp, shape, max_pixels=args.max_pixels)
+    depth = None
+    if args.depth is not None:
+        depth, resized = read_depth(args.depth, shape)
+        if resized:
+            note(prog, resized, quiet=args.quiet)
+    return point, mask, depth
+
+
+def _front_back(args, renderer, depth, point, sigma, *, prog):
+    """``in_front`` for the scatter (None: blurrier = behind), said in one line on stderr."""
+    from repro._magnify_inputs import front_back
+
+    if renderer != "scatter":
+        return None
+    if depth is None:
+        note(prog, "front and back: a blurrier pixel is taken to lie behind the subject (a blurry foreground "
+                   "needs --depth DEPTH)", quiet=args.quiet)
+        return None
+    fb = front_back(depth, focus_point=point, sigma=sigma)
+    note(prog, f"front and back from --depth: {100 * fb.in_front.mean():.3g}% of the pixels in front of the focus "
+               f"depth {fb.focus_depth:.4g} (± {fb.tolerance:.2g}, {fb.where})", quiet=args.quiet)
+    return fb.in_front
+
+
+def _render(args, photo, sigma, params, *, factor, renderer, kernel, aperture, floor, gain, subject, progress):
+    """(result in the magnifier's encoding, that encoding, display values of the result) of the whole photo."""
+    from method.luma import to_light
+    from method.magnify.magnification import check_extra_blur, magnify_defocus, preprocess_defocus_map
+    from method.magnify.upsampling import magnify_defocus_tiled
+    from repro._magnify_inputs import supported_options
+    from repro.photo_io.highlights import compress_highlights, expand_highlights
+
+    point, mask, depth = subject
+    options = {"focus_point": point, "keep_sharp": mask}
+    before = supported_options(preprocess_defocus_map, **options)
+    # Sec. 5 preprocessing on the whole map (a global operation), then tiled magnification
+    processed = preprocess_defocus_map(sigma, clip_percent=params.map_clip_percent, smoothing=params.map_smoothing,
+                                       floor=floor, **before)
+    during = supported_options(magnify_defocus, **options)
+    if mask is not None and "keep_sharp" not in before and "keep_sharp" not in during:
+        processed = processed * (1.0 - mask)  # no blur is added where the mask is set
+    with user_input():  # --factor too large for this photo: before any big allocation
+        check_extra_blur(factor, processed, photo.image.shape, name="--factor")
+    in_front = _front_back(args, renderer, depth, point, sigma, prog=PROG)
+    image, encoding = (photo.image, photo.encoding) if gain is None else (expand_highlights(photo.image, gain=gain),
+                                                                         "linear")
+    result = magnify_defocus_tiled(image, processed, factor=factor, kernel=kernel, preprocess=False, renderer=renderer,
+                                   aperture=aperture, tile_pixels=args.tile_pixels, progress=progress,
+                                   encoding=encoding, in_front=in_front, **during)
+    display = (to_light(result, "display", encoding=encoding) if gain is None
+               else compress_highlights(result, gain=gain))
+    return result, encoding, display
+
+
 def main(argv=None) -> int:
     """Entry point; returns the exit status (errors raise; see :func:`repro._cli.run_cli`)."""
-    from method.magnify.magnification import MAP_FLOOR_MODES, check_extra_blur, preprocess_defocus_map
-    from method.magnify.upsampling import magnify_defocus_tiled
-    from repro.photo_io import OUTPUT_SUFFIXES, output_bit_depth, probe_photo, write_photo
+    from method.luma import to_light
+    from method.magnify.magnification import MAP_FLOOR_MODES
+    from repro._magnify_page import magnify_page, write_magnify_page
+    from repro.photo_io import output_bit_depth, probe_photo, write_photo
 
     args = _parser().parse_args(argv)
     factor = parse_factor(args.factor)
     renderer, kernel, aperture = renderer_options(args)
+    gain = parse_gain(args.highlights)
+    _check_scatter_flags(args, renderer)
     with user_input():
         MAP_FLOOR_MODES.check(args.floor, what="--floor", optional=True)
     params = defocus_params(args)
@@ -284,16 +403,14 @@ def main(argv=None) -> int:
     photo_path = Path(args.photo)
     with user_input():
         probe_photo(photo_path)  # a missing/bad photo is reported before anything about the output
-    out = Path(args.output) if args.output else default_output_path(photo_path, factor)
-    check_output_path(out, photo=photo_path, overwrite=args.overwrite, suffixes=OUTPUT_SUFFIXES, flag="output")
-    if args.save_map:
-        map_path = check_output_path(args.save_map, photo=photo_path, overwrite=args.overwrite,
-                                     suffixes=MAP_OUTPUT_SUFFIXES, flag="--save-map")
-        if map_path.resolve() == out.resolve():
-            raise CLIError(f"--save-map {map_path} is the output photo's path; choose another name")
+    out, map_path, page_path = _output_paths(args, photo_path, factor)
     photo = load_photo(args, prog=PROG)
+    if gain is not None and photo.encoding != "srgb":
+        raise CLIError(f"--highlights applies to display-encoded photos (JPEG, PNG, TIFF), not to {photo_path.name} "
+                       f"({photo.encoding} light, whose highlights are kept as stored); allowed: drop --highlights")
+    subject = _subject(args, photo, prog=PROG)  # read and checked before any output is written
     given = None
-    if args.map is not None:  # read and checked before any output is written
+    if args.map is not None:
         given, resized = read_given_map(args.map, photo.image.shape,
                                         png_scale=args.png_scale or DEFAULT_PNG_SCALE)
     with user_input():
@@ -306,31 +423,37 @@ def main(argv=None) -> int:
             sigma, info = given, None
             if resized:
                 note(PROG, resized, quiet=args.quiet)
-        if args.save_map:
-            progress("save map")
-            write_map(args.save_map, sigma)
-        # Sec. 5 preprocessing on the whole map (a global operation), then tiled magnification
-        processed = preprocess_defocus_map(sigma, clip_percent=params.map_clip_percent,
-                                           smoothing=params.map_smoothing, floor=floor)
-        with user_input():  # --factor too large for this photo: before any big allocation
-            check_extra_blur(factor, processed, photo.image.shape, name="--factor")
-        result = magnify_defocus_tiled(
-            photo.image, processed, factor=factor, kernel=kernel, preprocess=False, renderer=renderer,
-            aperture=aperture, tile_pixels=args.tile_pixels, progress=progress, encoding=photo.encoding,
-        )
+        result, encoding, display = _render(args, photo, sigma, params, factor=factor, renderer=renderer,
+                                            kernel=kernel, aperture=aperture, floor=floor, gain=gain,
+                                            subject=subject, progress=progress)
+        shape = f"{aperture or 'disk'} aperture" if renderer == "scatter" else f"{kernel or 'gaussian'} kernel"
+        summary = (f"defocus map {map_summary(sigma)}{' (--map)' if given is not None else ''}; factor {factor:g}, "
+                   f"{renderer} renderer, {shape}, {floor} floor"
+                   + (f", highlights x{gain:g}" if gain is not None else ""))
+        page = None
+        if page_path is not None:
+            progress("page")
+            page = magnify_page(to_light(photo.image, "display", encoding=photo.encoding), display, sigma,
+                                title=f"{photo_path.name} magnified x{factor:g}", summary=summary,
+                                focus_point=subject[0], keep_sharp=subject[1])
         progress("write")
-        write_photo(out, result, bit_depth=bits, exif=photo.exif, icc_profile=photo.icc_profile,
-                    encoding=photo.encoding)
+        if out.suffix.lower() == ".exr" or gain is None:
+            write_photo(out, result, bit_depth=bits, exif=photo.exif, icc_profile=photo.icc_profile, encoding=encoding)
+        else:  # recovered highlights go back through the inverse of their curve
+            write_photo(out, display, bit_depth=bits, exif=photo.exif, icc_profile=photo.icc_profile)
+        if map_path is not None:
+            write_map(map_path, sigma)
+        if page is not None:
+            write_magnify_page(page_path, page)
     finally:
         progress.close()
-    shape = f"{aperture or 'disk'} aperture" if renderer == "scatter" else f"{kernel or 'gaussian'} kernel"
-    summary = (f"defocus map {map_summary(sigma)}{' (--map)' if given is not None else ''}; factor {factor:g}, "
-               f"{renderer} renderer, {shape}, {floor} floor")
     if info is None:
         note(PROG, summary, quiet=args.quiet)
     else:
         report_map(args, info, params, prog=PROG, no_edges_consequence=", so the photo is unchanged", summary=summary)
     print(out)
+    if page_path is not None:
+        print(page_path)
     return 0
 
 

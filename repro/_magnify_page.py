@@ -17,12 +17,16 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-__all__ = ["MAIN_MAX_SIDE", "ZOOM_SIDE", "magnify_page", "write_magnify_page", "zoom_centres"]
+__all__ = ["MAIN_MAX_SIDE", "MAIN_MIN_SIDE", "ZOOM_DISPLAY", "ZOOM_SIDE", "magnify_page", "write_magnify_page", "zoom_centres"]
 
 #: Longer side of the whole-photo view, px (bigger photos are downscaled for the page; the crops are not).
 MAIN_MAX_SIDE = 1600
+#: Shortest displayed longer side of the whole-photo view, CSS px (a small photo is shown enlarged).
+MAIN_MIN_SIDE = 800
 #: Side of a zoomed crop, px of the photo (smaller photos: a third of their shorter side, at least 16).
 ZOOM_SIDE = 160
+#: Displayed side of a zoomed crop, about, CSS px (shown at a whole-pixel magnification).
+ZOOM_DISPLAY = 400
 #: Opacity of the map overlay.
 OVERLAY_ALPHA = 0.6
 
@@ -129,9 +133,9 @@ def _crop(a, centre, side):
     return a[y0:y0 + side, x0:x0 + side], (x0, y0)
 
 
-def _compare(before, after, overlay, *, fmt, alt, zoom=1, css="") -> str:
+def _compare(before, after, overlay, *, fmt, alt, zoom=1.0, css="") -> str:
     h, w = before.shape[:2]
-    size = f' width="{w * zoom}" height="{h * zoom}"'
+    size = f' width="{round(w * zoom)}" height="{round(h * zoom)}"'
     imgs = "".join(f'<img class="{cls}" alt="{html.escape(alt)}: {cls}" src="{_data_uri(a, f)}"{size}>'
                    for cls, a, f in (("before", before, fmt), ("after", after, fmt), ("map", overlay, "png")))
     return (f'<div class="compare {css}">{imgs}<input type="range" min="0" max="100" value="50" '
@@ -162,7 +166,7 @@ def magnify_page(before, after, sigma, *, title: str, summary: str, focus_point=
     overlay = _colour_map(sigma, vmax)
     H, W = b8.shape[:2]
     side = max(16, min(ZOOM_SIDE, min(H, W) // 3))
-    zoom = max(1, 480 // side)
+    zoom = max(1, ZOOM_DISPLAY // side)
     subject, background = zoom_centres(sigma, focus_point=focus_point, keep_sharp=keep_sharp, side=side)
     figures = []
     for name, centre in (("subject", subject), ("background", background)):
@@ -172,7 +176,7 @@ def magnify_page(before, after, sigma, *, title: str, summary: str, focus_point=
                        '</figcaption></figure>')
     legend = _data_uri(_colour_map(np.linspace(0.0, vmax, 256)[None, :].repeat(8, axis=0), vmax), "png")
     main = _compare(_shrink(b8, MAIN_MAX_SIDE), _shrink(a8, MAIN_MAX_SIDE), _shrink(overlay, MAIN_MAX_SIDE),
-                    fmt="jpeg", alt="photo")
+                    fmt="jpeg", alt="photo", zoom=max(1.0, MAIN_MIN_SIDE / max(H, W)))
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             f"<title>{html.escape(title)}</title><style>{_STYLE.replace('OVERLAY', str(OVERLAY_ALPHA))}</style>"
             f"</head><body><h1>{html.escape(title)}</h1><p>{html.escape(summary)}</p>"

@@ -1,0 +1,146 @@
+"""Highlights that bloom: an EXR's linear light unclipped end to end, and --highlights on display-encoded photos.
+
+The synthetic point: a black photo with one white pixel, blurred with a constant defocus map σ = 3 px
+at ×2 (extra blur σ_e = √3 · 3 px): the scatter spreads the point's linear light over a disk whose
+per-axis variance is σ_e² and whose radius is :func:`method.magnify.scatter.radius_for_sigma` (σ_e),
+keeping its energy.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from repro.magnify import PROG, main
+from repro.photo_io import read_photo, write_photo
+from repro.photo_io.highlights import DEFAULT_HIGHLIGHT_GAIN, HIGHLIGHT_KNEE, compress_highlights, expand_highlights
+from tests.photo_cli import cli_runner, textured_photo
+
+N = 65                     # the point photo's side, px
+SIGMA = 3.0                # its defocus map, px
+SIGMA_E = np.sqrt(3.0) * SIGMA
+
+run, assert_one_line_error = cli_runner(main, PROG)
+
+
+@pytest.fixture(autouse=True)
+def cache_dir(tmp_path, monkeypatch):
+    monkeypatch.setenv("DEFOCUS_CACHE_DIR", str(tmp_path / "cache"))
+
+
+@pytest.fixture
+def flat_map(tmp_path):
+    np.save(tmp_path / "flat.npy", np.full((N, N), SIGMA))
+    return tmp_path / "flat.npy"
+
+
+def _point(value=1.0, background=0.0):
+    img = np.full((N, N, 3), background)
+    img[N // 2, N // 2] = value
+    return img
+
+
+def _moments(lin):
+    """(energy, per-axis variance px², farthest lit pixel's distance px) of an HxWx3 linear image's green channel."""
+    g = lin[..., 1]
+    y, x = np.mgrid[:N, :N] - N // 2
+    e = g.sum()
+    return e, float((g * x * x).sum() / e), float(np.hypot(x, y)[g > 1e-6 * g.max()].max())
+
+
+def test_curve_is_srgb_below_the_knee_smooth_and_inverted():
+    import colour
+
+    v = np.linspace(0.0, 1.0, 2001)
+    L = expand_highlights(v)
+    below = v <= HIGHLIGHT_KNEE
+    np.testing.assert_allclose(L[below], colour.cctf_decoding(v[below], function="sRGB"), atol=1e-7)
+    assert L[-1] == pytest.approx(DEFAULT_HIGHLIGHT_GAIN)
+    assert np.all(np.diff(L) > 0)                                     # invertible
+    # no kink at the knee (no visible seam): the slopes 3 codes below and above it agree to < 1, where a boost
+    # rising linearly from the knee would jump by (gain − 1) · L(knee) / (1 − knee) ≈ 55
+    h = 3 / 65535
+    below, above = (np.diff(expand_highlights(np.array([c - h / 2, c + h / 2])))[0] / h
+                    for c in (HIGHLIGHT_KNEE - h, HIGHLIGHT_KNEE + h))
+    assert abs(above - below) < 1.0
+    np.testing.assert_allclose(compress_highlights(L), v, atol=1e-6)
+    assert compress_highlights(np.array([2 * DEFAULT_HIGHLIGHT_GAIN]))[0] == 1.0
+    np.testing.assert_allclose(expand_highlights(v, gain=1.0), colour.cctf_decoding(v, function="sRGB"), atol=1e-7)
+    for bad in (0.5, np.nan, np.inf):
+        with pytest.raises(ValueError, match="gain=.* is invalid; allowed: a finite number >= 1"):
+            expand_highlights(v, gain=bad)
+
+
+@pytest.mark.parametrize("aperture", ["disk", "hexagon"])
+def test_a_specular_point_blooms_with_its_energy_and_size(tmp_path, flat_map, aperture, capsys):
+    from method.magnify.scatter import radius_for_sigma
+
+    src = write_photo(tmp_path / "point.png", _point())
+    energies = {}
+    for name, extra in (("plain", []), ("recovered", ["--highlights"])):
+        status, _, err = run([src, "--map", flat_map, "--floor", "clamp", "--aperture", aperture, *extra,
+                              "-o", tmp_path / f"{name}.exr"], capsys)
+        assert status == 0, err
+        energy, variance, reach = _moments(read_photo(tmp_path / f"{name}.exr").image)
+        energies[name] = energy
+        assert variance == pytest.approx(SIGMA_E**2, rel=0.03)         # the disk's size matches σ_e
+        R = float(radius_for_sigma(np.array([SIGMA_E]), aperture=aperture)[0])
+        bound = R * (np.sqrt(6 / 5) if aperture == "hexagon" else 1.0)
+        assert bound - 2.0 < reach <= bound + 1.0
+    assert energies["plain"] == pytest.approx(1.0, rel=0.01)           # energy conserved in linear light
+    assert energies["recovered"] == pytest.approx(DEFAULT_HIGHLIGHT_GAIN, rel=0.01)
+
+
+def test_recovered_highlight_is_brighter_in_an_8bit_output(tmp_path, flat_map, capsys):
+    src = write_photo(tmp_path / "point.png", _point(background=0.2))
+    peaks = {}
+    for name, extra in (("plain", []), ("recovered", ["--highlights", "32"])):
+        status, _, err = run([src, "--map", flat_map, "--floor", "clamp", *extra, "-o", tmp_path / f"{name}.png"],
+                             capsys)
+        assert status == 0, err
+        out = read_photo(tmp_path / f"{name}.png").image[..., 1]
+        peaks[name] = out[N // 2, N // 2]
+        assert out[2, 2] == pytest.approx(0.2, abs=1.5 / 255)          # the background keeps its value
+    assert peaks["plain"] < 0.25 < 0.35 < peaks["recovered"]
+
+
+def test_exr_highlights_are_kept_unclipped_end_to_end(tmp_path, flat_map, capsys):
+    src = write_photo(tmp_path / "point.exr", _point(value=50.0, background=0.1), encoding="linear")
+    photo = read_photo(src)
+    assert photo.image.max() == 50.0 and any("above 1.0 kept" in n for n in photo.notes)
+    status, _, err = run([src, "--map", flat_map, "--floor", "clamp", "-o", tmp_path / "out.exr"], capsys)
+    assert status == 0, err
+    out = read_photo(tmp_path / "out.exr").image
+    energy = (out - 0.1)[..., 1].sum()
+    assert energy == pytest.approx(50.0 - 0.1, rel=0.01)
+    assert out.max() > 1.0 / 0.9 * 50.0 / (np.pi * (2 * SIGMA_E) ** 2)  # a disk of the point's light, not of 1
+
+
+def test_exr_negative_samples_are_raised_to_zero_with_a_note(tmp_path):
+    import OpenEXR
+
+    img = np.full((8, 10, 3), 0.5, dtype=np.float32)
+    img[0, 0] = -0.25
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    OpenEXR.File(header, {"RGB": img}).write(str(tmp_path / "n.exr"))
+    photo = read_photo(tmp_path / "n.exr")
+    assert photo.image.min() == 0.0 and any("below 0 raised to 0" in n for n in photo.notes)
+
+
+@pytest.mark.parametrize("args,needles", [
+    (["--highlights"], ["--highlights applies to display-encoded photos", "point.exr", "allowed: drop --highlights"]),
+    (["--highlights", "0.5"], ["--highlights 0.5 is invalid", "allowed: a finite gain >= 1"]),
+    (["--highlights", "bright"], ["--highlights 'bright' is not a number"]),
+])
+def test_highlights_bad_input(tmp_path, flat_map, args, needles, capsys):
+    src = write_photo(tmp_path / "point.exr", _point())
+    status, _, err = run([src, "--map", flat_map, "-o", tmp_path / "out.exr", *args], capsys)
+    assert_one_line_error(status, err, *needles)
+    assert not (tmp_path / "out.exr").exists()
+
+
+def test_highlights_need_the_scatter(tmp_path, capsys):
+    src = write_photo(tmp_path / "p.png", textured_photo(48, 64))
+    status, _, err = run([src, "--renderer", "gather", "--highlights", "-o", tmp_path / "out.png"], capsys)
+    assert_one_line_error(status, err, "--highlights applies to the scatter renderer", "allowed")
+    assert not (tmp_path / "out.png").exists()

@@ -56,15 +56,16 @@ def test_matplotlib_only_in_plotting_modules():
 
 
 def test_photo_io_and_cache_live_where_they_say():
-    """Photo files are read/written only by the photo tools (repro.estimate, repro.magnify and their map
-    module repro/_photo_map.py): the package repro/photo_io/; the cache layer is its own package, defocus_cache/."""
+    """Photo files are read/written only by the photo tools (repro.estimate, repro.magnify, their map module
+    repro/_photo_map.py and the magnifier's input readers repro/_magnify_inputs.py): the package repro/photo_io/;
+    the cache layer is its own package, defocus_cache/."""
     photo_io = ROOT / "repro" / "photo_io"
     assert (photo_io / "__init__.py").is_file() and not (ROOT / "scenes" / "photo_io.py").exists()
     assert (ROOT / "defocus_cache" / "__init__.py").is_file() and not (ROOT / "scenes" / "storage.py").exists()
     users = sorted(str(p.relative_to(ROOT)) for pkg in ("method", "scenes", "experiments", "repro", "defocus_cache")
                    for p in (ROOT / pkg).rglob("*.py") if "photo_io" in p.read_text(encoding="utf-8")
                    and photo_io not in p.parents)
-    assert users == ["repro/_photo_map.py", "repro/estimate.py", "repro/magnify.py"], users
+    assert users == ["repro/_magnify_inputs.py", "repro/_photo_map.py", "repro/estimate.py", "repro/magnify.py"], users
 
 
 def test_the_checker_sees_imports(tmp_path):

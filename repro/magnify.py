@@ -3,7 +3,8 @@
 
 ``python -m repro.magnify PHOTO --factor 2 [-o OUT.jpg] [--renderer gather|scatter] [--aperture disk|hexagon]
 [--kernel gaussian|disk] [--map MAP [--png-scale S]] [--save-map MAP.exr] [--floor clamp|subtract|shift]
-[--preset NAME] [--encoding srgb|linear]``
+[--preset NAME] [--encoding srgb|linear] [--focus-point X,Y] [--keep-sharp MASK] [--depth DEPTH]
+[--highlights [GAIN]] [--html PAGE.html]``
 
 ``--preset`` (a key of ``method.PRESETS``; default ``robust``, beyond the paper; ``paper`` is the
 literal reproduction) chooses the parameters of the defocus map and of its Sec. 5 preprocessing, as
@@ -33,6 +34,20 @@ TIFF, EXR); 16-bit PNG/TIFF input gives 16-bit PNG/TIFF output, 8-bit input 8-bi
 ICC profile are passed through to JPEG, 8-bit PNG and TIFF. ``--encoding`` (default from the file type:
 OpenEXR linear light, the others sRGB) says what the photo's values are; the estimation, the renderer
 and the writer all read it (a linear photo written to JPEG/PNG/TIFF is sRGB-encoded).
+
+The subject: ``--focus-point X,Y`` (column, row of the upright photo) and ``--keep-sharp MASK`` (an image,
+white = the subject; the photo's size or aspect ratio) go to ``magnify_defocus`` (and to the map's Sec. 5
+preprocessing) as ``focus_point`` and ``keep_sharp`` when they take them; without ``keep_sharp`` support
+no blur is added under the mask (the map is multiplied by 1 − mask). Front and back (scatter): by default a
+blurrier pixel lies behind the subject (said on stderr); ``--depth DEPTH`` (a depth map or a signed
+defocus map, ``.npy``/``.npz``/``.exr``) marks as ``in_front`` the pixels nearer than the focus depth (read
+at ``--focus-point``, else where the defocus map is lowest; :func:`repro._magnify_inputs.front_back`).
+Highlights: an EXR's linear light is magnified and written unclipped; ``--highlights [GAIN]`` (scatter,
+display-encoded photos) expands clipped highlights to GAIN × white in linear light before the blur and
+inverts that curve after it (:mod:`repro.photo_io.highlights`). ``--html PAGE.html`` also writes a
+self-contained before/after page (:mod:`repro._magnify_page`; its path is printed after the photo's).
+Every input is checked before anything is written; every output is written atomically after the
+magnification.
 
 Without ``--map`` the defocus map is estimated (or reused from the cache, whatever the factor) as in
 ``repro.estimate``: at most ``--max-working-pixels`` (default 1.5 MP), upsampled edge-aware to full

@@ -144,3 +144,20 @@ def test_highlights_need_the_scatter(tmp_path, capsys):
     status, _, err = run([src, "--renderer", "gather", "--highlights", "-o", tmp_path / "out.png"], capsys)
     assert_one_line_error(status, err, "--highlights applies to the scatter renderer", "allowed")
     assert not (tmp_path / "out.png").exists()
+
+
+def test_estimation_sees_linear_highlights_as_white(tmp_path, capsys):
+    """The map of an EXR whose highlights exceed 1 is the map of the same EXR clipped at 1."""
+    from repro.estimate import PROG as ESTIMATE, main as estimate
+
+    run_estimate, _ = cli_runner(estimate, ESTIMATE)
+    base = textured_photo(48, 64) ** 2.2
+    hot = base.copy()
+    hot[10:14, 10:14] = 40.0       # a specular patch far above white
+    hot[30:33, 50:53] = 5.0
+    for name, img in (("hot", hot), ("clipped", np.minimum(hot, 1.0))):
+        write_photo(tmp_path / f"{name}.exr", img, encoding="linear")
+        status, _, err = run_estimate([tmp_path / f"{name}.exr", "-o", tmp_path / f"{name}.npy"], capsys)
+        assert status == 0, err
+    assert read_photo(tmp_path / "hot.exr").image.max() == 40.0
+    np.testing.assert_array_equal(np.load(tmp_path / "hot.npy"), np.load(tmp_path / "clipped.npy"))

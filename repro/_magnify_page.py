@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
-__all__ = ["MAIN_MAX_SIDE", "MAIN_MIN_SIDE", "ZOOM_DISPLAY", "ZOOM_SIDE", "magnify_page", "write_magnify_page", "zoom_centres"]
+__all__ = ["MAIN_MAX_SIDE", "MAIN_MIN_SIDE", "OVERLAY_ALPHA", "ZOOM_DISPLAY", "ZOOM_SIDE", "magnify_page",
+           "write_magnify_page", "zoom_centres"]
 
 #: Longer side of the whole-photo view, px (bigger photos are downscaled for the page; the crops are not).
 MAIN_MAX_SIDE = 1600
@@ -94,7 +95,7 @@ def _shrink(a, side) -> np.ndarray:
     return np.asarray(Image.fromarray(a).resize((max(1, round(w * s)), max(1, round(h * s))), Image.LANCZOS))
 
 
-def zoom_centres(sigma, *, focus_point=None, keep_sharp=None, side=ZOOM_SIDE) -> tuple[tuple[int, int], tuple[int, int]]:
+def zoom_centres(sigma, *, focus_point=None, keep_sharp=None, side=ZOOM_SIDE) -> tuple[tuple[int, int], ...]:
     """(row, column) centres of the subject's and the background's crops.
 
     Parameters

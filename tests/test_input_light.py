@@ -120,7 +120,7 @@ def test_one_vocabulary_for_encodings_and_lights():
     import scenes.display
     from scenes.analytic import lens
 
-    assert tuple(ENCODINGS) == scenes.display.ENCODINGS == ("srgb", "linear")
+    assert tuple(ENCODINGS) == scenes.display.ENCODINGS == ("srgb", "linear", "gamma1.8", "gamma2.2", "filmic")
     assert experiments.evaluation.ENCODINGS is ENCODINGS
     assert MEASURE_LIGHTS is LIGHTS and tuple(LIGHTS) == ("display", "linear")
     assert {ENCODINGS[e] for e in ENCODINGS} == set(LIGHTS)  # each encoding is in one light

@@ -3,7 +3,7 @@
 
 ``python -m repro.magnify PHOTO --factor 2 [-o OUT.jpg] [--renderer gather|scatter] [--aperture disk|hexagon]
 [--kernel gaussian|disk] [--map MAP [--png-scale S]] [--save-map MAP.exr] [--floor clamp|subtract|shift]
-[--preset NAME] [--encoding srgb|linear]``
+[--preset NAME] [--encoding NAME]``
 
 ``--preset`` (a key of ``method.PRESETS``; default ``robust``, beyond the paper; ``paper`` is the
 literal reproduction) chooses the parameters of the defocus map and of its Sec. 5 preprocessing, as
@@ -49,6 +49,7 @@ scatter's 12 MP timing (map given) is recorded by ``repro.bench`` (``docs/perfor
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -306,6 +307,10 @@ def main(argv=None) -> int:
             sigma, info = given, None
             if resized:
                 note(PROG, resized, quiet=args.quiet)
+        if photo.encoding == "auto":  # magnified and written in the curve fitted (by the estimate, or here)
+            from method.tone_curve import resolve_encoding
+
+            photo = dataclasses.replace(photo, encoding=info["encoding"] if info else resolve_encoding(photo.image, "auto"))
         if args.save_map:
             progress("save map")
             write_map(args.save_map, sigma)

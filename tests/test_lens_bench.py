@@ -114,7 +114,7 @@ def test_cli_bad_psf_and_flags():
     r = run_in_process("repro.bench", ["--accuracy", "--psf", "square"])
     assert r.returncode == 2 and "unknown PSF" in r.stderr and r.stderr.count("\n") == 1
     r = run_in_process("repro.bench", ["--psf", "disk"])
-    assert r.returncode == 2 and "--psf and --full go with --accuracy" in r.stderr
+    assert r.returncode == 2 and "--psf, --full and --tone-curves go with --accuracy" in r.stderr
 
 
 def test_region_rows_measure_only_where_the_cue_measures():

@@ -97,12 +97,14 @@ def step_mosaic(sigmas, tile: int, noise_std: float, seed: int):
     return image, sigma_gt, valid
 
 
-def lens_step_mosaic(sigmas, tile: int, *, psf: str, noise: str, seed: int, light: str = "linear"):
+def lens_step_mosaic(sigmas, tile: int, *, psf: str, noise: str, seed: int, light: str = "linear",
+                     encoding: str = "srgb"):
     """:func:`step_mosaic`'s layout with steps blurred by a lens PSF in linear light, then the camera.
 
     Each tile is :func:`scenes.analytic.lens.lens_step_edge` (display values 0.2 → 0.8, PSF ``psf`` of
     reported σ = sigmas[c], kernel ⊗ pixel box); then Poisson–Gaussian noise ``noise`` in linear
-    units, the sRGB curve and 8 bits (:func:`scenes.display.camera_image`).
+    units, the tone curve ``encoding`` (a key of :data:`scenes.display.ENCODINGS`, default sRGB) and 8
+    bits (:func:`scenes.display.camera_image`).
 
     Returns
     -------
@@ -112,13 +114,14 @@ def lens_step_mosaic(sigmas, tile: int, *, psf: str, noise: str, seed: int, ligh
     import numpy as np
 
     from scenes.analytic.lens import lens_step_edge
-    from scenes.display import camera_image, srgb_to_linear
+    from scenes.display import camera_image, decode
 
     def make(s, a):
-        return lens_step_edge((tile, tile), sigma=s, psf=psf, angle=a, light=light).image
+        return lens_step_edge((tile, tile), sigma=s, psf=psf, angle=a, light=light, encoding=encoding).image
 
     image, sigma_gt, valid = _mirrored_steps(sigmas, tile, make)
-    image = camera_image(srgb_to_linear(image), noise=noise, quantize_bits=8, rng=np.random.default_rng(seed))
+    image = camera_image(decode(image, encoding), noise=noise, quantize_bits=8, rng=np.random.default_rng(seed),
+                         encoding=encoding)
     return image, sigma_gt, valid
 
 

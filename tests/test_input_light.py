@@ -100,7 +100,7 @@ def test_to_light_converts_at_most_once():
 ])
 def test_unknown_encoding_is_a_value_error_naming_the_allowed(call):
     img = np.random.default_rng(0).random((16, 16, 3))
-    with pytest.raises(ValueError, match=r"encoding='bogus' is invalid .*allowed: 'linear', 'srgb'"):
+    with pytest.raises(ValueError, match=r"encoding='bogus' is invalid .*allowed: .*'filmic', .*'linear', 'srgb'"):
         call(img)
 
 
@@ -213,4 +213,6 @@ def test_cli_help_names_the_encoding_default(capsys):
     from repro.estimate import _parser
 
     text = " ".join(_parser().format_help().split())
-    assert "--encoding srgb|linear" in text and "Default: from the file type, linear for OpenEXR" in text
+    assert "--encoding NAME" in text and "Default: from the file type, linear for OpenEXR" in text
+    for name in ("auto", "srgb", "linear", "gamma1.8", "gamma2.2", "filmic"):  # the choices read the registry
+        assert f"{name} (" in text

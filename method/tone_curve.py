@@ -48,6 +48,8 @@ _WINDOWS = (2.0, 3.0, 4.5, 6.5, 9.0, 12.0)
 #: Candidate centres: shifts of the display profile's centroid along the normal, ±6 px in steps of
 #: _STEP (a tone curve moves the display profile off the linear profile's centre).
 _SHIFTS = 24
+#: Edge pixels sampled: at most this many × max_edges, those of largest display gradient.
+_PRESELECT = 8
 
 @dataclasses.dataclass(frozen=True)
 class ToneCurveFit:
@@ -80,6 +82,9 @@ def _edge_samples(gray, *, max_edges):
     edges = canny(gray, sigma=1.0) & (mag > 0)
     u = np.arange(-round(_REACH / _STEP), round(_REACH / _STEP) + 1) * _STEP
     ys, xs = np.nonzero(edges)
+    if ys.size > _PRESELECT * max_edges:  # the strongest gradients first: bounds the cost on large images
+        top = np.argsort(-mag[ys, xs], kind="stable")[:_PRESELECT * max_edges]
+        ys, xs = ys[top], xs[top]
     ny, nx = gy[ys, xs] / mag[ys, xs], gx[ys, xs] / mag[ys, xs]
     py = ys[:, None] + u[None, :] * ny[:, None]
     px = xs[:, None] + u[None, :] * nx[:, None]
@@ -160,7 +165,7 @@ def fit_encoding(image, *, candidates=None, max_edges: int = 400) -> ToneCurveFi
     Notes
     -----
     1. Canny edges (scikit-image, σ 1 px) of the display luma; normals from Gaussian derivatives
-       (σ 1 px). Per edge, the display profile along the normal (±18 px) gives a centre (centroid
+       (σ 1 px); at most 8 × ``max_edges`` of them, those of largest gradient. Per edge, the display profile along the normal (±18 px) gives a centre (centroid
        of |p′|) and a window R ≈ 2.5× the spread of |p′| + 1 px (2–12 px; wider edges are not
        used); keep the ``max_edges`` of largest display contrast between the window's ends.
     2. Per candidate g: the profile of the linear luminance (each pixel's RGB decoded by g, Rec. 709

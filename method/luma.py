@@ -223,7 +223,7 @@ def measure_luminance(image, light: str = "display", *, encoding: str = "srgb") 
     in linear light a defocused step is the symmetric integral of the PSF's line spread; the camera's
     tone curve makes it asymmetric (steeper on the dark side), which an edge model of a symmetric
     PSF fits too wide or rejects. The conversion assumes the curve ``encoding`` names; a camera's
-    own curve departs from sRGB (contrast S-curves): :mod:`method.tone_curve` chooses one per image.
+    own curve departs from sRGB (contrast S-curves): :mod:`method.edges.tone_curve` chooses one per image.
     """
     return luminance(to_light(image, MEASURE_LIGHTS.check(light, what="measure_light"), encoding=encoding))
 

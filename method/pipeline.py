@@ -34,7 +34,7 @@ from .edges.elder_zucker import EdgeMap, detect_edges
 from .luma import LUMA_WEIGHTS, luminance, measure_input  # noqa: F401 (LUMA_WEIGHTS re-exported)
 from .params import DefocusParams
 from .propagation.methods import propagate_blur_measures
-from .tone_curve import resolve_encoding
+from .edges.tone_curve import resolve_encoding
 
 __all__ = ["DefocusResult", "NoEdgesWarning", "blur_stage", "edge_confidence", "edge_psf_family", "edges_stage",
            "estimate_defocus_map", "isolation_stage", "luminance", "propagate_stage", "propagation_confidence",
@@ -75,7 +75,7 @@ class DefocusResult:
     # float64 HxW: Fisher information of region_sigma, px⁻² (1 / variance); None with region_sigma.
     encoding: str = "srgb"
     # the tone curve the input was read with (key of method.luma.ENCODINGS): as declared, or for
-    # encoding="auto" the curve method.tone_curve.fit_encoding chose for this image.
+    # encoding="auto" the curve method.edges.tone_curve.fit_encoding chose for this image.
 
     @property
     def psf_model(self) -> str | None:
@@ -102,11 +102,11 @@ def estimate_defocus_map(image, params=None, *, encoding: str = "srgb",
     params : DefocusParams, optional
         Pipeline parameters; the paper's defaults when omitted.
     encoding : str, keyword-only
-        What the image's values are, a key of :data:`method.tone_curve.INPUT_ENCODINGS`: ``"srgb"``
+        What the image's values are, a key of :data:`method.edges.tone_curve.INPUT_ENCODINGS`: ``"srgb"``
         (default; sRGB-encoded display values, as a camera delivers them), ``"linear"`` (linear
         radiance, as a render or an OpenEXR file holds it), another tone curve of
         :data:`method.luma.ENCODINGS`, or ``"auto"`` (display values of unknown curve, fitted per
-        image: :func:`method.tone_curve.fit_encoding`; the result's ``encoding`` names it).
+        image: :func:`method.edges.tone_curve.fit_encoding`; the result's ``encoding`` names it).
     progress : callable, optional, keyword-only
         Called with each stage's name (see ``STAGES``) as it starts, for progress displays.
 

@@ -4,7 +4,7 @@
 [--encoding NAME]``
 
 ``--encoding`` says what the photo's values are (default from the file type: OpenEXR holds linear
-light, JPEG/PNG/TIFF sRGB display values), a key of ``method.tone_curve.INPUT_ENCODINGS``: a tone
+light, JPEG/PNG/TIFF sRGB display values), a key of ``method.edges.tone_curve.INPUT_ENCODINGS``: a tone
 curve (srgb, gamma1.8, gamma2.2, filmic), linear, or auto (the curve fitted per photo from its
 strongest edges); the method converts it once into the light each stage measures in and says on
 stderr which curve it read the photo with.
@@ -112,7 +112,7 @@ def add_estimation_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by repro.estimate and repro.magnify."""
     from method.blur.estimators import BLUR_ESTIMATORS
     from method.magnify.upsampling import DEFAULT_MAX_WORKING_PIXELS
-    from method.tone_curve import INPUT_ENCODINGS
+    from method.edges.tone_curve import INPUT_ENCODINGS
     from repro.photo_io import DEFAULT_MAX_PIXELS
 
     add_preset_option(p, default=DEFAULT_PRESET, blurbs={name: _preset_blurb(name) for name in _presets()},

@@ -308,7 +308,7 @@ def main(argv=None) -> int:
             if resized:
                 note(PROG, resized, quiet=args.quiet)
         if photo.encoding == "auto":  # magnified and written in the curve fitted (by the estimate, or here)
-            from method.tone_curve import resolve_encoding
+            from method.edges.tone_curve import resolve_encoding
 
             photo = dataclasses.replace(photo, encoding=info["encoding"] if info else resolve_encoding(photo.image, "auto"))
         if args.save_map:

@@ -8,7 +8,7 @@ import pytest
 import scenes.display as display
 from method import DefocusParams, estimate_defocus_map
 from method.luma import ENCODINGS, decode, encode, to_light
-from method.tone_curve import INPUT_ENCODINGS, fit_encoding, resolve_encoding
+from method.edges.tone_curve import INPUT_ENCODINGS, fit_encoding, resolve_encoding
 from scenes.analytic.lens import lens_step_edge
 from tests.cli_run import run_in_process
 

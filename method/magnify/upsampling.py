@@ -24,7 +24,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..luma import LUMA_WEIGHTS, light_of, to_light
-from ..tone_curve import INPUT_ENCODINGS
+from ..edges.tone_curve import INPUT_ENCODINGS
 from ..validation import MIN_IMAGE_SIDE, validate_image, validate_map
 
 __all__ = ["DEFAULT_MAX_WORKING_PIXELS", "GUIDED_EPS", "GUIDED_RADIUS", "ScaledDefocusResult",
@@ -302,7 +302,7 @@ def estimate_defocus_map_at_scale(image, params=None, *, encoding="srgb", max_wo
         Pipeline parameters (paper defaults when omitted). Scale-dependent ones (σ1/σ2 scales,
         window sizes) apply in working px.
     encoding : str, keyword-only
-        Key of :data:`method.tone_curve.INPUT_ENCODINGS` ("srgb", default, "linear", another tone
+        Key of :data:`method.edges.tone_curve.INPUT_ENCODINGS` ("srgb", default, "linear", another tone
         curve or "auto"), passed to :func:`method.pipeline.estimate_defocus_map` (which fits "auto" on
         the working image); the downscaling averages the values as given.
     max_working_pixels : int, keyword-only

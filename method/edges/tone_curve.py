@@ -19,8 +19,8 @@ import dataclasses
 
 import numpy as np
 
-from .luma import ENCODINGS, LUMA_WEIGHTS, decode, luminance
-from .registry import Entry, Registry
+from ..luma import ENCODINGS, LUMA_WEIGHTS, decode, luminance
+from ..registry import Entry, Registry
 
 __all__ = ["AUTO_ENCODING", "INPUT_ENCODINGS", "ToneCurveFit", "fit_encoding", "resolve_encoding"]
 
@@ -30,7 +30,7 @@ AUTO_ENCODING = "auto"
 #: The encodings an input may declare: ``"auto"`` and every key of :data:`method.luma.ENCODINGS`.
 INPUT_ENCODINGS = Registry("encoding", {
     AUTO_ENCODING: Entry(None, "display values of unknown tone curve: the curve is fitted per image from its "
-                               "strongest edges (method.tone_curve.fit_encoding)"),
+                               "strongest edges (method.edges.tone_curve.fit_encoding)"),
     **{name: ENCODINGS.entry(name) for name in ENCODINGS},
 })
 
@@ -176,7 +176,7 @@ def fit_encoding(image, *, candidates=None, max_edges: int = 400) -> ToneCurveFi
     4. The candidate of the smallest median residual wins, except that sRGB is kept unless the
        winner's residual is below (1 − :data:`SRGB_MARGIN`) × sRGB's.
     """
-    from .validation import validate_image
+    from ..validation import validate_image
 
     image = validate_image(image)
     names = [n for n in ENCODINGS if ENCODINGS[n] == "display"] if candidates is None else \

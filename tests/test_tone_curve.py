@@ -85,3 +85,17 @@ def test_bad_input():
 def test_cli_unknown_curve_is_one_line_exit_2(tmp_path):
     r = run_in_process("repro.estimate", [str(tmp_path / "x.png"), "--encoding", "gamma3"])
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "filmic" in r.stderr and "auto" in r.stderr
+
+
+def test_cli_says_the_curve_it_assumed(tmp_path):
+    import os
+
+    from PIL import Image
+
+    src = tmp_path / "step.png"
+    Image.fromarray(np.round(_step("filmic") * 255).astype(np.uint8)).save(src)
+    env = {**os.environ, "DEFOCUS_CACHE_DIR": str(tmp_path / "cache")}
+    r = run_in_process("repro.estimate", [src, "--encoding", "auto", "-o", tmp_path / "m.npy"], env=env)
+    assert r.returncode == 0 and "tone curve assumed: filmic (fitted to this photo's edges" in r.stderr
+    r = run_in_process("repro.estimate", [src, "-o", tmp_path / "n.npy"], env=env)
+    assert r.returncode == 0 and "tone curve assumed: srgb\n" in r.stderr

@@ -173,3 +173,13 @@ def test_tone_axis_rows_name_their_curve_and_contrast():
     assert {r["tone"] for r in rows} == {"gamma1.8"} and {r["variant"] for r in rows} == {"robust", "auto"}
     assert all(r["snr"] > 3.0 for r in rows)  # a sharp checker: contrast far above the noise
     assert lens.tone_label("srgb", "display") == "srgb, display blur"
+
+
+def test_periodic_contrast_is_lost_at_large_blur():
+    """The bench's contrast / noise per tile: far above 3 for a sharp checker, below it once a disk of σ 8
+    has averaged the checker out (so that cell is not judged)."""
+    cfg = dict(lens.LENS_CONFIG, sigmas=(1.0, 8.0), tile=96, cols=2)
+    snr = lens.lens_case("checker", "disk", "iso100", None, 0, cfg)["snr"]
+    assert snr[1.0] > 5 * lens.LENS_TARGETS["periodic_min_snr"] and snr[8.0] < lens.LENS_TARGETS["periodic_min_snr"]
+    flat = lens.lens_case("checker", "disk", "none", None, 0, cfg)["snr"]  # no noise: only the 8-bit step
+    assert flat[1.0] > snr[1.0]

@@ -28,7 +28,7 @@ import math
 import time
 import warnings
 
-from .mosaics import lens_step_mosaic, sigma_bins
+from .mosaics import lens_step_mosaic, sigma_bins, tile_contrast_snr
 from .targets import TARGET_MIN_COVERAGE
 
 __all__ = ["LENS_CONFIG", "LENS_FULL_CONFIG", "LENS_TARGETS", "LENS_TONES", "LENS_TONE_CONFIG", "PERIODIC_FAMILIES",
@@ -126,29 +126,6 @@ def tone_label(encoding: str, light: str) -> str:
     return encoding if light == "linear" else f"{encoding}, display blur"
 
 
-def _contrast_snr(m, encoding: str) -> dict:
-    """Per tile σ of a lens mosaic: the noise-free blurred tile's display-luma std / the camera's noise std.
-
-    The noise std in display values is √(a·x + b) · encode′(x) (x the linear value; encode′ by central
-    differences) and the 8-bit step's 1/√12, in quadrature, as an rms over the tile's valid pixels.
-    """
-    import numpy as np
-
-    from scenes.display import encode
-
-    lin = np.asarray(m.linear, dtype=np.float64).mean(axis=2) if m.linear.ndim == 3 else m.linear
-    disp = encode(lin, encoding)
-    h = 1e-4
-    slope = (encode(np.clip(lin + h, 0, 1), encoding) - encode(np.clip(lin - h, 0, 1), encoding)) / (
-        np.clip(lin + h, 0, 1) - np.clip(lin - h, 0, 1))
-    var = (m.noise["a"] * lin + m.noise["b"]) * slope ** 2 + 1.0 / (12 * 255.0 ** 2)
-    out = {}
-    for t, sig in enumerate(m.sigmas):
-        sel = (m.tile_index == t) & ~m.boundary
-        out[float(sig)] = float(disp[sel].std() / np.sqrt(var[sel].mean())) if sel.any() else 0.0
-    return out
-
-
 def lens_case(family: str, psf: str, noise: str, jpeg, seed: int, cfg: dict, *, encoding: str = "srgb",
               light: str = "linear") -> dict:
     """One image of the grid: ``image``, ``sigma_gt`` (px), ``valid`` (bool), per-tile ``nominal``, ``gt`` and ``snr``.
@@ -156,7 +133,7 @@ def lens_case(family: str, psf: str, noise: str, jpeg, seed: int, cfg: dict, *, 
     ``family`` "step_edges" is :func:`experiments.bench.mosaics.lens_step_mosaic`; any other is a
     :func:`scenes.analytic.lens.lens_mosaic` of that texture family, through the tone curve ``encoding``
     with the blur in ``light``. ``snr`` (texture families): per tile σ, the blurred contrast over the
-    noise (:func:`_contrast_snr`); None for the steps.
+    noise (:func:`experiments.bench.mosaics.tile_contrast_snr`); None for the steps.
     """
     import numpy as np
 
@@ -175,7 +152,7 @@ def lens_case(family: str, psf: str, noise: str, jpeg, seed: int, cfg: dict, *, 
     nominal = tuple(sorted(set(sigmas)))
     gt = tuple(float(np.hypot(s, m.intrinsic_sigma)) for s in nominal)
     return {"image": m.image, "sigma_gt": m.sigma, "valid": ~m.boundary, "nominal": nominal, "gt": gt,
-            "snr": _contrast_snr(m, encoding)}
+            "snr": tile_contrast_snr(m, encoding)}
 
 
 def _bin_rows(errors: dict, nominal, gt, snr=None, **ids) -> list[dict]:
@@ -223,7 +200,7 @@ def measure_lens(cfg: dict, *, progress: bool = True) -> list[dict]:
         "region: " + a key of ``cfg["regions"]`` for the cue alone), ``cue`` ("dense_textured", "sparse",
         "region"), ``sigma`` (tile σ, px), ``sigma_gt`` (px), ``n``, ``mae``, ``bias`` (px), ``median``
         (px; for the region cue the median *relative* error), ``coverage`` (share, see the module
-        docstring), ``snr`` (texture families: the tile's blurred contrast / noise, :func:`_contrast_snr`;
+        docstring), ``snr`` (texture families: the tile's blurred contrast / noise, :func:`tile_contrast_snr`;
         else None), ``seconds`` (per variant).
 
     Notes
@@ -423,9 +400,12 @@ def lens_markdown(rows: list[dict], cfg: dict, verdict: dict) -> str:
            f" (where both run); all for σ {LENS_TARGETS['sigma_range'][0]:g}–{LENS_TARGETS['sigma_range'][1]:g}. "
            "A cell where a cue measures less than its coverage target fails: a cue cannot pass by abstaining.", ""]
     skipped = verdict.get("dense", {}).get("not_judged", [])
-    out += ["Periodic cells not judged (blurred contrast below the noise threshold): "
-            + ("; ".join(f"{c['family']} σ {c['sigma']:g} ({c['psf']}, {c['tone']}: {c['snr']:.1f}×)" for c in skipped)
-               if skipped else "none") + ".", ""]
+    groups = {}
+    for c in skipped:
+        groups.setdefault((c["family"], c["psf"], c["tone"]), []).append(f"{c['sigma']:g} ({c['snr']:.1f}×)")
+    out += ["Periodic cells not judged (blurred contrast / noise below the threshold): "
+            + ("; ".join(f"{f} ({p}, {t}) σ {', '.join(v)}" for (f, p, t), v in groups.items()) if groups else "none")
+            + ".", ""]
     for psf in cfg["psfs"]:
         for noise in cfg["noises"]:
             for jpeg in cfg["jpeg_qualities"]:

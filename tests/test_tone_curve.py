@@ -99,3 +99,15 @@ def test_cli_says_the_curve_it_assumed(tmp_path):
     assert r.returncode == 0 and "tone curve assumed: filmic (fitted to this photo's edges" in r.stderr
     r = run_in_process("repro.estimate", [src, "-o", tmp_path / "n.npy"], env=env)
     assert r.returncode == 0 and "tone curve assumed: srgb\n" in r.stderr
+
+
+def test_magnifier_blends_a_tone_curve_image_in_its_own_linear_light():
+    """A gamma 2.2 image magnified in linear light equals its linear radiance magnified and encoded back."""
+    from method import magnify_defocus
+
+    lin = np.random.default_rng(0).random((24, 24, 3)) * 0.8 + 0.1
+    sigma = np.full((24, 24), 1.0)
+    kw = dict(factor=2.0, preprocess=False, renderer="gather", light="linear")
+    out = magnify_defocus(display.encode(lin, "gamma2.2"), sigma, encoding="gamma2.2", **kw)
+    ref = magnify_defocus(lin, sigma, encoding="linear", **kw)
+    np.testing.assert_allclose(out, display.encode(ref, "gamma2.2"), atol=1e-9)

@@ -116,7 +116,7 @@ def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, textur
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", NoEdgesWarning)
             result = estimate_defocus_map(image, params, encoding=encoding)
-    rgb = measure_input(image, params, encoding=encoding).rgb
+    rgb = measure_input(image, params, encoding=result.encoding).rgb  # "auto": the curve the estimate fitted
     edges = np.asarray(result.edges, dtype=bool)
     regions = region_masks(image, gt, edges=edges, exclude=~valid, texture_threshold=texture_threshold)
     at_edges = edges & valid

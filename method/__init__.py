@@ -12,8 +12,9 @@ are a frozen dataclass in its subpackage (``params.py``). :mod:`method.params` h
 which composes them, :mod:`method.presets` the named parameter sets (:data:`PRESETS`), and
 :mod:`method.registry` the :class:`~method.registry.Registry` type every choice by name is a key of.
 :mod:`method.luma` holds the input's light: what an image's values are (``ENCODINGS``: ``"srgb"``,
-``"linear"``; ``estimate_defocus_map(image, params, encoding=...)``) and the lights the stages measure
-or blend in (``LIGHTS``: ``"display"``, ``"linear"``).
+``"linear"``, ``"gamma1.8"``, ``"gamma2.2"``, ``"filmic"``; ``estimate_defocus_map(image, params,
+encoding=...)``, which also takes ``"auto"``: the curve fitted per image, :mod:`method.edges.tone_curve`)
+and the lights the stages measure or blend in (``LIGHTS``: ``"display"``, ``"linear"``).
 """
 
 from .blur import BLUR_ESTIMATORS, REGION_ESTIMATORS, estimate_blur, estimate_region_blur

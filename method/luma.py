@@ -3,15 +3,18 @@
 One vocabulary across :mod:`method`, the harness and the CLIs:
 
 * an **encoding** (:data:`ENCODINGS`) says what the values of an image *are*: ``"srgb"`` (display
-  values, sRGB-encoded as a camera delivers them) or ``"linear"`` (linear radiance, as a renderer or
-  an OpenEXR file holds it);
+  values, sRGB-encoded as a camera delivers them), ``"linear"`` (linear radiance, as a renderer or
+  an OpenEXR file holds it), or display values under another tone curve (``"gamma1.8"``,
+  ``"gamma2.2"``, ``"filmic"``; each entry's ``decode`` / ``encode`` hooks are its curve, the same
+  names and formulas as :data:`scenes.display.ENCODINGS`);
 * a **light** (:data:`LIGHTS`) is the space a stage measures or blends in: ``"display"`` (the
   sRGB-encoded values; the paper's edges, Eq. 3 and Eq. 4 all read these) or ``"linear"`` (linear
-  light, in which a lens blurs). An ``"srgb"`` image is in display light, a ``"linear"`` one in
-  linear light.
+  light, in which a lens blurs). An ``"srgb"`` (or other tone-curve) image is in display light, a
+  ``"linear"`` one in linear light.
 
-:func:`to_light` converts an image from its encoding into a light (at most one sRGB transfer, IEC
-61966-2-1 from colour-science; none when they already agree), :func:`measure_input` gives what every
+:func:`to_light` converts an image from its encoding into a light (at most one transfer: the
+encoding's curve decoded, or a linear image sRGB-encoded, IEC 61966-2-1 from colour-science; none
+when they already agree), :func:`measure_input` gives what every
 stage of :func:`method.pipeline.estimate_defocus_map` reads, and :data:`LUMA_WEIGHTS` is the one
 definition of the luma weights.
 """
@@ -24,8 +27,8 @@ import numpy as np
 
 from .registry import Entry, Registry
 
-__all__ = ["ENCODINGS", "LIGHTS", "LUMA_WEIGHTS", "MEASURE_LIGHTS", "MeasuredInput", "light_of", "luminance",
-           "measure_input", "measure_luminance", "to_light"]
+__all__ = ["ENCODINGS", "LIGHTS", "LUMA_WEIGHTS", "MEASURE_LIGHTS", "MeasuredInput", "decode", "encode", "light_of",
+           "luminance", "measure_input", "measure_luminance", "to_light"]
 
 #: Rec. 709 luma weights (R, G, B), applied to the RGB values in the light at hand: the edge
 #: detector's input (:func:`method.pipeline.estimate_defocus_map`), the guided upsampling's guide and
@@ -41,15 +44,97 @@ LIGHTS = Registry("light", {
 #: The lights the edge and blur stages can measure in (``DefocusParams.measure_light``): :data:`LIGHTS`.
 MEASURE_LIGHTS = LIGHTS
 
-#: What an input image's values are; each entry's value is the light (key of :data:`LIGHTS`) they are in.
+#: Narkowicz's fit of the ACES reference rendering transform, f(x) = x(Ax + B) / (x(Cx + D) + E)
+#: (K. Narkowicz, "ACES Filmic Tone Mapping Curve", 2016): the "filmic" curve's toe and shoulder.
+_ACES_FIT = (2.51, 0.03, 2.43, 0.59, 0.14)
+
+
+def _srgb(x, *, inverse: bool):
+    import colour
+
+    curve = colour.cctf_decoding if inverse else colour.cctf_encoding
+    return np.clip(curve(np.clip(x, 0.0, 1.0), function="sRGB"), 0.0, 1.0)
+
+
+def _aces_fit(x):
+    a, b, c, d, e = _ACES_FIT
+    return x * (a * x + b) / (x * (c * x + d) + e)
+
+
+def _filmic_encode(x):
+    """sRGB(f(x) / f(1)), f the ACES fit (strictly increasing on [0, ∞)), x in [0, 1]."""
+    return _srgb(_aces_fit(np.clip(x, 0.0, 1.0)) / _aces_fit(1.0), inverse=False)
+
+
+def _filmic_decode(y):
+    """Inverse of :func:`_filmic_encode`: sRGB-decode, then the positive root of (A − tC)x² + (B − tD)x − tE = 0."""
+    a, b, c, d, e = _ACES_FIT
+    t = _srgb(y, inverse=True) * _aces_fit(1.0)
+    qa, qb = a - t * c, b - t * d
+    return np.clip((-qb + np.sqrt(qb * qb + 4.0 * qa * t * e)) / (2.0 * qa), 0.0, 1.0)
+
+
+def _gamma(exponent: float):
+    def curve(x):
+        return np.clip(np.clip(x, 0.0, 1.0) ** exponent, 0.0, 1.0)
+    return curve
+
+
+def _identity(x):
+    return np.clip(x, 0.0, 1.0)
+
+
+def _curve(decode_fn, encode_fn):
+    return {"decode": decode_fn, "encode": encode_fn}
+
+
+#: What an input image's values are; each entry's value is the light (key of :data:`LIGHTS`) they are
+#: in, its ``decode`` hook maps its values in [0, 1] to linear light and ``encode`` back (:func:`decode`,
+#: :func:`encode`). The tone curves are :data:`scenes.display.ENCODINGS`' (same names and formulas).
 ENCODINGS = Registry("encoding", {
-    "srgb": Entry("display", "sRGB-encoded display values in [0, 1], as a camera delivers them"),
-    "linear": Entry("linear", "linear radiance in [0, 1] (a render's, an OpenEXR file's)"),
+    "srgb": Entry("display", "sRGB-encoded display values in [0, 1], as a camera delivers them (IEC 61966-2-1)",
+                  hooks=_curve(lambda y: _srgb(y, inverse=True), lambda x: _srgb(x, inverse=False))),
+    "linear": Entry("linear", "linear radiance in [0, 1] (a render's, an OpenEXR file's)",
+                    hooks=_curve(_identity, _identity)),
+    "gamma1.8": Entry("display", "display values of the power law y = x^(1/1.8)",
+                      hooks=_curve(_gamma(1.8), _gamma(1.0 / 1.8))),
+    "gamma2.2": Entry("display", "display values of the power law y = x^(1/2.2)",
+                      hooks=_curve(_gamma(2.2), _gamma(1.0 / 2.2))),
+    "filmic": Entry("display", "display values of a filmic S-curve: sRGB after the ACES fit of Narkowicz 2016",
+                    hooks=_curve(_filmic_decode, _filmic_encode)),
 })
 
 
+def decode(values, encoding: str) -> np.ndarray:
+    """Values of ``encoding`` (clipped to [0, 1]) → linear light in [0, 1], by its tone curve.
+
+    Parameters
+    ----------
+    values : ndarray, any shape, float
+    encoding : str
+        Key of :data:`ENCODINGS`.
+
+    Returns
+    -------
+    ndarray, float64, same shape, in [0, 1]
+
+    Raises
+    ------
+    ValueError
+        Unknown ``encoding`` (the message names the allowed ones).
+    """
+    ENCODINGS.check(encoding, what="encoding")
+    return ENCODINGS.entry(encoding).hooks["decode"](np.asarray(values, dtype=np.float64))
+
+
+def encode(linear, encoding: str) -> np.ndarray:
+    """Linear light in [0, 1] (clipped first) → values of ``encoding`` in [0, 1]: the inverse of :func:`decode`."""
+    ENCODINGS.check(encoding, what="encoding")
+    return ENCODINGS.entry(encoding).hooks["encode"](np.asarray(linear, dtype=np.float64))
+
+
 def light_of(encoding: str) -> str:
-    """The light (key of :data:`LIGHTS`) an image of ``encoding`` is in: "srgb" → "display", "linear" → "linear".
+    """The light (key of :data:`LIGHTS`) an image of ``encoding`` is in: "linear" → "linear", a tone curve → "display".
 
     Raises
     ------
@@ -74,23 +159,21 @@ def to_light(image, light: str, *, encoding: str = "srgb") -> np.ndarray:
     Returns
     -------
     ndarray, same shape, float64 in [0, 1]
-        The input itself (as float64) when its encoding is already in ``light``; else sRGB-decoded
-        (display → linear) or sRGB-encoded (linear → display), IEC 61966-2-1, clipped to [0, 1].
+        The input itself (as float64) when its encoding is already in ``light``; else decoded by the
+        encoding's tone curve (display → linear, :func:`decode`) or sRGB-encoded (linear → display,
+        IEC 61966-2-1), clipped to [0, 1].
 
     Raises
     ------
     ValueError
         Unknown ``encoding`` or ``light`` (the message names the allowed ones).
     """
-    import colour
-
     source = light_of(encoding)
     LIGHTS.check(light, what="light")
     x = np.asarray(image, dtype=np.float64)
     if source == light:
         return x
-    curve = colour.cctf_decoding if light == "linear" else colour.cctf_encoding
-    return np.clip(curve(np.clip(x, 0.0, 1.0), function="sRGB"), 0.0, 1.0)
+    return decode(x, encoding) if light == "linear" else encode(x, "srgb")
 
 
 def luminance(image) -> np.ndarray:
@@ -139,8 +222,8 @@ def measure_luminance(image, light: str = "display", *, encoding: str = "srgb") 
     The image is converted once (:func:`to_light`), then weighted. A lens blurs linear radiance, so
     in linear light a defocused step is the symmetric integral of the PSF's line spread; the camera's
     tone curve makes it asymmetric (steeper on the dark side), which an edge model of a symmetric
-    PSF fits too wide or rejects. The conversion assumes the sRGB curve (IEC 61966-2-1); a camera's
-    own curve departs from it (contrast S-curves), which this does not model.
+    PSF fits too wide or rejects. The conversion assumes the curve ``encoding`` names; a camera's
+    own curve departs from sRGB (contrast S-curves): :mod:`method.edges.tone_curve` chooses one per image.
     """
     return luminance(to_light(image, MEASURE_LIGHTS.check(light, what="measure_light"), encoding=encoding))
 

@@ -34,6 +34,7 @@ from .edges.elder_zucker import EdgeMap, detect_edges
 from .luma import LUMA_WEIGHTS, luminance, measure_input  # noqa: F401 (LUMA_WEIGHTS re-exported)
 from .params import DefocusParams
 from .propagation.methods import propagate_blur_measures
+from .edges.tone_curve import resolve_encoding
 
 __all__ = ["DefocusResult", "NoEdgesWarning", "blur_stage", "edge_confidence", "edge_psf_family", "edges_stage",
            "estimate_defocus_map", "isolation_stage", "luminance", "propagate_stage", "propagation_confidence",
@@ -72,6 +73,9 @@ class DefocusResult:
     # measure), fused with the edge measures in Eq. (4); None when params.region_estimator is None.
     region_information: np.ndarray | None = None
     # float64 HxW: Fisher information of region_sigma, px⁻² (1 / variance); None with region_sigma.
+    encoding: str = "srgb"
+    # the tone curve the input was read with (key of method.luma.ENCODINGS): as declared, or for
+    # encoding="auto" the curve method.edges.tone_curve.fit_encoding chose for this image.
 
     @property
     def psf_model(self) -> str | None:
@@ -98,9 +102,11 @@ def estimate_defocus_map(image, params=None, *, encoding: str = "srgb",
     params : DefocusParams, optional
         Pipeline parameters; the paper's defaults when omitted.
     encoding : str, keyword-only
-        What the image's values are, a key of :data:`method.luma.ENCODINGS`: ``"srgb"`` (default;
-        sRGB-encoded display values, as a camera delivers them) or ``"linear"`` (linear radiance, as
-        a render or an OpenEXR file holds it).
+        What the image's values are, a key of :data:`method.edges.tone_curve.INPUT_ENCODINGS`: ``"srgb"``
+        (default; sRGB-encoded display values, as a camera delivers them), ``"linear"`` (linear
+        radiance, as a render or an OpenEXR file holds it), another tone curve of
+        :data:`method.luma.ENCODINGS`, or ``"auto"`` (display values of unknown curve, fitted per
+        image: :func:`method.edges.tone_curve.fit_encoding`; the result's ``encoding`` names it).
     progress : callable, optional, keyword-only
         Called with each stage's name (see ``STAGES``) as it starts, for progress displays.
 
@@ -145,6 +151,7 @@ def estimate_defocus_map(image, params=None, *, encoding: str = "srgb",
     params = DefocusParams() if params is None else params
     if not isinstance(params, DefocusParams):
         raise ValueError(f"params must be a DefocusParams, got {type(params).__name__}")
+    encoding = resolve_encoding(image, encoding)
     measured = measure_input(image, params, encoding=encoding)
     rgb, gray, seen = measured.rgb, measured.gray, measured.seen
     timings: dict[str, float] = {}
@@ -198,7 +205,7 @@ def estimate_defocus_map(image, params=None, *, encoding: str = "srgb",
             edges=edge_map.edges.copy(), sparse_sigma=sparse, refined_sigma=np.full(shape, np.nan),
             defocus_map=np.zeros(shape), edge_map=edge_map, timings=timings, params=params,
             cpu_timings=cpu, measure_confidence=confidence, psf_disk=psf_disk,
-            region_sigma=region_sigma, region_information=region_info,
+            region_sigma=region_sigma, region_information=region_info, encoding=encoding,
         )
 
     t = stage("cross_bilateral")
@@ -220,7 +227,7 @@ def estimate_defocus_map(image, params=None, *, encoding: str = "srgb",
         edges=edge_map.edges.copy(), sparse_sigma=sparse, refined_sigma=refined,
         defocus_map=dense, edge_map=edge_map, timings=timings, params=params, cpu_timings=cpu,
         measure_confidence=confidence, psf_disk=psf_disk, region_sigma=region_sigma,
-        region_information=region_info,
+        region_information=region_info, encoding=encoding,
     )
 
 

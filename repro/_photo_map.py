@@ -85,6 +85,7 @@ def _build_map(folder: Path, image, params, progress, preset, *, max_working_pix
     meta = {"no_edges": no_edges, "edge_pixels": int(result.edges.sum()), "measures": n_measures,
             "psf_model": result.psf_model,  # "gaussian" / "disk" / "mixed" / None (DefocusResult.psf_model)
             "psf_disk_measures": None if result.psf_disk is None else int(np.count_nonzero(result.psf_disk)),
+            "encoding": result.encoding,  # the tone curve read (encoding="auto": the one fitted)
             "timings_s": {k: float(v) for k, v in result.timings.items()},
             "preset": preset}  # informational: the name it was built under (the key holds the params)
     (folder / "meta.json").write_text(json.dumps(meta, indent=1, sort_keys=True))
@@ -184,12 +185,13 @@ def estimate_photo_map(photo, params, *, max_working_pixels, use_cache=True, for
         working = downscale_image(image, (h, w))
         if progress:
             progress("upsample")
-        sigma = upsample_defocus_map(m, working, image, scale=scale, encoding=photo.encoding)
+        sigma = upsample_defocus_map(m, working, image, scale=scale, encoding=meta.get("encoding", photo.encoding))
     else:
         sigma = m
     return sigma, {"scale": scale, "working_shape": (h, w), "no_edges": bool(meta["no_edges"]),
                    "cached": not built, "preset": preset, "psf_model": meta.get("psf_model"),
-                   "measures": meta.get("measures"), "psf_disk_measures": meta.get("psf_disk_measures")}
+                   "measures": meta.get("measures"), "psf_disk_measures": meta.get("psf_disk_measures"),
+                   "encoding": meta.get("encoding", photo.encoding)}
 
 
 def write_map_preview(path, sigma) -> Path:

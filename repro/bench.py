@@ -154,7 +154,11 @@ def _parser():
                         help=f"with --accuracy: the lens PSFs of the lens benchmark ({', '.join(PSFS)}; default: "
                              f"{' '.join(LENS_CONFIG['psfs'])})")
     parser.add_argument("--full", action="store_true",
-                        help="with --accuracy: the full lens grid (every PSF and noise level, JPEG 85, two seeds)")
+                        help="with --accuracy: the full lens grid (every PSF and noise level, JPEG 85, two seeds, "
+                             "every tone curve)")
+    parser.add_argument("--tone-curves", action="store_true",
+                        help="with --accuracy: the lens tone grid (ISO 100, every tone curve and display-value blur; "
+                             "robust in both lights and with its curve fitted)")
     from ._runner import add_engine_options
 
     add_engine_options(parser, what="with --accuracy: the analytic and rendered cases")
@@ -194,8 +198,8 @@ def main(argv=None) -> int:
 
         print(json.dumps(time_pipeline(args.worker, args.repeat, args.worker_preset)))
         return 0
-    if (args.psf or args.full) and not args.accuracy:
-        raise CLIError("--psf and --full go with --accuracy")
+    if (args.psf or args.full or args.tone_curves) and not args.accuracy:
+        raise CLIError("--psf, --full and --tone-curves go with --accuracy")
     if (args.workers is not None or args.scheduler is not None) and not args.accuracy:
         raise CLIError("--workers and --scheduler go with --accuracy; allowed: --accuracy --workers N")
     if args.accuracy:
@@ -203,7 +207,10 @@ def main(argv=None) -> int:
         from experiments.bench import accuracy, lens_config
 
         config = dict(accuracy.ACCURACY_CONFIG)
-        if config.get("lens") is not None and (args.psf or args.full):
+        if config.get("lens") is not None and args.tone_curves:
+            with user_input():  # --psf names
+                config["lens"] = lens_config(psfs=args.psf, full=args.full, tones=True)
+        elif config.get("lens") is not None and (args.psf or args.full):
             with user_input():  # --psf names
                 config["lens"] = {**lens_config(psfs=args.psf, full=args.full), "variants": config["lens"]["variants"]}
         from ._runner import engine_choice

@@ -1,11 +1,13 @@
 """Estimate the defocus map of a photo (Bae & Durand 2007) and write it.
 
 ``python -m repro.estimate PHOTO [-o MAP.exr|MAP.png|MAP.npy] [--preset NAME] [--estimator NAME] [--alpha A]
-[--encoding srgb|linear]``
+[--encoding NAME]``
 
 ``--encoding`` says what the photo's values are (default from the file type: OpenEXR holds linear
-light, JPEG/PNG/TIFF sRGB display values); the method converts them once into the light each stage
-measures in.
+light, JPEG/PNG/TIFF sRGB display values), a key of ``method.edges.tone_curve.INPUT_ENCODINGS``: a tone
+curve (srgb, gamma1.8, gamma2.2, filmic), linear, or auto (the curve fitted per photo from its
+strongest edges); the method converts it once into the light each stage measures in and says on
+stderr which curve it read the photo with.
 
 ``--preset`` names a parameter set of ``method.PRESETS``: ``robust`` (the default here: beyond the
 paper, measured better dense maps), ``paper`` (the literal reproduction, ``DefocusParams()``),
@@ -109,8 +111,8 @@ def by_preset(field: str) -> str:
 def add_estimation_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by repro.estimate and repro.magnify."""
     from method.blur.estimators import BLUR_ESTIMATORS
-    from method.luma import ENCODINGS
     from method.magnify.upsampling import DEFAULT_MAX_WORKING_PIXELS
+    from method.edges.tone_curve import INPUT_ENCODINGS
     from repro.photo_io import DEFAULT_MAX_PIXELS
 
     add_preset_option(p, default=DEFAULT_PRESET, blurbs={name: _preset_blurb(name) for name in _presets()},
@@ -130,10 +132,10 @@ def add_estimation_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-pixels", type=pixel_count, default=DEFAULT_MAX_PIXELS, metavar="N",
                    help=f"refuse photos over N pixels, checked from the header before decoding "
                         f"(default {DEFAULT_MAX_PIXELS:,})")
-    p.add_argument("--encoding", default=None, choices=tuple(ENCODINGS), metavar="srgb|linear",
-                   help="what the photo's values are: srgb (display values, as a camera delivers them) or "
-                        "linear (linear light). Default: from the file type, linear for OpenEXR, srgb for "
-                        "JPEG, PNG and TIFF. The method converts it once into the light each stage measures in")
+    p.add_argument("--encoding", default=None, choices=tuple(INPUT_ENCODINGS), metavar="NAME",
+                   help=f"what the photo's values are: {INPUT_ENCODINGS.describe()}. Default: from the file "
+                        "type, linear for OpenEXR, srgb for JPEG, PNG and TIFF. The method converts it once "
+                        "into the light each stage measures in")
     p.add_argument("--repair-nonfinite", action="store_true",
                    help="EXR input: set NaN/-Inf to 0 and +Inf to 1 instead of refusing the file")
     add_force_option(p, what="re-estimate the defocus map even when it is cached (the new map replaces it)")
@@ -273,6 +275,9 @@ def report_map(args, info, params, *, prog, summary, no_edges_consequence="") ->
               f"{no_edges_consequence}", file=sys.stderr)
     if (line := psf_line(info, params)) is not None:
         note(prog, line, quiet=args.quiet)
+    if info.get("encoding") is not None:
+        how = " (fitted to this photo's edges, --encoding auto)" if getattr(args, "encoding", None) == "auto" else ""
+        note(prog, f"tone curve assumed: {info['encoding']}{how}", quiet=args.quiet)
     note(prog, summary, quiet=args.quiet)
 
 

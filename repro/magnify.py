@@ -3,7 +3,7 @@
 
 ``python -m repro.magnify PHOTO --factor 2 [-o OUT.jpg] [--renderer gather|scatter] [--aperture disk|hexagon]
 [--kernel gaussian|disk] [--map MAP [--png-scale S]] [--save-map MAP.exr] [--floor clamp|subtract|shift]
-[--preset NAME] [--encoding srgb|linear] [--focus-point X,Y] [--keep-sharp MASK] [--depth DEPTH]
+[--preset NAME] [--encoding NAME] [--focus-point X,Y] [--keep-sharp MASK] [--depth DEPTH]
 [--highlights [GAIN]] [--html PAGE.html]``
 
 ``--preset`` (a key of ``method.PRESETS``; default ``robust``, beyond the paper; ``paper`` is the
@@ -64,6 +64,7 @@ scatter's 12 MP timing (map given) is recorded by ``repro.bench`` (``docs/perfor
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -438,6 +439,10 @@ def main(argv=None) -> int:
             sigma, info = given, None
             if resized:
                 note(PROG, resized, quiet=args.quiet)
+        if photo.encoding == "auto":  # magnified and written in the curve fitted (by the estimate, or here)
+            from method.edges.tone_curve import resolve_encoding
+
+            photo = dataclasses.replace(photo, encoding=info["encoding"] if info else resolve_encoding(photo.image, "auto"))
         result, encoding, display = _render(args, photo, sigma, params, factor=factor, renderer=renderer,
                                             kernel=kernel, aperture=aperture, floor=floor, gain=gain,
                                             subject=subject, progress=progress)

@@ -7,7 +7,8 @@ it:
 1. exposure (a multiplier on the linear radiance);
 2. sensor noise, Poisson–Gaussian in linear units: variance a·x + b for a signal x in [0, 1] (Foi et
    al., IEEE TIP 17(10), 2008), at the named levels of :data:`NOISE_LEVELS`;
-3. clipping to [0, 1] and the tone curve (sRGB, IEC 61966-2-1, from colour-science; or none);
+3. clipping to [0, 1] and the tone curve (:data:`ENCODINGS`: sRGB, IEC 61966-2-1, from colour-science;
+   pure power laws of gamma 1.8 and 2.2; a filmic S-curve; or none);
 4. quantisation to ``bits`` per channel;
 5. optional JPEG compression at quality q (Pillow's encoder, 4:2:0 chroma subsampling for colour).
 
@@ -24,12 +25,94 @@ from types import MappingProxyType
 
 import numpy as np
 
-__all__ = ["ENCODINGS", "NOISE_LEVELS", "camera_image", "check_jpeg_quality", "check_noise_level", "jpeg_roundtrip",
-           "linear_to_srgb",
+__all__ = ["ENCODINGS", "NOISE_LEVELS", "camera_image", "check_encoding", "check_jpeg_quality", "check_noise_level",
+           "decode", "encode", "jpeg_roundtrip", "linear_to_srgb",
            "noise_parameters", "sensor_noise", "srgb_to_linear"]
 
-#: Tone curves of :func:`camera_image`: "srgb" (as a camera JPEG), "linear" (no curve).
-ENCODINGS = ("srgb", "linear")
+#: Tone curves of :func:`camera_image` (:func:`encode`, :func:`decode`): "srgb" (as a camera JPEG,
+#: IEC 61966-2-1), "linear" (no curve), "gamma1.8" and "gamma2.2" (pure power laws y = x^(1/γ), as
+#: old Macintosh and many displays' nominal curves), "filmic" (a contrast S-curve: the sRGB curve after
+#: the ACES filmic fit of Narkowicz 2016, :func:`_filmic_encode`). The names and formulas are
+#: :data:`method.luma.ENCODINGS`' (a test checks they agree numerically).
+ENCODINGS = ("srgb", "linear", "gamma1.8", "gamma2.2", "filmic")
+
+#: Narkowicz's fit of the ACES reference rendering transform, f(x) = x(Ax + B) / (x(Cx + D) + E)
+#: (K. Narkowicz, "ACES Filmic Tone Mapping Curve", 2016): a toe (slope B/E at 0) and a shoulder.
+_ACES_FIT = (2.51, 0.03, 2.43, 0.59, 0.14)
+
+
+def _aces_fit(x):
+    a, b, c, d, e = _ACES_FIT
+    return x * (a * x + b) / (x * (c * x + d) + e)
+
+
+def _filmic_encode(linear):
+    """The "filmic" curve: sRGB(f(x) / f(1)), f the ACES fit of :data:`_ACES_FIT`, x in [0, 1].
+
+    f is strictly increasing on [0, ∞) (its derivative's numerator is (AD − BC)x² + 2AEx + BE > 0),
+    so the curve is invertible (:func:`_filmic_decode`); normalised so that 0 → 0 and 1 → 1.
+    """
+    x = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
+    return linear_to_srgb(_aces_fit(x) / _aces_fit(1.0))
+
+
+def _filmic_decode(encoded):
+    """Inverse of :func:`_filmic_encode`: sRGB-decode, then the positive root of the ACES fit's quadratic.
+
+    t = f(x) solves (A − tC)x² + (B − tD)x − tE = 0; A − tC > 0 for t ≤ f(1) < A/C.
+    """
+    a, b, c, d, e = _ACES_FIT
+    t = srgb_to_linear(encoded) * _aces_fit(1.0)
+    qa, qb = a - t * c, b - t * d
+    return np.clip((-qb + np.sqrt(qb * qb + 4.0 * qa * t * e)) / (2.0 * qa), 0.0, 1.0)
+
+
+def check_encoding(encoding) -> str:
+    """``encoding`` if it is a key of :data:`ENCODINGS`, else ValueError naming the allowed ones."""
+    if encoding not in ENCODINGS:
+        raise ValueError(f"encoding={encoding!r} is invalid; allowed: {', '.join(ENCODINGS)}")
+    return encoding
+
+
+def encode(linear, encoding: str):
+    """Linear values in [0, 1] (clipped first) → display values in [0, 1] by the tone curve ``encoding``.
+
+    Parameters
+    ----------
+    linear : ndarray, any shape, float
+    encoding : str
+        Key of :data:`ENCODINGS`.
+
+    Returns
+    -------
+    ndarray, float64, same shape, in [0, 1]
+    """
+    import colour
+
+    check_encoding(encoding)
+    x = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
+    if encoding == "srgb":
+        return linear_to_srgb(x)
+    if encoding == "filmic":
+        return _filmic_encode(x)
+    if encoding == "linear":
+        return x
+    return np.clip(colour.gamma_function(x, 1.0 / float(encoding.removeprefix("gamma"))), 0.0, 1.0)
+
+
+def decode(encoded, encoding: str):
+    """Inverse of :func:`encode`: display values in [0, 1] (clipped first) → linear values in [0, 1]."""
+    import colour
+
+    check_encoding(encoding)
+    y = np.clip(np.asarray(encoded, dtype=np.float64), 0.0, 1.0)
+    if encoding == "srgb":
+        return srgb_to_linear(y)
+    if encoding == "filmic":
+        return _filmic_decode(y)
+    if encoding == "linear":
+        return y
+    return np.clip(colour.gamma_function(y, float(encoding.removeprefix("gamma"))), 0.0, 1.0)
 
 
 def _brooks_read_noise(a: float) -> float:
@@ -184,8 +267,9 @@ def camera_image(linear_rgb, *, exposure=1.0, quantize_bits=None, encoding="srgb
         Multiplier applied before the noise and clipping.
     quantize_bits : int or None, keyword-only
         If given (e.g. 8), round to that many bits per channel, as a JPEG/PNG would store.
-    encoding : {"srgb", "linear"}, keyword-only
-        ``"srgb"`` (default) as a camera JPEG would be; ``"linear"`` keeps linear values.
+    encoding : str, keyword-only
+        The tone curve, a key of :data:`ENCODINGS`: ``"srgb"`` (default) as a camera JPEG would be;
+        ``"linear"`` keeps linear values; ``"gamma1.8"``, ``"gamma2.2"``, ``"filmic"`` (:func:`encode`).
     noise : str or (float, float), keyword-only
         Sensor noise level, a name of :data:`NOISE_LEVELS` (default "none") or variances (a, b).
     jpeg_quality : int or None, keyword-only
@@ -208,8 +292,7 @@ def camera_image(linear_rgb, *, exposure=1.0, quantize_bits=None, encoding="srgb
     The steps of the module docstring, in that order; with ``noise="none"`` and no JPEG this is the
     deterministic exposure → clip → encode → quantise of a noise-free camera.
     """
-    if encoding not in ENCODINGS:
-        raise ValueError(f"encoding={encoding!r} is invalid; allowed: {', '.join(ENCODINGS)}")
+    check_encoding(encoding)
     if jpeg_quality is not None:
         check_jpeg_quality(jpeg_quality)
         if quantize_bits not in (None, 8):
@@ -217,7 +300,7 @@ def camera_image(linear_rgb, *, exposure=1.0, quantize_bits=None, encoding="srgb
         quantize_bits = 8
     x = np.asarray(linear_rgb, dtype=np.float64) * float(exposure)
     x = sensor_noise(x, noise, rng=rng)
-    out = linear_to_srgb(x) if encoding == "srgb" else np.clip(x, 0.0, 1.0)
+    out = encode(x, encoding)
     if quantize_bits is not None:
         levels = float(2**int(quantize_bits) - 1)
         out = np.round(out * levels) / levels

@@ -100,7 +100,7 @@ def test_to_light_converts_at_most_once():
 ])
 def test_unknown_encoding_is_a_value_error_naming_the_allowed(call):
     img = np.random.default_rng(0).random((16, 16, 3))
-    with pytest.raises(ValueError, match=r"encoding='bogus' is invalid .*allowed: 'linear', 'srgb'"):
+    with pytest.raises(ValueError, match=r"encoding='bogus' is invalid .*allowed: .*'filmic', .*'linear', 'srgb'"):
         call(img)
 
 
@@ -120,7 +120,7 @@ def test_one_vocabulary_for_encodings_and_lights():
     import scenes.display
     from scenes.analytic import lens
 
-    assert tuple(ENCODINGS) == scenes.display.ENCODINGS == ("srgb", "linear")
+    assert tuple(ENCODINGS) == scenes.display.ENCODINGS == ("srgb", "linear", "gamma1.8", "gamma2.2", "filmic")
     assert experiments.evaluation.ENCODINGS is ENCODINGS
     assert MEASURE_LIGHTS is LIGHTS and tuple(LIGHTS) == ("display", "linear")
     assert {ENCODINGS[e] for e in ENCODINGS} == set(LIGHTS)  # each encoding is in one light
@@ -213,4 +213,6 @@ def test_cli_help_names_the_encoding_default(capsys):
     from repro.estimate import _parser
 
     text = " ".join(_parser().format_help().split())
-    assert "--encoding srgb|linear" in text and "Default: from the file type, linear for OpenEXR" in text
+    assert "--encoding NAME" in text and "Default: from the file type, linear for OpenEXR" in text
+    for name in ("auto", "srgb", "linear", "gamma1.8", "gamma2.2", "filmic"):  # the choices read the registry
+        assert f"{name} (" in text

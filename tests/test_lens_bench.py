@@ -114,7 +114,7 @@ def test_cli_bad_psf_and_flags():
     r = run_in_process("repro.bench", ["--accuracy", "--psf", "square"])
     assert r.returncode == 2 and "unknown PSF" in r.stderr and r.stderr.count("\n") == 1
     r = run_in_process("repro.bench", ["--psf", "disk"])
-    assert r.returncode == 2 and "--psf and --full go with --accuracy" in r.stderr
+    assert r.returncode == 2 and "--psf, --full and --tone-curves go with --accuracy" in r.stderr
 
 
 def test_region_rows_measure_only_where_the_cue_measures():
@@ -127,3 +127,59 @@ def test_region_rows_measure_only_where_the_cue_measures():
                            cue="region")
     # smooth shading carries no blur information: the gated cue gives (almost) no measure
     assert all((r["coverage"] or 0.0) < 0.05 for r in rr)
+
+
+def test_periodic_cells_judged_only_above_the_contrast_threshold():
+    at = lens.LENS_TARGETS["periodic_min_snr"]
+    bad = _row(family="checker", mae=2.0, tone="srgb")
+    v = lens.judge_lens([_row(), {**bad, "snr": at - 0.1}])  # contrast lost in the noise: not judged
+    assert v["pass"] is True and v["dense"]["not_judged"][0]["family"] == "checker"
+    assert lens.judge_lens([_row(), {**bad, "snr": at + 0.1}])["dense"]["pass"] is False
+    assert lens.judge_lens([_row(), {**bad, "snr": None}])["dense"]["pass"] is False  # unknown: judged
+    # a non-periodic family is judged whatever its contrast
+    assert lens.judge_lens([_row(), _row(family="shading", mae=2.0, snr=0.5)])["dense"]["pass"] is False
+
+
+def test_tone_rule_both_sides():
+    light = lens.LENS_TARGETS["tone_light_variants"]
+    limit = 1.0 + lens.LENS_TARGETS["tone_max_excess"]
+
+    def cell(mae_robust, tone="filmic"):
+        return [_row(tone=tone, mae=mae_robust), _row(tone=tone, variant=light[0], mae=0.25),
+                _row(tone=tone, variant=light[1], mae=0.2)]
+
+    ok = lens.judge_lens(cell(0.2 * limit - 1e-6))
+    assert ok["tone"]["pass"] is True
+    v = lens.judge_lens(cell(0.2 * limit + 1e-3))
+    assert v["tone"]["pass"] is False and v["pass"] is False and v["tone"]["fails"][0]["tone"] == "filmic"
+    assert lens.judge_lens([_row(tone="filmic")])["tone"]["pass"] is None  # the lights not run: not judged
+    # σ beyond the old range is judged now (σ 1–16)
+    assert lens.judge_lens([_row(sigma=12.0, sigma_gt=12.0, mae=1.3)])["dense"]["pass"] is False
+    assert lens.judge_lens([_row(sigma=12.0, sigma_gt=12.0, mae=1.1)])["dense"]["pass"] is True
+
+
+def test_tone_grid_config():
+    cfg = lens.lens_config(tones=True)
+    assert cfg["tones"] == lens.LENS_TONES and ("srgb", "display") in cfg["tones"]
+    assert set(lens.LENS_TARGETS["tone_light_variants"]) <= set(cfg["variants"])
+    assert lens.LENS_CONFIG["tones"] == (("srgb", "linear"),)
+    assert lens.lens_config(full=True)["tones"] == lens.LENS_TONES
+
+
+def test_tone_axis_rows_name_their_curve_and_contrast():
+    cfg = dict(TINY, families=("checker",), sigmas=(1.0,), tones=(("gamma1.8", "linear"),),
+               variants={"robust": ("robust", {}), "auto": ("robust", {}, "auto")}, regions={})
+    rows = lens.measure_lens(cfg, progress=False)
+    assert {r["tone"] for r in rows} == {"gamma1.8"} and {r["variant"] for r in rows} == {"robust", "auto"}
+    assert all(r["snr"] > 3.0 for r in rows)  # a sharp checker: contrast far above the noise
+    assert lens.tone_label("srgb", "display") == "srgb, display blur"
+
+
+def test_periodic_contrast_is_lost_at_large_blur():
+    """The bench's contrast / noise per tile: far above 3 for a sharp checker, below it once a disk of σ 8
+    has averaged the checker out (so that cell is not judged)."""
+    cfg = dict(lens.LENS_CONFIG, sigmas=(1.0, 8.0), tile=96, cols=2)
+    snr = lens.lens_case("checker", "disk", "iso100", None, 0, cfg)["snr"]
+    assert snr[1.0] > 5 * lens.LENS_TARGETS["periodic_min_snr"] and snr[8.0] < lens.LENS_TARGETS["periodic_min_snr"]
+    flat = lens.lens_case("checker", "disk", "none", None, 0, cfg)["snr"]  # no noise: only the 8-bit step
+    assert flat[1.0] > snr[1.0]

@@ -106,7 +106,7 @@ def test_exr_is_written_linear_and_read_linear(tmp_path):
     assert read_photo(write_photo(tmp_path / "a.png", img)).encoding == "srgb"
     png = read_photo(write_photo(tmp_path / "l.png", photo.image, encoding="linear", bit_depth=16))
     np.testing.assert_allclose(png.image, img, atol=PHOTO_EXR_ROUNDTRIP_ATOL + 0.5 / 65535)  # encoded: 16-bit codes
-    with pytest.raises(ValueError, match="encoding='display' is invalid; allowed: 'linear', 'srgb'"):
+    with pytest.raises(ValueError, match="encoding='display' is invalid; allowed: 'filmic', 'gamma1.8', 'gamma2.2', 'linear', 'srgb'"):
         write_photo(tmp_path / "c.exr", img, encoding="display")
 
 

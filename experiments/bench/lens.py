@@ -28,11 +28,18 @@ import math
 import time
 import warnings
 
-from .mosaics import lens_step_mosaic, sigma_bins
+from .mosaics import lens_step_mosaic, sigma_bins, tile_contrast_snr
 from .targets import TARGET_MIN_COVERAGE
 
-__all__ = ["LENS_CONFIG", "LENS_FULL_CONFIG", "LENS_TARGETS", "REGION_NO_INFORMATION", "judge_lens", "lens_case", "lens_config",
-           "lens_markdown", "measure_lens"]
+__all__ = ["LENS_CONFIG", "LENS_FULL_CONFIG", "LENS_TARGETS", "LENS_TONES", "LENS_TONE_CONFIG", "PERIODIC_FAMILIES",
+           "REGION_NO_INFORMATION", "judge_lens", "lens_case", "lens_config", "lens_markdown", "measure_lens",
+           "tone_label"]
+
+#: The tone axis: (the camera's tone curve, a key of scenes.display.ENCODINGS; where the blur acts,
+#: scenes.analytic.lens.LIGHTS). ("srgb", "linear") is a lens and a camera JPEG; the other curves
+#: replace sRGB; ("srgb", "display") blurs the display values (the Gaussian mosaics' model).
+LENS_TONES = (("srgb", "linear"), ("gamma1.8", "linear"), ("gamma2.2", "linear"), ("filmic", "linear"),
+              ("srgb", "display"))
 
 #: The default grid (about 6 min on the project's 2-core machine; measured in docs/performance.md).
 LENS_CONFIG = {
@@ -45,6 +52,7 @@ LENS_CONFIG = {
     "tile": 96,
     "cols": 3,
     "seeds": (0,),
+    "tones": LENS_TONES[:1],  # (curve, blur light) pairs of LENS_TONES; the tone grid runs them all
     # name -> (preset, field changes): the presets and the ablations every target is judged against
     "variants": {"paper": ("paper", {}), "robust": ("robust", {}),
                  "robust, display light": ("robust", {"measure_light": "display"}),
@@ -57,23 +65,39 @@ LENS_CONFIG = {
                 "disk, no gate": {"region_estimator": "local_spectrum", "region_psf": "disk"},
                 "Gaussian, no gate (as fused before)": {"region_estimator": "local_spectrum"}},
 }
-#: The full grid: every PSF and noise level, JPEG at quality 85 too, two seeds.
+#: The full grid: every PSF and noise level, JPEG at quality 85 too, two seeds, every tone curve.
 LENS_FULL_CONFIG = {**LENS_CONFIG, "psfs": ("gaussian", "disk", "soft_disk", "hexagon"),
-                    "noises": ("none", "iso100", "iso800", "iso3200"), "jpeg_qualities": (None, 85), "seeds": (0, 1)}
+                    "noises": ("none", "iso100", "iso800", "iso3200"), "jpeg_qualities": (None, 85), "seeds": (0, 1),
+                    "tones": LENS_TONES}
+#: The tone grid (``lens_config(tones=True)``): every tone curve and display-value blur at ISO 100, robust
+#: in both lights (the tone rule of :data:`LENS_TARGETS`) and with its curve fitted per image.
+LENS_TONE_CONFIG = {**LENS_CONFIG, "noises": ("iso100",), "tones": LENS_TONES,
+                    "variants": {"robust": ("robust", {}), "robust, linear light": ("robust", {"measure_light": "linear"}),
+                                 "robust, display light": ("robust", {"measure_light": "display"}),
+                                 "robust, curve fitted (encoding auto)": ("robust", {}, "auto")},
+                    "regions": {"disk + adequacy gate": LENS_CONFIG["regions"]["disk + adequacy gate"]}}
 
-#: Targets (robust): edge fit on lens-blurred steps, the region cue, the dense map at ISO 100. Every cue
-#: is held to a minimum coverage: a cell where it measures too few of its pixels fails (it cannot pass by
-#: abstaining).
+#: Targets (robust), on every tone curve of the grid: edge fit on lens-blurred steps, the region cue, the
+#: dense map at ISO 100 on every family (shading included; the periodic ones only where their blurred
+#: contrast stays above ``periodic_min_snr`` × the noise), and the tone rule. Every cue is held to a
+#: minimum coverage: a cell where it measures too few of its pixels fails (it cannot pass by abstaining).
 LENS_TARGETS = {
-    "edge_min_coverage": 0.9,      # share of detected step-edge pixels with a measure, σ 1–8
-    "edge_max_rel_bias": 0.05,     # |median signed error| / σ_gt, σ 1–8
-    "region_max_rel_error": 0.10,  # |median σ̂ − σ_gt| / σ_gt where the cue measures, σ 1–8
-    "region_min_coverage": TARGET_MIN_COVERAGE,  # share of a tile's valid pixels the cue measures, σ 1–8
+    "edge_min_coverage": 0.9,      # share of detected step-edge pixels with a measure, σ 1–16
+    "edge_max_rel_bias": 0.05,     # |median signed error| / σ_gt, σ 1–16
+    "region_max_rel_error": 0.10,  # |median σ̂ − σ_gt| / σ_gt where the cue measures, σ 1–16
+    "region_min_coverage": TARGET_MIN_COVERAGE,  # share of a tile's valid pixels the cue measures, σ 1–16
     "dense_min_coverage": TARGET_MIN_COVERAGE,   # share of textured valid pixels the dense map covers
     "dense_mae_px": 0.3,           # dense textured MAE for σ ≤ 4 px …
-    "dense_rel_mae": 0.10,         # … and ≤ 10 % of σ_gt for 4 < σ ≤ 8 (noise iso100)
-    "sigma_range": (1.0, 8.0),
+    "dense_rel_mae": 0.10,         # … and ≤ 10 % of σ_gt for 4 < σ ≤ 16 (noise iso100)
+    "periodic_min_snr": 3.0,       # periodic families judged where blurred contrast (std) > 3 × noise std
+    "tone_max_excess": 0.10,       # per tone curve and σ bin: MAE ≤ 1.1 × the better of the two lights'
+    "tone_light_variants": ("robust, linear light", "robust, display light"),
+    "sigma_range": (1.0, 16.0),
 }
+#: Periodic texture families: a blur large against their period leaves no contrast to measure, so they
+#: are judged only in the σ bins where the noise-free blurred tile's contrast exceeds
+#: LENS_TARGETS["periodic_min_snr"] × the camera noise (both in display values; :func:`lens_case`).
+PERIODIC_FAMILIES = ("checker", "stripes", "brick")
 #: Texture families that carry (almost) no blur information for the region cue: there "no measure" is
 #: the right answer (scenes.analytic.families: smooth shading has no texture; flat patches are flat
 #: but for their borders, which are the edge cue's). The region cue is not held to the coverage target
@@ -81,8 +105,8 @@ LENS_TARGETS = {
 REGION_NO_INFORMATION = ("flat_patches", "shading")
 
 
-def lens_config(*, psfs=None, full=False) -> dict:
-    """The grid to run: :data:`LENS_CONFIG` (or :data:`LENS_FULL_CONFIG`), optionally with other PSFs.
+def lens_config(*, psfs=None, full=False, tones=False) -> dict:
+    """The grid to run: :data:`LENS_CONFIG` (:data:`LENS_FULL_CONFIG`, :data:`LENS_TONE_CONFIG`), optionally with other PSFs.
 
     Raises
     ------
@@ -91,17 +115,25 @@ def lens_config(*, psfs=None, full=False) -> dict:
     """
     from scenes.analytic.psfs import check_psf
 
-    cfg = dict(LENS_FULL_CONFIG if full else LENS_CONFIG)
+    cfg = dict(LENS_FULL_CONFIG if full else LENS_TONE_CONFIG if tones else LENS_CONFIG)
     if psfs:
         cfg["psfs"] = tuple(dict.fromkeys(check_psf(p) for p in psfs))
     return cfg
 
 
-def lens_case(family: str, psf: str, noise: str, jpeg, seed: int, cfg: dict) -> dict:
-    """One image of the grid: ``image``, ``sigma_gt`` (px), ``valid`` (bool), per-tile ``nominal`` and ``gt``.
+def tone_label(encoding: str, light: str) -> str:
+    """The tone axis's label of a row: the curve, plus ", display blur" when the blur acts on display values."""
+    return encoding if light == "linear" else f"{encoding}, display blur"
+
+
+def lens_case(family: str, psf: str, noise: str, jpeg, seed: int, cfg: dict, *, encoding: str = "srgb",
+              light: str = "linear") -> dict:
+    """One image of the grid: ``image``, ``sigma_gt`` (px), ``valid`` (bool), per-tile ``nominal``, ``gt`` and ``snr``.
 
     ``family`` "step_edges" is :func:`experiments.bench.mosaics.lens_step_mosaic`; any other is a
-    :func:`scenes.analytic.lens.lens_mosaic` of that texture family.
+    :func:`scenes.analytic.lens.lens_mosaic` of that texture family, through the tone curve ``encoding``
+    with the blur in ``light``. ``snr`` (texture families): per tile σ, the blurred contrast over the
+    noise (:func:`experiments.bench.mosaics.tile_contrast_snr`); None for the steps.
     """
     import numpy as np
 
@@ -111,18 +143,21 @@ def lens_case(family: str, psf: str, noise: str, jpeg, seed: int, cfg: dict) -> 
     if family == "step_edges":
         if jpeg is not None:
             raise ValueError("the step-edge mosaic has no JPEG variant")
-        image, gt, valid = lens_step_mosaic(sigmas, cfg["tile"], psf=psf, noise=noise, seed=seed)
+        image, gt, valid = lens_step_mosaic(sigmas, cfg["tile"], psf=psf, noise=noise, seed=seed, light=light,
+                                            encoding=encoding)
         nominal = tuple(sorted(set(sigmas)))
-        return {"image": image, "sigma_gt": gt, "valid": valid, "nominal": nominal, "gt": nominal}
+        return {"image": image, "sigma_gt": gt, "valid": valid, "nominal": nominal, "gt": nominal, "snr": None}
     m = lens_mosaic(family=family, psf=psf, sigmas=sigmas, tile=cfg["tile"], cols=cfg["cols"], noise=noise,
-                    jpeg_quality=jpeg, rng=seed)
+                    jpeg_quality=jpeg, rng=seed, encoding=encoding, light=light)
     nominal = tuple(sorted(set(sigmas)))
     gt = tuple(float(np.hypot(s, m.intrinsic_sigma)) for s in nominal)
-    return {"image": m.image, "sigma_gt": m.sigma, "valid": ~m.boundary, "nominal": nominal, "gt": gt}
+    return {"image": m.image, "sigma_gt": m.sigma, "valid": ~m.boundary, "nominal": nominal, "gt": gt,
+            "snr": tile_contrast_snr(m, encoding)}
 
 
-def _bin_rows(errors: dict, nominal, gt, **ids) -> list[dict]:
-    return [{**ids, "sigma": s, "sigma_gt": g, **{k: b[k] for k in ("n", "mae", "bias", "median", "coverage")}}
+def _bin_rows(errors: dict, nominal, gt, snr=None, **ids) -> list[dict]:
+    return [{**ids, "sigma": s, "sigma_gt": g, **{k: b[k] for k in ("n", "mae", "bias", "median", "coverage")},
+             "snr": None if snr is None else snr.get(s)}
             for s, g, b in zip(nominal, gt, errors["bins"])]
 
 
@@ -161,16 +196,18 @@ def measure_lens(cfg: dict, *, progress: bool = True) -> list[dict]:
     Returns
     -------
     list of dict
-        ``psf``, ``noise``, ``jpeg``, ``family``, ``seed``, ``variant`` (a key of ``cfg["variants"]``, or
+        ``psf``, ``noise``, ``jpeg``, ``family``, ``seed``, ``tone`` (:func:`tone_label`), ``variant`` (a key of ``cfg["variants"]``, or
         "region: " + a key of ``cfg["regions"]`` for the cue alone), ``cue`` ("dense_textured", "sparse",
         "region"), ``sigma`` (tile σ, px), ``sigma_gt`` (px), ``n``, ``mae``, ``bias`` (px), ``median``
         (px; for the region cue the median *relative* error), ``coverage`` (share, see the module
-        docstring), ``seconds`` (per variant).
+        docstring), ``snr`` (texture families: the tile's blurred contrast / noise, :func:`tile_contrast_snr`;
+        else None), ``seconds`` (per variant).
 
     Notes
     -----
-    1. Per (psf, noise, jpeg, family, seed): :func:`lens_case`; one σ bin per tile σ.
-    2. Per variant: :func:`method.estimate_defocus_map` and
+    1. Per (psf, noise, jpeg, family, seed, tone): :func:`lens_case`; one σ bin per tile σ.
+    2. Per variant (told the curve "srgb", the camera default, or its own third item, e.g. "auto"):
+       :func:`method.estimate_defocus_map` and
        :func:`experiments.stage_attribution.stage_errors` (no oracles) → dense textured and sparse rows.
     3. The region cue alone, per setting of ``cfg["regions"]``
        (:func:`method.blur.region_estimators.estimate_region_blur`; texture families only).
@@ -180,28 +217,35 @@ def measure_lens(cfg: dict, *, progress: bool = True) -> list[dict]:
     from experiments.stage_attribution import stage_errors
     from method import DefocusParams
 
-    variants = {name: DefocusParams.preset(p, **ch) for name, (p, ch) in cfg["variants"].items()}
+    # name -> (params, the encoding the estimator is told: "srgb", the camera default, unless a third item)
+    variants = {name: (DefocusParams.preset(v[0], **v[1]), v[2] if len(v) > 2 else "srgb")
+                for name, v in cfg["variants"].items()}
     regions = {f"region: {k}": DefocusParams.preset("robust", **ch) for k, ch in cfg["regions"].items()}
-    cases = [(psf, noise, jpeg, fam, seed) for psf in cfg["psfs"] for noise in cfg["noises"]
+    cases = [(psf, noise, jpeg, fam, seed, tone) for psf in cfg["psfs"] for noise in cfg["noises"]
              for jpeg in cfg["jpeg_qualities"] for fam in cfg["families"] for seed in cfg["seeds"]
-             if not (fam == "step_edges" and jpeg is not None)]
+             for tone in cfg.get("tones", LENS_TONES[:1]) if not (fam == "step_edges" and jpeg is not None)]
     rows = []
     with tqdm(total=len(cases), desc="accuracy: lens", unit="image", disable=not progress) as bar:
-        for psf, noise, jpeg, fam, seed in cases:
-            bar.set_postfix_str(f"{psf} {noise} {fam}")
-            case = lens_case(fam, psf, noise, jpeg, seed, cfg)
+        for psf, noise, jpeg, fam, seed, (encoding, light) in cases:
+            bar.set_postfix_str(f"{psf} {noise} {fam} {tone_label(encoding, light)}")
+            case = lens_case(fam, psf, noise, jpeg, seed, cfg, encoding=encoding, light=light)
             bins = sigma_bins(case["gt"])
-            ids = {"psf": psf, "noise": noise, "jpeg": jpeg, "family": fam, "seed": seed}
-            for name, params in variants.items():
+            ids = {"psf": psf, "noise": noise, "jpeg": jpeg, "family": fam, "seed": seed,
+                   "tone": tone_label(encoding, light)}
+            done = {}  # equal parameters and encoding: measured once (e.g. robust and its own light)
+            for name, (params, told) in variants.items():
                 t0 = time.perf_counter()
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    err = stage_errors(case["image"], case["sigma_gt"], params=params, valid=case["valid"],
-                                       bins=bins, oracles=False)["estimated"]
+                if (params, told) not in done:
+                    with warnings.catch_warnings():
+                        warnings.simplefilter("ignore")
+                        done[(params, told)] = stage_errors(case["image"], case["sigma_gt"], params=params,
+                                                            valid=case["valid"], bins=bins, oracles=False,
+                                                            encoding=told)["estimated"]
+                err = done[(params, told)]
                 dt = time.perf_counter() - t0
                 for cue in ("dense_textured", "sparse"):
-                    rows += [{**r, "seconds": dt} for r in
-                             _bin_rows(err[cue], case["nominal"], case["gt"], **ids, variant=name, cue=cue)]
+                    rows += [{**r, "seconds": dt} for r in _bin_rows(err[cue], case["nominal"], case["gt"],
+                                                                     case["snr"], **ids, variant=name, cue=cue)]
             if fam != "step_edges":
                 for name, params in regions.items():
                     rows += _region_rows(case["image"], case, params, bins, **ids, variant=name, cue="region")
@@ -222,28 +266,44 @@ def judge_lens(rows: list[dict], *, variant: str = "robust", region: str | None 
     Returns
     -------
     dict
-        ``edges`` / ``region`` / ``dense``: lists of failing cells (each a dict naming psf, noise,
-        family, σ, the numbers and ``reason``: "coverage" — the cue measured on fewer than the target
-        share of its pixels — or "error"), ``pass`` per part and overall (None where nothing was
-        judged); ``region`` also names the setting ``judged`` and the ``exempt`` families
-        (:data:`REGION_NO_INFORMATION`).
+        ``edges`` / ``region`` / ``dense`` / ``tone``: lists of failing cells (each a dict naming psf,
+        noise, family, tone, σ, the numbers and ``reason``: "coverage" — the cue measured on fewer than
+        the target share of its pixels — or "error"), ``pass`` per part and overall (None where nothing
+        was judged); ``region`` also names the setting ``judged`` and the ``exempt`` families
+        (:data:`REGION_NO_INFORMATION`); ``dense`` the periodic cells ``not_judged`` (contrast below
+        ``periodic_min_snr`` × noise).
 
     Notes
     -----
     A cell where a cue measures on fewer than its minimum coverage fails (edges: share of detected
     step-edge pixels; region cue: share of the tile's valid pixels, except on the families of
     :data:`REGION_NO_INFORMATION`; dense map: share of the textured valid pixels), so a cue cannot pass
-    by abstaining. A cell whose pixels the bench has none of (no textured pixel in a tile) is not judged.
+    by abstaining. A cell whose pixels the bench has none of (no textured pixel in a tile) is not judged,
+    nor a periodic family's cell whose ``snr`` is below ``periodic_min_snr`` (rows without ``snr``
+    are judged). The tone rule: per (psf, noise, jpeg, seed, tone, σ) the dense MAE of ``variant``
+    pooled over the judged families (n-weighted) ≤ (1 + ``tone_max_excess``) × the smaller of the
+    two ``tone_light_variants``' (judged where both were run).
     """
     t = LENS_TARGETS
     if region is None:
         region = next((r["variant"] for r in rows if r["cue"] == "region"), None)
-    fails = {"edges": [], "region": [], "dense": []}
+    fails = {"edges": [], "region": [], "dense": [], "tone": []}
     seen = dict.fromkeys(fails, False)
+    not_judged, pooled = [], {}
     for r in rows:
         if not _in_range(r["sigma"]):
             continue
-        key = {k: r[k] for k in ("psf", "noise", "jpeg", "family", "seed", "sigma")}
+        key = {k: r.get(k) for k in ("psf", "noise", "jpeg", "family", "seed", "tone", "sigma")}
+        if (r["cue"] == "dense_textured" and r["family"] in PERIODIC_FAMILIES and r.get("snr") is not None
+                and r["snr"] < t["periodic_min_snr"]):
+            if r["variant"] == variant:
+                not_judged.append({**key, "snr": r["snr"]})
+            continue
+        if (r["cue"] == "dense_textured" and r["noise"] == "iso100" and r["family"] != "step_edges" and r["n"]
+                and r["mae"] is not None and r["variant"] in (variant, *t["tone_light_variants"])):
+            cell = pooled.setdefault(tuple(key[k] for k in ("psf", "noise", "jpeg", "seed", "tone", "sigma")), {})
+            n, e = cell.get(r["variant"], (0, 0.0))
+            cell[r["variant"]] = (n + r["n"], e + r["n"] * r["mae"])
         cov = r["coverage"] or 0.0
         if r["cue"] == "sparse" and r["variant"] == variant and r["family"] == "step_edges":
             seen["edges"] = True
@@ -269,7 +329,16 @@ def judge_lens(rows: list[dict], *, variant: str = "robust", region: str | None 
                 fails["dense"].append({**key, "coverage": cov, "mae": r["mae"], "limit": limit, "reason": "coverage"})
             elif r["mae"] > limit:
                 fails["dense"].append({**key, "coverage": cov, "mae": r["mae"], "limit": limit, "reason": "error"})
+    for cell, by in pooled.items():
+        if variant in by and all(v in by for v in t["tone_light_variants"]):
+            seen["tone"] = True
+            mae = {v: e / n for v, (n, e) in by.items()}
+            best = min(mae[v] for v in t["tone_light_variants"])
+            if mae[variant] > (1.0 + t["tone_max_excess"]) * best:
+                fails["tone"].append({**dict(zip(("psf", "noise", "jpeg", "seed", "tone", "sigma"), cell)),
+                                      "mae": mae[variant], "best_light_mae": best, "reason": "error"})
     out = {k: {"pass": (not fails[k]) if seen[k] else None, "fails": fails[k]} for k in fails}
+    out["dense"]["not_judged"] = not_judged
     out["region"]["judged"] = region
     out["region"]["exempt"] = list(REGION_NO_INFORMATION)
     parts = [v["pass"] for v in out.values() if isinstance(v, dict) and "pass" in v]
@@ -306,7 +375,9 @@ def lens_markdown(rows: list[dict], cfg: dict, verdict: dict) -> str:
            "",
            "`python -m repro.bench --accuracy` (`--psf NAME…`, `--full`). Mosaics of texture families and "
            "straight steps blurred by a lens PSF in linear light (σ = PSF ⊗ pixel box), then Poisson–Gaussian "
-           "noise, the sRGB curve and 8 bits (experiments/bench/lens.py). Grid: PSFs " + ", ".join(cfg["psfs"])
+           "noise, a tone curve and 8 bits (experiments/bench/lens.py). Tone curves: "
+           + ", ".join(tone_label(*tc) for tc in cfg.get("tones", LENS_TONES[:1]))
+           + " (the estimator is told sRGB unless a variant says otherwise). Grid: PSFs " + ", ".join(cfg["psfs"])
            + "; noise "
            + ", ".join(cfg["noises"]) + "; JPEG " + ", ".join("none" if q is None else str(q)
                                                                for q in cfg["jpeg_qualities"])
@@ -314,21 +385,35 @@ def lens_markdown(rows: list[dict], cfg: dict, verdict: dict) -> str:
            "",
            f"**Verdict (robust): {'PASS' if verdict['pass'] else 'FAIL' if verdict['pass'] is False else 'n/a'}** — "
            f"edges {_verdict_word(verdict['edges'])}, region cue {_verdict_word(verdict['region'])}, "
-           f"dense map at ISO 100 {_verdict_word(verdict['dense'])}. Targets: edge measures at ≥ "
+           f"dense map at ISO 100 {_verdict_word(verdict['dense'])}, tone rule "
+           f"{_verdict_word(verdict.get('tone', {'pass': None, 'fails': []}))}. Targets: edge measures at ≥ "
            f"{LENS_TARGETS['edge_min_coverage']:.0%} of step-edge pixels with |median error| ≤ "
            f"{LENS_TARGETS['edge_max_rel_bias']:.0%} of σ; region cue measuring ≥ "
            f"{LENS_TARGETS['region_min_coverage']:.0%} of each tile's pixels (not required on "
            f"{', '.join(REGION_NO_INFORMATION)}: no blur information) with |median error| ≤ "
            f"{LENS_TARGETS['region_max_rel_error']:.0%} of σ wherever it measures; dense textured MAE ≤ "
-           f"{LENS_TARGETS['dense_mae_px']} px for σ ≤ 4 and ≤ {LENS_TARGETS['dense_rel_mae']:.0%} of σ to 8 "
-           f"(covering ≥ {LENS_TARGETS['dense_min_coverage']:.0%} of textured pixels); all for σ 1–8. A cell where "
-           "a cue measures less than its coverage target fails: a cue cannot pass by abstaining.", ""]
+           f"{LENS_TARGETS['dense_mae_px']} px for σ ≤ 4 and ≤ {LENS_TARGETS['dense_rel_mae']:.0%} of σ beyond "
+           f"(covering ≥ {LENS_TARGETS['dense_min_coverage']:.0%} of textured pixels; the periodic families "
+           f"{', '.join(PERIODIC_FAMILIES)} only where their blurred contrast exceeds "
+           f"{LENS_TARGETS['periodic_min_snr']:g}× the noise); on every tone curve no σ bin's dense MAE above "
+           f"{1 + LENS_TARGETS['tone_max_excess']:.2f}× the better of {' and '.join(LENS_TARGETS['tone_light_variants'])}"
+           f" (where both run); all for σ {LENS_TARGETS['sigma_range'][0]:g}–{LENS_TARGETS['sigma_range'][1]:g}. "
+           "A cell where a cue measures less than its coverage target fails: a cue cannot pass by abstaining.", ""]
+    skipped = verdict.get("dense", {}).get("not_judged", [])
+    groups = {}
+    for c in skipped:
+        groups.setdefault((c["family"], c["psf"], c["tone"]), []).append(f"{c['sigma']:g} ({c['snr']:.1f}×)")
+    out += ["Periodic cells not judged (blurred contrast / noise below the threshold): "
+            + ("; ".join(f"{f} ({p}, {t}) σ {', '.join(v)}" for (f, p, t), v in groups.items()) if groups else "none")
+            + ".", ""]
     for psf in cfg["psfs"]:
         for noise in cfg["noises"]:
             for jpeg in cfg["jpeg_qualities"]:
-                sub = [r for r in rows if r["psf"] == psf and r["noise"] == noise and r["jpeg"] == jpeg]
-                if sub:
-                    out += _section(sub, psf, noise, jpeg, sig, head, sep, list(cfg["variants"]))
+                for tone in dict.fromkeys(r.get("tone") for r in rows):
+                    sub = [r for r in rows if r["psf"] == psf and r["noise"] == noise and r["jpeg"] == jpeg
+                           and r.get("tone") == tone]
+                    if sub:
+                        out += _section(sub, psf, noise, jpeg, sig, head, sep, list(cfg["variants"]), tone)
     return "\n".join(out)
 
 
@@ -341,8 +426,9 @@ def _verdict_word(part) -> str:
     return f"FAIL ({n} cell{'' if n == 1 else 's'}" + (f", {low} below the coverage target)" if low else ")")
 
 
-def _section(sub, psf, noise, jpeg, sig, head, sep, variants) -> list[str]:
-    title = f"### PSF {psf}, noise {noise}" + ("" if jpeg is None else f", JPEG {jpeg}")
+def _section(sub, psf, noise, jpeg, sig, head, sep, variants, tone=None) -> list[str]:
+    title = (f"### PSF {psf}, noise {noise}" + ("" if jpeg is None else f", JPEG {jpeg}")
+             + ("" if tone in (None, "srgb") else f", tone curve {tone}"))
     fams = list(dict.fromkeys(r["family"] for r in sub))
     out = [title, "", "Worst texture family per σ bin (dense textured MAE, px, of each variant):", "",
            "| variant " + head, "|---" + sep]

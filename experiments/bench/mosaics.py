@@ -12,7 +12,7 @@ import math
 from method.registry import Registry
 
 __all__ = ["ANALYTIC_DATASETS", "STEP_BASE_ANGLE", "STEP_SEAM_BAND_PX", "analytic_case", "lens_step_mosaic",
-           "noise_label", "sigma_bins", "step_mosaic"]
+           "noise_label", "sigma_bins", "step_mosaic", "tile_contrast_snr"]
 
 #: Half-width (px) of the band masked on each side of the step-edge mosaic's tile seams.
 STEP_SEAM_BAND_PX = 6
@@ -97,12 +97,14 @@ def step_mosaic(sigmas, tile: int, noise_std: float, seed: int):
     return image, sigma_gt, valid
 
 
-def lens_step_mosaic(sigmas, tile: int, *, psf: str, noise: str, seed: int, light: str = "linear"):
+def lens_step_mosaic(sigmas, tile: int, *, psf: str, noise: str, seed: int, light: str = "linear",
+                     encoding: str = "srgb"):
     """:func:`step_mosaic`'s layout with steps blurred by a lens PSF in linear light, then the camera.
 
     Each tile is :func:`scenes.analytic.lens.lens_step_edge` (display values 0.2 → 0.8, PSF ``psf`` of
     reported σ = sigmas[c], kernel ⊗ pixel box); then Poisson–Gaussian noise ``noise`` in linear
-    units, the sRGB curve and 8 bits (:func:`scenes.display.camera_image`).
+    units, the tone curve ``encoding`` (a key of :data:`scenes.display.ENCODINGS`, default sRGB) and 8
+    bits (:func:`scenes.display.camera_image`).
 
     Returns
     -------
@@ -112,13 +114,14 @@ def lens_step_mosaic(sigmas, tile: int, *, psf: str, noise: str, seed: int, ligh
     import numpy as np
 
     from scenes.analytic.lens import lens_step_edge
-    from scenes.display import camera_image, srgb_to_linear
+    from scenes.display import camera_image, decode
 
     def make(s, a):
-        return lens_step_edge((tile, tile), sigma=s, psf=psf, angle=a, light=light).image
+        return lens_step_edge((tile, tile), sigma=s, psf=psf, angle=a, light=light, encoding=encoding).image
 
     image, sigma_gt, valid = _mirrored_steps(sigmas, tile, make)
-    image = camera_image(srgb_to_linear(image), noise=noise, quantize_bits=8, rng=np.random.default_rng(seed))
+    image = camera_image(decode(image, encoding), noise=noise, quantize_bits=8, rng=np.random.default_rng(seed),
+                         encoding=encoding)
     return image, sigma_gt, valid
 
 
@@ -159,3 +162,26 @@ def analytic_case(dataset: str, config: dict, noise_std: float, seed: int) -> di
     gt = tuple(float(np.sqrt(s ** 2 + m.intrinsic_sigma ** 2)) for s in nominal)
     return {"image": m.image, "sigma_gt": m.sigma, "valid": ~m.boundary, "nominal": nominal, "gt": gt,
             "intrinsic_sigma": float(m.intrinsic_sigma)}
+
+
+def tile_contrast_snr(m, encoding: str) -> dict:
+    """Per tile σ of a lens mosaic: the noise-free blurred tile's display-luma std / the camera's noise std.
+
+    The noise std in display values is √(a·x + b) · encode′(x) (x the linear value; encode′ by central
+    differences) and the 8-bit step's 1/√12, in quadrature, as an rms over the tile's valid pixels.
+    """
+    import numpy as np
+
+    from scenes.display import encode
+
+    lin = np.asarray(m.linear, dtype=np.float64).mean(axis=2) if m.linear.ndim == 3 else m.linear
+    disp = encode(lin, encoding)
+    h = 1e-4
+    slope = (encode(np.clip(lin + h, 0, 1), encoding) - encode(np.clip(lin - h, 0, 1), encoding)) / (
+        np.clip(lin + h, 0, 1) - np.clip(lin - h, 0, 1))
+    var = (m.noise["a"] * lin + m.noise["b"]) * slope ** 2 + 1.0 / (12 * 255.0 ** 2)
+    out = {}
+    for t, sig in enumerate(m.sigmas):
+        sel = (m.tile_index == t) & ~m.boundary
+        out[float(sig)] = float(disp[sel].std() / np.sqrt(var[sel].mean())) if sel.any() else 0.0
+    return out

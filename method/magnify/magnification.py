@@ -53,7 +53,7 @@ import numpy as np
 from scipy import fft as sfft
 from scipy import ndimage
 
-from ..luma import LIGHTS, light_of
+from ..luma import LIGHTS, decode, encode, light_of
 from ..validation import validate_image, validate_map
 from ..registry import Entry, Registry
 from .scatter import APERTURES, scatter_blur
@@ -326,6 +326,8 @@ def _transfer(encoding: str, light: str):
     source = light_of(encoding)
     if source == light:
         return None
+    if light == "linear" and encoding != "srgb":  # another tone curve: its own (method.luma.ENCODINGS)
+        return (lambda x: decode(x, encoding)), (lambda x: encode(x, encoding))
     return (_srgb_decode, _srgb_encode) if light == "linear" else (_srgb_encode, _srgb_decode)
 
 

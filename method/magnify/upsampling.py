@@ -24,6 +24,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..luma import LUMA_WEIGHTS, light_of, to_light
+from ..edges.tone_curve import INPUT_ENCODINGS
 from ..validation import MIN_IMAGE_SIDE, validate_image, validate_map
 
 __all__ = ["DEFAULT_MAX_WORKING_PIXELS", "GUIDED_EPS", "GUIDED_RADIUS", "ScaledDefocusResult",
@@ -300,8 +301,9 @@ def estimate_defocus_map_at_scale(image, params=None, *, encoding="srgb", max_wo
         Pipeline parameters (paper defaults when omitted). Scale-dependent ones (σ1/σ2 scales,
         window sizes) apply in working px.
     encoding : str, keyword-only
-        Key of :data:`method.luma.ENCODINGS` ("srgb", default, or "linear"), passed to
-        :func:`method.pipeline.estimate_defocus_map`; the downscaling averages the values as given.
+        Key of :data:`method.edges.tone_curve.INPUT_ENCODINGS` ("srgb", default, "linear", another tone
+        curve or "auto"), passed to :func:`method.pipeline.estimate_defocus_map` (which fits "auto" on
+        the working image); the downscaling averages the values as given.
     max_working_pixels : int, keyword-only
         Estimate at full resolution when H·W fits; otherwise at the largest same-aspect size that
         does (:func:`working_shape`).
@@ -331,7 +333,7 @@ def estimate_defocus_map_at_scale(image, params=None, *, encoding="srgb", max_wo
     """
     from ..pipeline import estimate_defocus_map  # imported late: keeps this module light
 
-    light_of(encoding)
+    INPUT_ENCODINGS.check(encoding, what="encoding")
     image = validate_image(image)
     (h, w), scale = working_shape(image.shape, max_working_pixels=max_working_pixels)
 
@@ -347,7 +349,7 @@ def estimate_defocus_map_at_scale(image, params=None, *, encoding="srgb", max_wo
     result = estimate_defocus_map(small, params, encoding=encoding, progress=progress)
     note("upsample")
     full = upsample_defocus_map(result.defocus_map, small, image, scale=scale, remove_prefilter=remove_prefilter,
-                                encoding=encoding)
+                                encoding=result.encoding)
     return ScaledDefocusResult(full, scale, (h, w), result)
 
 

@@ -112,9 +112,9 @@ def write_photo(path, image, *, bit_depth=None, exif=None, icc_profile=None, enc
     if encoding not in ENCODINGS:
         raise PhotoError(f"encoding={encoding!r} is invalid; allowed: {ENCODINGS.allowed()}")
     if suffix == ".exr":
-        from scenes.display import srgb_to_linear
+        from scenes.display import decode
 
-        linear = (np.maximum(image, 0.0) if encoding == "linear" else srgb_to_linear(image)).astype(np.float32)
+        linear = (np.maximum(image, 0.0) if encoding == "linear" else decode(image, encoding)).astype(np.float32)
         return _write_exr_channels(path, {"RGB" if image.ndim == 3 else "Y": linear})
     if encoding == "linear":
         from scenes.display import linear_to_srgb

@@ -9,12 +9,14 @@ pixel integrates it and the camera adds noise, applies its tone curve, quantises
 2. convolution with the PSF's fine-lattice kernel (:func:`scenes.analytic.psfs.psf_kernel`, FFT);
 3. the pixel's box: the mean of its s×s fine samples;
 4. the camera pipeline (:func:`scenes.display.camera_image`: Poisson–Gaussian noise in linear units,
-   the sRGB tone curve, quantisation, optional JPEG).
+   the tone curve ``encoding`` (sRGB by default; any of :data:`scenes.display.ENCODINGS`),
+   quantisation, optional JPEG).
 
 The reported σ_gt is the per-axis std of the whole PSF (kernel ⊗ pixel box), the harness's
 convention for every PSF (a disk of diameter c: √((c/4)² + 1/12)), combined in quadrature with the
 texture's own blur (the ``photo`` family's). ``light="display"`` blurs the display values instead
-(the blur the Gaussian mosaics of :mod:`.mosaics` apply), for comparison.
+(the blur the Gaussian mosaics of :mod:`.mosaics` apply), for comparison. The sharp textures' values
+are display values of the tone curve ``encoding``: they are decoded by that curve into linear light.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from .edges import AnalyticImage, edge_pixels
 from .families import TEXTURE_FAMILIES, check_family, family_texture
 from .mosaics import boundary_mask, tile_layout
 from .psfs import check_psf, psf_kernel
-from ..display import camera_image, check_noise_level, srgb_to_linear
+from ..display import camera_image, check_encoding, check_noise_level, decode
 
 __all__ = ["LIGHTS", "LensMosaic", "lens_mosaic", "lens_step_edge"]
 
@@ -95,13 +97,14 @@ def _box_mean(fine, s):
     return fine.reshape(h, s, w, s, *fine.shape[2:]).mean(axis=(1, 3))
 
 
-def _camera(linear, noise, quantize_bits, jpeg_quality, rng):
-    return camera_image(linear, encoding="srgb", noise=noise, quantize_bits=quantize_bits,
+def _camera(linear, noise, quantize_bits, jpeg_quality, rng, encoding):
+    return camera_image(linear, encoding=encoding, noise=noise, quantize_bits=quantize_bits,
                         jpeg_quality=jpeg_quality, rng=rng)
 
 
 def lens_step_edge(shape, *, sigma, psf="disk", angle=0.0, offset=0.0, low=0.2, high=0.8, light="linear",
-                   supersample=4, noise="none", quantize_bits=None, jpeg_quality=None, rng=None) -> AnalyticImage:
+                   supersample=4, noise="none", quantize_bits=None, jpeg_quality=None, rng=None,
+                   encoding="srgb") -> AnalyticImage:
     """A straight step edge blurred by a lens PSF in linear light, integrated over the pixel, then a camera.
 
     Parameters
@@ -116,7 +119,7 @@ def lens_step_edge(shape, *, sigma, psf="disk", angle=0.0, offset=0.0, low=0.2, 
         Normal direction θ (radians, x right, y down; intensity rises along it) and the edge line's
         signed distance from the image centre along it, px (as :func:`scenes.analytic.step_edge`).
     low, high : float, keyword-only
-        Display (sRGB-encoded) values of the two sides, in [0, 1].
+        Display values (of the curve ``encoding``) of the two sides, in [0, 1].
     light : {"linear", "display"}, keyword-only
         Blur the linear radiance (a lens) or the display values.
     supersample : int, keyword-only
@@ -124,6 +127,8 @@ def lens_step_edge(shape, *, sigma, psf="disk", angle=0.0, offset=0.0, low=0.2, 
     noise, quantize_bits, jpeg_quality, rng : keyword-only
         The camera (:func:`scenes.display.camera_image`); the defaults give the exact noise-free
         display values.
+    encoding : str, keyword-only
+        The camera's tone curve, a key of :data:`scenes.display.ENCODINGS` (default "srgb").
 
     Returns
     -------
@@ -138,7 +143,7 @@ def lens_step_edge(shape, *, sigma, psf="disk", angle=0.0, offset=0.0, low=0.2, 
     2. Convolution with the discrete PSF kernel, then the mean of each pixel's s×s cells. The cells
        tile the pixel, so the result is the step ⊗ kernel ⊗ the pixel's box exactly (to the kernel's
        discretisation), whose per-axis second moment is σ².
-    3. ``light="linear"``: the two levels are decoded from sRGB first and the result encoded after
+    3. ``light="linear"``: the two levels are decoded by ``encoding`` first and the result encoded after
        (:func:`scenes.display.camera_image`); ``"display"``: the display values are blurred.
     """
     h, w = check_shape(shape)
@@ -146,9 +151,10 @@ def lens_step_edge(shape, *, sigma, psf="disk", angle=0.0, offset=0.0, low=0.2, 
     _check_light(light)
     s = _check_supersample(supersample)
     check_noise_level(noise)
+    check_encoding(encoding)
     kernel = psf_kernel(check_psf(psf), sigma=sigma, supersample=s)
     rad = kernel.shape[0] // 2
-    lo, hi = (srgb_to_linear(np.array([low, high])) if light == "linear" else (float(low), float(high)))
+    lo, hi = (decode(np.array([low, high]), encoding) if light == "linear" else (float(low), float(high)))
     # fine sample (k, l) sits at (x, y) = ((l + ½)/s − ½ − cx, (k + ½)/s − ½ − cy) px, k from −rad
     cy, cx = (h - 1) / 2.0, (w - 1) / 2.0
     ky = (np.arange(-rad, h * s + rad) + 0.5) / s - 0.5 - cy
@@ -166,8 +172,8 @@ def lens_step_edge(shape, *, sigma, psf="disk", angle=0.0, offset=0.0, low=0.2, 
     frac = np.clip(_box_mean(fine, s), 0.0, 1.0)
     value = lo + (hi - lo) * frac
     if light == "display":
-        value = srgb_to_linear(value)
-    img = _camera(value, noise, quantize_bits, jpeg_quality, rng)
+        value = decode(value, encoding)
+    img = _camera(value, noise, quantize_bits, jpeg_quality, rng, encoding)
     xg, yg = np.meshgrid(np.arange(w) - cx, np.arange(h) - cy)
     tc = xg * c + yg * sn - offset
     normal = np.full((h, w), float(np.arctan2(sn, c)))
@@ -178,7 +184,7 @@ def lens_step_edge(shape, *, sigma, psf="disk", angle=0.0, offset=0.0, low=0.2, 
                          normal=normal)
 
 
-def _tile_layer(family, entropy, t, rect, shape, kernel, s, light):
+def _tile_layer(family, entropy, t, rect, shape, kernel, s, light, encoding):
     """One tile's layer on its output window.
 
     Returns ((a0, a1, b0, b1) output window, box(K ∗ (M·T)) (h, w, 3), box(K ∗ M) (h, w)).
@@ -192,7 +198,7 @@ def _tile_layer(family, entropy, t, rect, shape, kernel, s, light):
     ny, nx = (a1 - a0) * s + 2 * rad, (b1 - b0) * s + 2 * rad
     sharp = family_texture(family, (ny, nx), s=s, seed=entropy, key=(t,), origin=(fy0 - r0 * s, fx0 - c0 * s))
     if light == "linear":
-        sharp = srgb_to_linear(sharp)
+        sharp = decode(sharp, encoding)
     # the tile's indicator M_t on the fine samples (tiles on the canvas border extend beyond it)
     iy, ix = np.arange(fy0, fy0 + ny), np.arange(fx0, fx0 + nx)
     my = ((iy >= r0 * s) | (r0 == 0)) & ((iy < r1 * s) | (r1 == H))
@@ -205,7 +211,7 @@ def _tile_layer(family, entropy, t, rect, shape, kernel, s, light):
 
 def lens_mosaic(*, family="dead_leaves", psf="disk", sigmas=(0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0), tile=96,
                 cols=4, light="linear", supersample=4, noise="none", quantize_bits=8, jpeg_quality=None, rng=0,
-                boundary_band=None) -> LensMosaic:
+                boundary_band=None, encoding="srgb") -> LensMosaic:
     """Tiles of one texture family, tile t blurred by a lens PSF of σ_t, as abutting fronto-parallel planes.
 
     Parameters
@@ -229,6 +235,9 @@ def lens_mosaic(*, family="dead_leaves", psf="disk", sigmas=(0.5, 1.0, 1.5, 2.0,
         Seed of the textures (and, derived from it, of the noise); same seed → identical output.
     boundary_band : float or None, keyword-only
         Half-width (px) of the band flagged on each side of a seam; None: ⌈3·max σ_gt⌉ + 2 px.
+    encoding : str, keyword-only
+        The camera's tone curve, a key of :data:`scenes.display.ENCODINGS` (default "srgb"); the
+        textures' display values are decoded by it.
 
     Returns
     -------
@@ -256,19 +265,20 @@ def lens_mosaic(*, family="dead_leaves", psf="disk", sigmas=(0.5, 1.0, 1.5, 2.0,
     cols = check_int(cols, "cols", 1)
     band_val = check_band(boundary_band)
     noise_ab = check_noise_level(noise)
+    check_encoding(encoding)
     entropy = seed_entropy(rng)
     kernels = [psf_kernel(psf, sigma=v, supersample=s) for v in sig]  # validates σ >= 1/√12
     rects, (h, w) = tile_layout(len(sig), tile, cols)
     num = np.zeros((h, w, 3))
     den = np.zeros((h, w))
     for t, (rect, kernel) in enumerate(zip(rects, kernels)):
-        (a0, a1, b0, b1), n_t, d_t = _tile_layer(fam, entropy, t, rect, (h, w), kernel, s, light)
+        (a0, a1, b0, b1), n_t, d_t = _tile_layer(fam, entropy, t, rect, (h, w), kernel, s, light, encoding)
         num[a0:a1, b0:b1] += n_t
         den[a0:a1, b0:b1] += d_t
     blurred = np.clip(num / den[..., None], 0.0, 1.0)
-    linear = blurred if light == "linear" else srgb_to_linear(blurred)
+    linear = blurred if light == "linear" else decode(blurred, encoding)
     image = _camera(linear, noise_ab, quantize_bits, jpeg_quality,
-                    np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(2,))))
+                    np.random.default_rng(np.random.SeedSequence(entropy, spawn_key=(2,))), encoding)
     tile_index = np.zeros((h, w), dtype=np.int64)
     for t, (r0, r1, c0, c1) in enumerate(rects):
         tile_index[r0:r1, c0:c1] = t

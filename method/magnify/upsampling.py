@@ -301,9 +301,8 @@ def estimate_defocus_map_at_scale(image, params=None, *, encoding="srgb", max_wo
         Pipeline parameters (paper defaults when omitted). Scale-dependent ones (σ1/σ2 scales,
         window sizes) apply in working px.
     encoding : str, keyword-only
-        Key of :data:`method.edges.tone_curve.INPUT_ENCODINGS` ("srgb", default, "linear", another tone
-        curve or "auto"), passed to :func:`method.pipeline.estimate_defocus_map` (which fits "auto" on
-        the working image); the downscaling averages the values as given.
+        Key of :data:`method.edges.tone_curve.INPUT_ENCODINGS` (default "srgb"), passed to :func:`method.pipeline.
+        estimate_defocus_map` (which fits "auto" on the working image); the downscaling averages the values as given.
     max_working_pixels : int, keyword-only
         Estimate at full resolution when H·W fits; otherwise at the largest same-aspect size that
         does (:func:`working_shape`).
@@ -442,8 +441,7 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel=None, clip_p
 
     Notes
     -----
-    1. Preprocess the whole map once (Sec. 5: percentile clip, clamp ≥ 0, Gaussian blur, σ = smoothing·max(H, W))
-       — global operations, so never per tile.
+    1. Preprocess the whole map once (Sec. 5: clip, clamp ≥ 0, blur σ = smoothing·max(H, W)): global, never per tile.
     2. Halo = the farthest reach of the blur the map needs (:func:`_halo`: gather 4·√2·max σ_e + 2 px, scatter
        2.5·max σ_e + 3 px).
     3. Square cores of side √tile_pixels − 2·halo (≥ 256 px); each core is magnified with its halo of real

@@ -61,6 +61,16 @@ def quick_table(quick_figure):
     return Results([r for name in CLAIM_FIGURES for r in rows[name]])
 
 
+@pytest.fixture(scope="session")
+def photo_scores():
+    """Every shipped photo × scored preset's region scores, ``{"<photo>.<preset>.<key>": value}``
+    (:func:`tests.test_photo_scores.current_scores`): the photos figure's map cases, computed through the
+    case store once per session (the photos figure test reads its coffee maps from the same stored cases)."""
+    from tests.test_photo_scores import current_scores
+
+    return current_scores()
+
+
 @pytest.fixture
 def goldens(request):
     """Golden-number checker (see tests/golden.py)."""
@@ -71,7 +81,7 @@ def goldens(request):
 
 # --- which tests read renders: the `render` marker, checked -------------------------------------------
 #: Set to a file path to append "<nodeid>\t<what>" for every render or figure-cache access of a test
-#: (how the `render` markers were found; see docs/test-suite.md).
+#: (how the `render` markers were found; see docs/testing.md).
 RENDER_LOG_ENV = "DEFOCUS_TEST_RENDER_LOG"
 _current = {"item": None, "figure_depth": [], "fixtures": []}
 

@@ -75,9 +75,9 @@ def _store_sharing_renders(folder: Path) -> dict:
 def test_figures_ctrl_c_then_resume_from_cache(tmp_path):
     out = tmp_path / "figures"
     env = _store_sharing_renders(tmp_path / "cache")
-    # fig4 (fig2 reuses fig10's step-edge renders and can finish before the interrupt lands) is still
-    # running when the interrupt arrives; its paper cases alone (--preset paper) keep the resume cheap.
-    cmd = [sys.executable, "-m", "repro.figures", "fig10", "fig4", "--quick", "--preset", "paper", "--workers", "1",
+    # The photos figure's paper map of coffee (seconds; --preset paper: one map, magnified by two renderers)
+    # is still being computed when the interrupt arrives, right after fig10's files are written.
+    cmd = [sys.executable, "-m", "repro.figures", "fig10", "photos", "--quick", "--preset", "paper", "--workers", "1",
            "--out", str(out)]
     # A shell starts the command with SIGINT at its default; in a full test session an earlier test's
     # library can leave SIGINT ignored in this process, which a child would inherit (seen in CI-like runs).
@@ -109,11 +109,11 @@ def test_figures_ctrl_c_then_resume_from_cache(tmp_path):
     err = b"".join(chunks).decode(errors="replace")
     assert proc.returncode == 130, f"not interrupted (exit {proc.returncode}): {err[-2000:]}"
     assert "Traceback" not in err
-    assert not (out / "fig4.metrics.json").exists() or (out / "fig4.png").exists()
+    assert not (out / "photos.metrics.json").exists() or (out / "photos.png").exists()
     assert not [p for p in out.iterdir() if ".tmp" in p.name], "half-written figure files left behind"
     again = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=WAIT_S)
     assert again.returncode == 0, again.stderr[-2000:]
     assert "fig10: cached" in again.stdout
-    assert "fig4: computed" in again.stdout
-    for name in ("fig4", "fig10"):
+    assert "photos: computed" in again.stdout
+    for name in ("photos", "fig10"):
         assert (out / f"{name}.png").stat().st_size > 1000

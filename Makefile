@@ -57,9 +57,9 @@ report: setup
 	$(BIN)/python -m repro.report
 
 test: setup
-	$(BIN)/python -m pytest -n $(PYTEST_WORKERS) --dist loadgroup --durations=15 $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -n $(PYTEST_WORKERS) --dist loadgroup --durations=15 --cpu-durations=25 $(PYTEST_ARGS)
 
-# Everything that neither renders nor is slow (docs/test-suite.md): under 90 s with a warm numba cache.
+# Everything that neither renders nor is slow (docs/testing.md): under 90 s with a warm numba cache.
 test-fast: setup
 	$(BIN)/python -m pytest -n $(PYTEST_WORKERS) --dist loadgroup -m "not slow and not render" --durations=15 $(PYTEST_ARGS)
 

@@ -31,7 +31,8 @@ import numpy as np
 
 from .registry import Figure
 
-__all__ = ["FIGURE", "FULL", "MIN_CROP_PX", "QUICK", "PhotosConfig", "border_crop", "cases", "compute_case", "photo_view"]
+__all__ = ["FIGURE", "FULL", "MIN_CROP_PX", "QUICK", "PhotosConfig", "border_crop", "case_key_config", "cases", "compute_case",
+           "photo_view"]
 
 #: Smallest side of the border crop, px.
 MIN_CROP_PX = 48
@@ -127,6 +128,17 @@ def cases(config: PhotosConfig) -> tuple:
     return tuple(out)
 
 
+def case_key_config(config: PhotosConfig, case) -> dict:
+    """The fields of ``config`` one case of :func:`cases` reads (its cache key's config): the region files'
+    digest; a magnified case also ``factor`` and ``kernel`` (photo, preset and renderer are the case's own
+    fields, the map it magnifies is in its ``needs``). A photo's cases are then shared by every config that
+    lists it (the quick config's coffee is the full config's)."""
+    key = {"regions_digest": config.regions_digest}
+    if case.variant != "map":
+        key.update(factor=config.factor, kernel=config.kernel)
+    return key
+
+
 def compute_case(config: PhotosConfig, case, inputs) -> dict:
     """One case of :func:`cases`.
 
@@ -215,7 +227,7 @@ FIGURE = Figure(
           "magnified result",
     plot="experiments.plotting.photos:plot",
     configs={"quick": QUICK, "full": FULL},
-    cases_fn=cases, case_fn=compute_case, version=3,
+    cases_fn=cases, case_fn=compute_case, version=3, key_config=case_key_config,
     sigma_convention="Gaussian sigma of the estimated blur, px of the photo (no ground truth)",
     renders=False,
 )

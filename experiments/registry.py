@@ -64,6 +64,11 @@ class Figure:
     renders : bool
         Whether it renders with Mitsuba; if so the Mitsuba variant is part of the cache key
         (variants draw different sample streams).
+    key_config : callable, optional
+        ``key_config(config, case) -> dict``: the fields of ``config`` one case reads (plus anything else
+        that shapes its numbers), put in the case's cache key instead of the whole config, so a case is the
+        same stored case in every config that gives it (e.g. one photo of the quick and of the full config).
+        Default: the whole config.
     """
 
     name: str
@@ -76,6 +81,7 @@ class Figure:
     version: int = 1
     sigma_convention: str = "line_spread: sigma = sqrt((c/4)^2 + sigma_filter^2), px"
     renders: bool = True
+    key_config: Callable | None = None
 
     def __post_init__(self):
         for mode in ("quick", "full"):

@@ -24,6 +24,11 @@ def pytest_addoption(parser):
         help="rewrite tests/golden/*.json from this run instead of comparing (review the diff!)",
     )
     parser.addoption(
+        "--cpu-durations", type=int, default=None, metavar="N",
+        help="list the N tests that used the most CPU seconds (user + system of the pytest process and of its "
+             "finished subprocesses, per phase; a shared fixture counts in the test that built it) and the total",
+    )
+    parser.addoption(
         "--regen-references", action="store_true", default=False,
         help="rewrite the rendered reference EXRs in tests/references/ from this run (review them!)",
     )
@@ -61,6 +66,16 @@ def quick_table(quick_figure):
     return Results([r for name in CLAIM_FIGURES for r in rows[name]])
 
 
+@pytest.fixture(scope="session")
+def photo_scores():
+    """Every shipped photo × scored preset's region scores, ``{"<photo>.<preset>.<key>": value}``
+    (:func:`tests.test_photo_scores.current_scores`): the photos figure's map cases, computed through the
+    case store once per session (the photos figure test reads its coffee maps from the same stored cases)."""
+    from tests.test_photo_scores import current_scores
+
+    return current_scores()
+
+
 @pytest.fixture
 def goldens(request):
     """Golden-number checker (see tests/golden.py)."""
@@ -71,7 +86,7 @@ def goldens(request):
 
 # --- which tests read renders: the `render` marker, checked -------------------------------------------
 #: Set to a file path to append "<nodeid>\t<what>" for every render or figure-cache access of a test
-#: (how the `render` markers were found; see docs/test-suite.md).
+#: (how the `render` markers were found; see docs/testing.md).
 RENDER_LOG_ENV = "DEFOCUS_TEST_RENDER_LOG"
 _current = {"item": None, "figure_depth": [], "fixtures": []}
 
@@ -123,12 +138,15 @@ def _watch_render_cache():
     defocus_cache.Cache.get_or_build = real
 
 
-@pytest.hookimpl(tryfirst=True)
+@pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_setup(item):
     _current["item"] = item
+    yield from _timed_phase(item, "setup")
 
 
+@pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_teardown(item):
+    yield from _timed_phase(item, "teardown")
     _current["item"] = None
 
 
@@ -159,3 +177,44 @@ def pytest_collection_modifyitems(config, items):
                     shared = True
         if shared:
             item.add_marker(pytest.mark.xdist_group(item.nodeid.split("::")[0]))
+
+
+# --- CPU seconds per test: --cpu-durations=N (docs/testing.md) ------------------------------------------
+def _cpu_seconds() -> float:
+    """User + system CPU seconds of this process and of its subprocesses that have finished."""
+    t = os.times()
+    return t.user + t.system + t.children_user + t.children_system
+
+
+def _timed_phase(item, when):
+    t0 = _cpu_seconds()
+    yield
+    item.user_properties.append((f"cpu_{when}", _cpu_seconds() - t0))  # sent with the report (pytest-xdist too)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_call(item):
+    yield from _timed_phase(item, "call")
+
+
+_cpu_by_test: dict = {}
+
+
+def pytest_runtest_logreport(report):
+    for name, value in getattr(report, "user_properties", ()):
+        if name == f"cpu_{report.when}":
+            _cpu_by_test.setdefault(report.nodeid, {})[report.when] = float(value)
+
+
+def pytest_terminal_summary(terminalreporter, config):
+    n = config.getoption("--cpu-durations")
+    if n is None or not _cpu_by_test:
+        return
+    tr = terminalreporter
+    total = {k: sum(v.values()) for k, v in _cpu_by_test.items()}
+    tr.write_sep("=", f"{n} tests with the most CPU seconds (setup + call + teardown, subprocesses included)")
+    for nodeid in sorted(total, key=total.get, reverse=True)[:n]:
+        phases = _cpu_by_test[nodeid]
+        detail = ", ".join(f"{w} {phases[w]:.1f}" for w in ("setup", "call", "teardown") if phases.get(w, 0) >= 0.05)
+        tr.write_line(f"{total[nodeid]:8.1f} s  {nodeid}  ({detail})")
+    tr.write_line(f"{sum(total.values()):8.1f} s  in all {len(total)} tests")

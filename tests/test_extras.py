@@ -294,12 +294,14 @@ def test_core_install_in_a_fresh_venv_estimates_and_names_the_extras(tmp_path):
     from repro.photo_io import write_photo
 
     venv = tmp_path / "venv"
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=300)
+    # No pip of its own (ensurepip: 6 CPU-s): this environment's pip installs into
+    # it and lists it (``pip --python``).
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(venv)], check=True, timeout=300)
     py = venv / "bin" / "python"
-    subprocess.run([str(py), "-m", "pip", "install", "-q", "-e", str(ROOT)], check=True, timeout=1200,
-                   cwd=tmp_path, capture_output=True)
-    listed = subprocess.run([str(py), "-m", "pip", "list", "--format", "json"], check=True, capture_output=True,
-                            text=True).stdout
+    pip = [sys.executable, "-m", "pip", "--python", str(py)]
+    subprocess.run([*pip, "install", "-q", "-e", str(ROOT)], check=True, timeout=1200, cwd=tmp_path,
+                   capture_output=True)
+    listed = subprocess.run([*pip, "list", "--format", "json"], check=True, capture_output=True, text=True).stdout
     names = {d["name"].lower() for d in json.loads(listed)}
     assert not names & {"mitsuba", "drjit", "dask", "distributed", "pyarrow"}, names
     photo = write_photo(tmp_path / "photo.png", data.astronaut()[::4, ::4] / 255.0)

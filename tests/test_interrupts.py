@@ -59,14 +59,29 @@ def test_killed_render_is_rebuilt_and_out_never_half_written(tmp_path):
     assert not list(tmp_path.glob(".render.exr*")), "temporary output files left behind"
 
 
+def _store_sharing_renders(folder: Path) -> dict:
+    """The environment of a subprocess with a case store of its own in ``folder`` whose renders, Mitsuba
+    variant probes and Dr.Jit kernels are the session's (content-keyed, file-locked): the figures are computed
+    afresh, the renders are read (or made once for every test that needs them)."""
+    from scenes.backend import cache_root
+    from tests.test_sweep import _own_store
+
+    shared = cache_root()
+    env = _own_store({**os.environ, "DEFOCUS_CACHE_DIR": str(shared)}, folder)
+    env.setdefault("DRJIT_CACHE_DIR", str(shared / "drjit"))
+    return env
+
+
 def test_figures_ctrl_c_then_resume_from_cache(tmp_path):
-    cache, out = tmp_path / "cache", tmp_path / "figures"
-    # fig4 renders its own scenes (fig2 reuses fig10's step-edge renders and can finish before the
-    # interrupt lands), so it is still running when the interrupt arrives.
-    cmd = [sys.executable, "-m", "repro.figures", "fig10", "fig4", "--quick", "--workers", "1", "--out", str(out)]
+    out = tmp_path / "figures"
+    env = _store_sharing_renders(tmp_path / "cache")
+    # The photos figure's paper map of coffee (seconds; --preset paper: one map, magnified by two renderers)
+    # is still being computed when the interrupt arrives, right after fig10's files are written.
+    cmd = [sys.executable, "-m", "repro.figures", "fig10", "photos", "--quick", "--preset", "paper", "--workers", "1",
+           "--out", str(out)]
     # A shell starts the command with SIGINT at its default; in a full test session an earlier test's
     # library can leave SIGINT ignored in this process, which a child would inherit (seen in CI-like runs).
-    proc = subprocess.Popen(cmd, cwd=ROOT, env=_env(cache), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     chunks = []  # stderr as it arrives (tqdm writes without newlines), read by a thread
     reader = threading.Thread(target=lambda: chunks.extend(iter(lambda: os.read(proc.stderr.fileno(), 4096), b"")),
@@ -94,11 +109,11 @@ def test_figures_ctrl_c_then_resume_from_cache(tmp_path):
     err = b"".join(chunks).decode(errors="replace")
     assert proc.returncode == 130, f"not interrupted (exit {proc.returncode}): {err[-2000:]}"
     assert "Traceback" not in err
-    assert not (out / "fig4.metrics.json").exists() or (out / "fig4.png").exists()
+    assert not (out / "photos.metrics.json").exists() or (out / "photos.png").exists()
     assert not [p for p in out.iterdir() if ".tmp" in p.name], "half-written figure files left behind"
-    again = subprocess.run(cmd, cwd=ROOT, env=_env(cache), capture_output=True, text=True, timeout=WAIT_S)
+    again = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=WAIT_S)
     assert again.returncode == 0, again.stderr[-2000:]
     assert "fig10: cached" in again.stdout
-    assert "fig4: computed" in again.stdout
-    for name in ("fig4", "fig10"):
+    assert "photos: computed" in again.stdout
+    for name in ("photos", "fig10"):
         assert (out / f"{name}.png").stat().st_size > 1000

@@ -34,7 +34,10 @@ def test_photos_figure_is_registered_with_the_scored_presets():
 
 @pytest.mark.slow
 def test_photos_figure_quick_computes_scores_and_plots(tmp_path):
-    """Quick config (coffee, every preset): arrays, scores equal to score_photo of the stored maps, PNG + PDF."""
+    """Quick config (coffee, every preset): arrays, scores equal to score_photo of the stored maps, PNG + PDF.
+
+    Through the session's case store: the coffee maps are the photo-score golden's cases (a case is keyed by
+    the fields it reads, not the whole config), computed by whichever test comes first."""
     from experiments.figS2_photos import photo_view
     from experiments.figure_data import run_figure
     from experiments.registry import FIGURES
@@ -43,7 +46,7 @@ def test_photos_figure_quick_computes_scores_and_plots(tmp_path):
 
     fig = FIGURES["photos"]
     config = fig.config("quick")
-    fd = run_figure(fig, config, cache_dir=tmp_path / "cache")
+    fd = run_figure(fig, config)
     data = photo_view(fd)
 
     class res:  # noqa: N801 - the view's metrics as the assertions below read them
@@ -68,21 +71,50 @@ def test_photos_figure_quick_computes_scores_and_plots(tmp_path):
 
 
 def test_an_edited_region_file_changes_the_cache_key(tmp_path, monkeypatch):
-    """The code fingerprint covers .py files only; the config's regions digest covers the region files."""
+    """The code fingerprint covers .py files only; the config's regions digest covers the region files
+    (in the figure's key and in every case's)."""
     import shutil
 
     from experiments import figS2_photos, photo_regions
     from experiments.cache_keys import cache_key
+    from experiments.cases import case_key
     from experiments.registry import FIGURES
 
-    before = cache_key(FIGURES["photos"], figS2_photos.PhotosConfig())
+    fig = FIGURES["photos"]
+
+    def keys():
+        config = figS2_photos.PhotosConfig()
+        return cache_key(fig, config), [case_key(fig, config, c) for c in fig.cases(config)]
+
+    before = keys()
     for p in photo_regions.PHOTO_DIR.glob("*.json"):
         shutil.copy(p, tmp_path / p.name)
     monkeypatch.setattr(photo_regions, "PHOTO_DIR", tmp_path)
-    assert cache_key(FIGURES["photos"], figS2_photos.PhotosConfig()) == before  # same files, same key
+    assert keys() == before  # same files, same keys
     doc = (tmp_path / "coffee.json").read_text().replace('"why": "the cup', '"why": "The cup')
     (tmp_path / "coffee.json").write_text(doc)
-    assert cache_key(FIGURES["photos"], figS2_photos.PhotosConfig()) != before
+    after = keys()
+    assert after[0] != before[0]
+    assert all(a != b for a, b in zip(after[1], before[1], strict=True))
+
+
+def test_a_photo_case_is_keyed_by_the_fields_it_reads():
+    """The quick config's coffee cases are the full config's (same keys); a field a case reads moves its key:
+    the magnification factor moves the magnified cases' keys and not the maps'."""
+    import dataclasses
+
+    from experiments.cases import case_key
+    from experiments.registry import FIGURES
+
+    fig = FIGURES["photos"]
+    quick, full = fig.config("quick"), fig.config("full")
+    full_keys = {c: case_key(fig, full, c) for c in fig.cases(full)}
+    for c in fig.cases(quick):
+        assert case_key(fig, quick, c) == full_keys[c], c.label
+    doubled = dataclasses.replace(quick, factor=4.0)
+    for c in fig.cases(quick):
+        moved = case_key(fig, doubled, c) != case_key(fig, quick, c)
+        assert moved == (c.variant != "map"), c.label
 
 
 def test_border_crop_sits_on_the_sharp_subjects_outline_where_the_map_jumps():

@@ -59,9 +59,9 @@ def _flat_scores(scores: dict) -> dict:
 def current_scores(*, cached: bool = True) -> dict:
     """Today's flat scores of every shipped photo × :data:`experiments.photo_regions.SCORE_PRESETS`.
 
-    ``cached``: through the ``photos`` figure's cache (its full config; keyed by the code fingerprint,
-    so an edit of the method recomputes); else computed afresh by
-    :func:`experiments.photo_regions.score_presets`.
+    ``cached``: the ``photos`` figure's map cases through the case store (keyed by the fields a case reads
+    and the code fingerprint, so an edit of the method recomputes, and the photos figure test's coffee maps
+    are the same stored cases); else computed afresh by :func:`experiments.photo_regions.score_presets`.
     """
     import dataclasses
 
@@ -69,13 +69,16 @@ def current_scores(*, cached: bool = True) -> dict:
 
     if not cached:
         return _flat_scores(score_presets(available_photos(), SCORE_PRESETS))
-    from experiments.figS2_photos import photo_view
-    from experiments.figure_data import run_figure
+    from experiments.cases import run_cases
     from experiments.registry import FIGURES
 
     fig = FIGURES["photos"]
     config = dataclasses.replace(fig.config("full"), photos=available_photos(), presets=SCORE_PRESETS)
-    return _flat_scores(photo_view(run_figure(fig, config))["metrics"]["photos"])
+    maps = run_cases(fig, config, [c for c in fig.cases(config) if c.variant == "map"])
+    per_photo: dict = {}
+    for o in maps.values():
+        per_photo.setdefault(o.case.scene, {})[o.case.preset] = o.metrics
+    return _flat_scores(per_photo)
 
 
 def compare(flat: dict, doc: dict) -> list[str]:
@@ -99,8 +102,8 @@ def _atomic_json(path: Path, obj) -> None:
 
 
 @pytest.mark.slow
-def test_photo_scores_match_the_golden(request):
-    flat = current_scores()
+def test_photo_scores_match_the_golden(request, photo_scores):
+    flat = photo_scores
     assert flat and all(math.isfinite(v) for v in flat.values()), flat
     if request.config.getoption("--regen-goldens"):
         doc = json.loads(GOLDEN.read_text()) if GOLDEN.exists() else None

@@ -53,7 +53,7 @@ def test_paper_preset_is_the_default():
 #: tests/golden/): a hash of float64 bytes differs between CPUs of one library stack. The arrays were
 #: written on the current code; on that machine the code *before* the presets and the beyond-the-paper
 #: switches were added (e1ae76b) gives the same sparse and refined maps bit for bit and a dense map
-#: within 2.5e-14 px (docs/test-suite.md), far inside the tolerance.
+#: within 2.5e-14 px (docs/testing.md), far inside the tolerance.
 
 
 @pytest.fixture(scope="module")

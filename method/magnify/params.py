@@ -29,8 +29,9 @@ class MagnifyParams:
     # how Sec. 5's "clamp its minimum value to 0" is read (key of
     # method.magnify.magnification.MAP_FLOOR_MODES): "clamp" = max(σ, 0) px, the literal reading (keeps
     # the in-focus floor σ ≈ 0.3–0.7 px, which magnification then enlarges); "subtract" = remove the
-    # lower-percentile value p_lo px in quadrature, √(max(σ² − p_lo², 0)), so sharp regions stay sharp;
-    # "shift" = max(σ − p_lo, 0).
+    # lower-percentile value p_lo px in quadrature, √(max(σ² − p_lo², 0)); "shift" = max(σ − p_lo, 0);
+    # "auto" = the in-focus floor estimated per photo from the smoothed map, no blur added within its
+    # uncertainty, growing smoothly above (method.magnify.map_floor.soft_floor), so sharp regions stay sharp.
 
     def __post_init__(self):
         require_field(self, "map_clip_percent", 0 <= self.map_clip_percent < 50, "0 <= p < 50")

@@ -120,3 +120,11 @@ def test_given_map_without_preprocessing_takes_the_subject_too(rng):
 def test_presets_floor():
     assert DefocusParams.preset("robust").map_floor == "auto"
     assert DefocusParams.preset("paper").map_floor == "clamp"
+
+
+def test_preset_renderers_agree_with_the_command_line():
+    """The renderer each preset names is the one repro.magnify uses without --renderer."""
+    from repro import magnify
+
+    assert DefocusParams.preset("robust").magnify_renderer == magnify.DEFAULT_RENDERER == "scatter"
+    assert DefocusParams.preset("paper").magnify_renderer == magnify.PAPER_RENDERER == "gather"

@@ -33,8 +33,14 @@ from ..validation import validate_map
 __all__ = ["FloorEstimate", "MAP_FLOOR_MODES", "estimate_floor", "keep_sharp_weight", "preprocess_defocus_map",
            "soft_floor"]
 
-#: Share of the map's pixels taken as its sharpest part when the floor is estimated, %.
-SHARPEST_SHARE_PERCENT = 10.0
+#: The density of log σ the floor is read from (:func:`estimate_floor`): bins, smoothing (bins), the
+#: height of the in-focus mode relative to the highest one, the density (relative to the mode's peak)
+#: below which the mode has ended, the largest threshold relative to the floor.
+DENSITY_BINS = 64
+DENSITY_SMOOTHING_BINS = 1.5
+MODE_MIN_HEIGHT = 0.25
+VALLEY_HEIGHT = 0.1
+MAX_THRESHOLD_RATIO = 2.0
 #: Smallest uncertainty of an estimated floor, as a fraction of the floor (and at least MIN_UNCERTAINTY_PX).
 MIN_UNCERTAINTY_REL = 0.15
 MIN_UNCERTAINTY_PX = 0.05
@@ -113,17 +119,31 @@ def estimate_floor(m) -> FloorEstimate:
     Returns
     -------
     FloorEstimate
-        f = the median of the sharpest :data:`SHARPEST_SHARE_PERCENT` % of the pixels, u = the
-        spread of that part (1.4826 × its median absolute deviation from f, times 2, so that the
-        sharp mode's upper half lies within f + u), at least max(:data:`MIN_UNCERTAINTY_REL`·f,
-        :data:`MIN_UNCERTAINTY_PX`) px.
+        The density of log σ (a histogram of :data:`DENSITY_BINS` bins between the 0.5th and 99.5th
+        percentiles, smoothed by a Gaussian of :data:`DENSITY_SMOOTHING_BINS` bins) is read from the
+        sharp end: its first peak holding at least :data:`MODE_MIN_HEIGHT` of the highest one is the
+        in-focus mode, and the first minimum after it (the valley before the next mode, or where the
+        density falls below :data:`VALLEY_HEIGHT` of the peak) its upper end e. The floor f is the
+        median of the pixels ≤ e; the uncertainty u = min(e, :data:`MAX_THRESHOLD_RATIO`·f) − f, at least
+        max(:data:`MIN_UNCERTAINTY_REL`·f, :data:`MIN_UNCERTAINTY_PX`) px: pixels of the in-focus mode
+        get no extra blur. A map without spread (constant) gives f = its value.
     """
     v = np.asarray(m, dtype=np.float64).ravel()
-    cut = np.percentile(v, SHARPEST_SHARE_PERCENT)
-    low = v[v <= cut]
-    f = float(np.median(low))
-    spread = 2.0 * 1.4826 * float(np.median(np.abs(low - f)))
-    return FloorEstimate(f, _uncertainty(f, spread))
+    x = np.log(np.maximum(v, MIN_UNCERTAINTY_PX))
+    lo, hi = np.percentile(x, [0.5, 99.5])
+    if not hi > lo:
+        f = float(np.median(v))
+        return FloorEstimate(f, _uncertainty(f, 0.0))
+    hist, edges = np.histogram(np.clip(x, lo, hi), bins=DENSITY_BINS, range=(lo, hi))
+    dens = ndimage.gaussian_filter1d(hist.astype(np.float64), DENSITY_SMOOTHING_BINS, mode="nearest")
+    is_peak = (dens >= np.r_[-1.0, dens[:-1]]) & (dens >= np.r_[dens[1:], -1.0]) & (dens >= MODE_MIN_HEIGHT * dens.max())
+    ip = int(np.argmax(is_peak))
+    iv = ip
+    while iv + 1 < len(dens) and dens[iv + 1] <= dens[iv] and dens[iv] > VALLEY_HEIGHT * dens[ip]:
+        iv += 1
+    end = float(np.exp(edges[iv + 1]))
+    f = float(np.median(v[v <= end]))
+    return FloorEstimate(f, _uncertainty(f, min(end, MAX_THRESHOLD_RATIO * f) - f))
 
 
 def _check_focus_point(focus_point, shape):

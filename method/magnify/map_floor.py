@@ -34,13 +34,14 @@ __all__ = ["FloorEstimate", "MAP_FLOOR_MODES", "estimate_floor", "keep_sharp_wei
            "soft_floor"]
 
 #: The density of log σ the floor is read from (:func:`estimate_floor`): bins, smoothing (bins), the
-#: height of the in-focus mode relative to the highest one, the density (relative to the mode's peak)
-#: below which the mode has ended, the largest threshold relative to the floor.
+#: height of the in-focus mode relative to the highest one, the largest threshold relative to the floor.
 DENSITY_BINS = 64
-DENSITY_SMOOTHING_BINS = 1.5
+#: Values at or below this σ are left out of the density, px: below the pixel filter's own σ (1/√12 px) no
+#: lens image reads, so they are the estimate's undershoots, not a mode of the scene.
+MIN_DENSITY_SIGMA_PX = 0.25
+DENSITY_SMOOTHING_BINS = 3.0
 MODE_MIN_HEIGHT = 0.25
-VALLEY_HEIGHT = 0.1
-MAX_THRESHOLD_RATIO = 2.0
+MAX_THRESHOLD_RATIO = 3.0
 #: Smallest uncertainty of an estimated floor, as a fraction of the floor (and at least MIN_UNCERTAINTY_PX).
 MIN_UNCERTAINTY_REL = 0.15
 MIN_UNCERTAINTY_PX = 0.05
@@ -121,16 +122,16 @@ def estimate_floor(m) -> FloorEstimate:
     FloorEstimate
         The density of log σ (a histogram of :data:`DENSITY_BINS` bins between the 0.5th and 99.5th
         percentiles, smoothed by a Gaussian of :data:`DENSITY_SMOOTHING_BINS` bins) is read from the
-        sharp end: its first peak holding at least :data:`MODE_MIN_HEIGHT` of the highest one is the
-        in-focus mode, and the first minimum after it (the valley before the next mode, or where the
-        density falls below :data:`VALLEY_HEIGHT` of the peak) its upper end e. The floor f is the
-        median of the pixels ≤ e; the uncertainty u = min(e, :data:`MAX_THRESHOLD_RATIO`·f) − f, at least
+        sharp end (values ≤ :data:`MIN_DENSITY_SIGMA_PX` left out): its first peak holding at least
+        :data:`MODE_MIN_HEIGHT` of the highest one is the in-focus mode, and the first minimum after it
+        (the valley before the next mode) its upper end e. The floor f is the median of the pixels ≤ e;
+        the uncertainty u = min(e, :data:`MAX_THRESHOLD_RATIO`·f) − f, at least
         max(:data:`MIN_UNCERTAINTY_REL`·f, :data:`MIN_UNCERTAINTY_PX`) px: pixels of the in-focus mode
         get no extra blur. A map without spread (constant) gives f = its value.
     """
     v = np.asarray(m, dtype=np.float64).ravel()
-    x = np.log(np.maximum(v, MIN_UNCERTAINTY_PX))
-    lo, hi = np.percentile(x, [0.5, 99.5])
+    x = np.log(v[v > MIN_DENSITY_SIGMA_PX])
+    lo, hi = np.percentile(x, [0.5, 99.5]) if x.size else (0.0, 0.0)
     if not hi > lo:
         f = float(np.median(v))
         return FloorEstimate(f, _uncertainty(f, 0.0))
@@ -139,7 +140,7 @@ def estimate_floor(m) -> FloorEstimate:
     is_peak = (dens >= np.r_[-1.0, dens[:-1]]) & (dens >= np.r_[dens[1:], -1.0]) & (dens >= MODE_MIN_HEIGHT * dens.max())
     ip = int(np.argmax(is_peak))
     iv = ip
-    while iv + 1 < len(dens) and dens[iv + 1] <= dens[iv] and dens[iv] > VALLEY_HEIGHT * dens[ip]:
+    while iv + 1 < len(dens) and dens[iv + 1] <= dens[iv]:
         iv += 1
     end = float(np.exp(edges[iv + 1]))
     f = float(np.median(v[v <= end]))

@@ -140,7 +140,7 @@ def estimate_floor(m) -> FloorEstimate:
     is_peak = (dens >= np.r_[-1.0, dens[:-1]]) & (dens >= np.r_[dens[1:], -1.0]) & (dens >= MODE_MIN_HEIGHT * dens.max())
     ip = int(np.argmax(is_peak))
     iv = ip
-    while iv + 1 < len(dens) and dens[iv + 1] <= dens[iv]:
+    while iv + 1 < len(dens) and dens[iv + 1] < dens[iv]:
         iv += 1
     end = float(np.exp(edges[iv + 1]))
     f = float(np.median(v[v <= end]))

@@ -156,5 +156,6 @@ def magnify_markdown(report: dict) -> str:
     s = report.get("speed_12mp")
     if s is not None:
         lines += ["", f"12-MP magnification ({s['renderer']}, {s['shape'][1]}×{s['shape'][0]}): "
-                  f"{s['magnify_s']:.1f} s ({_mark(s['meets_target'])})"]
+                  f"{s['magnify_s']:.1f} s ({_mark(s['meets_target'])}; 1-min load {s['load1'][0]:.1f} → "
+                  f"{s['load1'][1]:.1f} on this machine's cores)"]
     return "\n".join(lines)

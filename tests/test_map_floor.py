@@ -129,3 +129,12 @@ def test_preset_renderers_agree_with_the_command_line():
 
     assert DefocusParams.preset("robust").magnify_renderer == magnify.DEFAULT_RENDERER == "scatter"
     assert DefocusParams.preset("paper").magnify_renderer == magnify.PAPER_RENDERER == "gather"
+
+
+def test_a_wide_sharp_half_beside_a_narrow_blurry_mode(rng):
+    """The blurry background's mode is the highest of the density; the floor is still read in the sharper half."""
+    m = np.full((60, 120), 2.4) + 0.05 * rng.standard_normal((60, 120))
+    m[:, :60] = rng.uniform(0.3, 1.2, (60, 60))
+    est = estimate_floor(m)
+    assert est.threshold < 1.2
+    assert np.all(soft_floor(m[:, 60:], est) > 1.5)

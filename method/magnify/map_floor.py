@@ -122,8 +122,9 @@ def estimate_floor(m) -> FloorEstimate:
     FloorEstimate
         The density of log σ (a histogram of :data:`DENSITY_BINS` bins between the 0.5th and 99.5th
         percentiles, smoothed by a Gaussian of :data:`DENSITY_SMOOTHING_BINS` bins) is read from the
-        sharp end (values ≤ :data:`MIN_DENSITY_SIGMA_PX` left out): its first peak holding at least
-        :data:`MODE_MIN_HEIGHT` of the highest one is the in-focus mode, and the first minimum after it
+        sharp end (values ≤ :data:`MIN_DENSITY_SIGMA_PX` left out): its first peak at or below the
+        median holding at least :data:`MODE_MIN_HEIGHT` of the highest one there is the in-focus mode
+        (a blurry background's mode may be the highest of all), and the first minimum after it
         (the valley before the next mode) its upper end e. The floor f is the median of the pixels ≤ e;
         the uncertainty u = min(e, :data:`MAX_THRESHOLD_RATIO`·f) − f, at least
         max(:data:`MIN_UNCERTAINTY_REL`·f, :data:`MIN_UNCERTAINTY_PX`) px: pixels of the in-focus mode
@@ -137,8 +138,12 @@ def estimate_floor(m) -> FloorEstimate:
         return FloorEstimate(f, _uncertainty(f, 0.0))
     hist, edges = np.histogram(np.clip(x, lo, hi), bins=DENSITY_BINS, range=(lo, hi))
     dens = ndimage.gaussian_filter1d(hist.astype(np.float64), DENSITY_SMOOTHING_BINS, mode="nearest")
-    is_peak = (dens >= np.r_[-1.0, dens[:-1]]) & (dens >= np.r_[dens[1:], -1.0]) & (dens >= MODE_MIN_HEIGHT * dens.max())
-    ip = int(np.argmax(is_peak))
+    # the in-focus mode lies in the sharper half of the map (a blurry background mode may be the highest)
+    sharp_half = (edges[:-1] + edges[1:]) / 2 <= np.median(x)
+    sharp_half[0] = True
+    top = dens[sharp_half].max()
+    is_peak = (dens >= np.r_[-1.0, dens[:-1]]) & (dens >= np.r_[dens[1:], -1.0]) & (dens >= MODE_MIN_HEIGHT * top)
+    ip = int(np.argmax(is_peak & sharp_half)) if np.any(is_peak & sharp_half) else 0
     iv = ip
     while iv + 1 < len(dens) and dens[iv + 1] < dens[iv]:
         iv += 1

@@ -30,8 +30,8 @@ from scipy import ndimage
 from ..registry import Entry, Registry
 from ..validation import validate_map
 
-__all__ = ["FloorEstimate", "MAP_FLOOR_MODES", "estimate_floor", "keep_sharp_weight", "preprocess_defocus_map",
-           "soft_floor"]
+__all__ = ["FloorEstimate", "MAP_FLOOR_MODES", "estimate_floor", "floor_at_point", "keep_sharp_weight",
+           "preprocess_defocus_map", "soft_floor"]
 
 #: The density of log σ the floor is read from (:func:`estimate_floor`): bins, smoothing (bins), the
 #: height of the in-focus mode relative to the highest one, the largest threshold relative to the floor.

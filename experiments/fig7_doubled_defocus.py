@@ -37,7 +37,9 @@ Notes
    gather blur spreads a sharp subject over the blurry background behind it and the background over
    the subject's edge, a lens does not. Regional SSIM is the mean of scikit-image's SSIM map
    (averaged over channels) over the region.
-5. The same magnification with the other reading of Sec. 5's "clamp its minimum value to 0"
+5. The preset's own magnification (``magnified_estimated_default``: its ``magnify_renderer`` and
+   ``map_floor``, what a user of the preset gets; the gather + ``"clamp"`` row for the paper preset,
+   named by the flags ``default_magnification/renderer_<name>`` and ``floor_<mode>``), and the same magnification with the other reading of Sec. 5's "clamp its minimum value to 0"
    (``magnified_estimated_subtract``, ``floor="subtract"`` of :func:`method.magnify_defocus`): the
    map's lower-percentile value p_lo (its in-focus floor, reported as ``map_floor_px``) is removed
    in quadrature before smoothing, so pixels at the floor get no extra blur.
@@ -290,7 +292,7 @@ def _estimated_case(pair: _RenderedPair, params, config) -> tuple[dict, dict, di
     -------
     (dict, dict, dict)
         Arrays ``map_small``, ``map_large``, ``magnified<sx>`` (per renderer, :func:`_suffix`),
-        ``magnified_subtract``, ``map_small_subtract``; the preset's metrics (see :func:`compute_case`);
+        ``magnified_subtract``, ``magnified_default``, ``map_small_subtract``; the preset's metrics (see :func:`compute_case`);
         the seconds of the estimate and of each magnification.
     """
     from method.magnify.magnification import preprocess_defocus_map
@@ -323,6 +325,8 @@ def _estimated_case(pair: _RenderedPair, params, config) -> tuple[dict, dict, di
                                     smoothing=smooth, floor="subtract")
             quality["magnified_estimated_subtract"] = _score_image(mag_subtract, pair)
             arrays["magnified_subtract"] = mag_subtract
+    quality["magnified_estimated_default"], arrays["magnified_default"] = _default_row(
+        img_s, res_s.defocus_map, params, config, quality, arrays, pair)
     arrays["map_small_subtract"] = preprocess_defocus_map(res_s.defocus_map, clip_percent=clip, smoothing=smooth,
                                                           floor="subtract")
     map_floor_px = max(float(np.percentile(res_s.defocus_map, clip)), 0.0)  # p_lo, px
@@ -332,8 +336,23 @@ def _estimated_case(pair: _RenderedPair, params, config) -> tuple[dict, dict, di
         "k_x_map_small_vs_map_large": doubled_vs_map_large,
         "image_vs_large": quality,
         "map_floor_px": map_floor_px,
+        # flags (the results table holds numbers): renderer_<name> and floor_<mode> of the default row
+        "default_magnification": {f"renderer_{params.magnify_renderer}": True, f"floor_{params.map_floor}": True},
     }
     return arrays, metrics, seconds
+
+
+def _default_row(image, defocus_map, params, config, quality, arrays, pair):
+    """(scores, HxWx3 image) of the preset's own magnification (``params.magnify_renderer`` and
+    ``params.map_floor``): a row above when it is one of them (the gather + ``"clamp"`` row for the
+    paper preset), else magnified with them (no ``in_front``: the method knows no depth)."""
+    renderer, floor = params.magnify_renderer, params.map_floor
+    if floor == "clamp" and renderer in config.renderers:
+        sx = _suffix(renderer, config)
+        return quality[f"magnified_estimated{sx}"], arrays[f"magnified{sx}"]
+    mag = _magnify(image, defocus_map, config, renderer, clip_percent=params.map_clip_percent,
+                   smoothing=params.map_smoothing, floor=floor)
+    return _score_image(mag, pair), mag
 
 
 def cases(config: Fig7Config) -> tuple:
@@ -375,9 +394,9 @@ def compute_case(config: Fig7Config, case, inputs) -> dict:
         per renderer (HxWx3); metrics ``maps_vs_gt_large`` (the naive and the filter-aware doubled truth
         against σ_gt(f/4)), ``image_vs_large`` (``unchanged_small`` and the oracle rows), ``gt_range_px``
         and pixel counts (``in_front_pixels`` among them). A preset: arrays ``map_small``, ``map_large``, ``magnified<sx>``,
-        ``magnified_subtract``, ``map_small_subtract``; metrics ``maps_vs_gt_large`` (its maps),
+        ``magnified_subtract``, ``magnified_default``, ``map_small_subtract``; metrics ``maps_vs_gt_large`` (its maps),
         ``maps_vs_gt_small``, ``k_x_map_small_vs_map_large``, ``image_vs_large`` (its magnified rows),
-        ``map_floor_px`` (module Notes).
+        ``map_floor_px``, ``default_magnification`` (module Notes).
     """
     from method import DefocusParams
 
@@ -408,6 +427,6 @@ _UPPER_BOUND_NOTE = ("oracle map = defocus-only sigma c/4 = sqrt(sigma_gt^2 - si
 
 FIGURE = Figure(
     name="fig7", plot="experiments.plotting.fig7:plot", configs={"quick": QUICK, "full": FULL},
-    cases_fn=cases, case_fn=compute_case, version=7,
+    cases_fn=cases, case_fn=compute_case, version=8,
     title="Doubled defocus: f/8 render magnified x2 vs the real f/4 render (maps and images)",
 )

@@ -102,12 +102,17 @@ def cases(config: StagesConfig) -> tuple:
 
 
 def _ablation_rows() -> dict:
+    """One-switch-off rows of the robust preset's estimation switches (the magnification's leave the map alone)."""
+    import dataclasses
+
     from method import DefocusParams
+    from method.magnify.params import MagnifyParams
     from method.presets import ROBUST_CHANGES
 
     from .stage_attribution import ablation_params
 
-    return ablation_params(DefocusParams.preset("robust"), ROBUST_CHANGES)
+    magnify = {f.name for f in dataclasses.fields(MagnifyParams)}
+    return ablation_params(DefocusParams.preset("robust"), {k: v for k, v in ROBUST_CHANGES.items() if k not in magnify})
 
 
 def _image(config: StagesConfig, case):

@@ -14,7 +14,7 @@ Notes
    ``DefocusParams.preset(name)``.
 3. :func:`experiments.photo_regions.score_defocus_map` of each map.
 4. :func:`method.magnify_defocus` of the ``magnify_preset`` map with ``factor`` (Sec. 5 preprocessing
-   of the preset: ``map_clip_percent``, ``map_smoothing``), once per renderer of ``renderers``.
+   of the preset: ``map_clip_percent``, ``map_smoothing``, ``map_floor``), once per renderer of ``renderers``.
 5. A crop of a sharp subject's border (:func:`border_crop`): a square of side
    max(:data:`MIN_CROP_PX`, min(H, W) / 4) px centred on the pixel of the in-focus region's outline
    where the magnified map changes most (largest gradient magnitude of the map, Gaussian-smoothed
@@ -173,7 +173,8 @@ def compute_case(config: PhotosConfig, case, inputs) -> dict:
         warnings.simplefilter("ignore", RuntimeWarning)
         out = magnify_defocus(a["input"], a["map"], factor=config.factor, renderer=renderer,
                               kernel=config.kernel if "kernel" in caps else None,
-                              clip_percent=params.map_clip_percent, smoothing=params.map_smoothing)
+                              clip_percent=params.map_clip_percent, smoothing=params.map_smoothing,
+                              floor=params.map_floor)
     return {"arrays": {"magnified": out.astype(np.float32)},
             "info": {"seconds": time.perf_counter() - t0, "border_crop": list(border_crop(a["in_focus"], a["map"]))}}
 
@@ -227,7 +228,7 @@ FIGURE = Figure(
           "magnified result",
     plot="experiments.plotting.photos:plot",
     configs={"quick": QUICK, "full": FULL},
-    cases_fn=cases, case_fn=compute_case, version=3, key_config=case_key_config,
+    cases_fn=cases, case_fn=compute_case, version=4, key_config=case_key_config,
     sigma_convention="Gaussian sigma of the estimated blur, px of the photo (no ground truth)",
     renders=False,
 )

@@ -37,6 +37,10 @@ ROBUST_CHANGES: dict = {
     # curve makes a blurred step asymmetric). The region cue (region_estimator) was measured and left
     # out: it did not improve the lens bench, the renders and the real photos at once (docs/presets.md).
     "measure_light": "linear",
+    # magnification: the in-focus floor estimated per photo (the subject gets no extra blur), blurred by
+    # the scatter (occlusion, linear light); measured in docs/magnification.md
+    "map_floor": "auto",
+    "magnify_renderer": "scatter",
 }
 
 #: The region (spectral) cue as the robust preset fused it before it was judged on lens blur (Gaussian

@@ -27,6 +27,11 @@ steps blurred by a lens PSF in linear light, then a camera's noise and tone curv
 full grid. ``python -m repro.bench --ablation`` runs the robust preset's ablation on the lens bench, the
 paper_cameras renders and the real photos (:mod:`experiments.bench.ablation`; ``ablation.md``).
 
+``python -m repro.bench --magnify [--out report/bench]`` records the targets of the magnification as
+the robust preset does it by default (:mod:`experiments.bench.magnify_targets`: the paper_cameras full
+renders against the real f/4 render, the photos' drawn regions, the 12-MP scatter in a fresh process).
+Writes ``magnify.json`` and ``magnify.md``.
+
 ``python -m repro.bench --figures [--out report/bench]`` benchmarks the case runner
 (:func:`repro._figures_bench.run_figures_bench`): ``repro.figures --quick`` with every case recomputed
 (renders cached), 1 and 2 workers, the two tables compared row for row; ``figures_speed.json`` and
@@ -165,6 +170,9 @@ def _parser():
     parser.add_argument("--ablation", action="store_true",
                         help="run the robust preset's ablation on the lens bench, the paper_cameras renders (full "
                              "preset, f/8 f/4 f/2) and the real photos instead (ablation.md / ablation.json)")
+    parser.add_argument("--magnify", action="store_true",
+                        help="record the magnification targets (robust's default renderer and floor): "
+                             "magnify.json / magnify.md")
     parser.add_argument("--figures", action="store_true",
                         help="benchmark the case runner instead: repro.figures --quick (every case recomputed) with 1 "
                              "and 2 workers, tables compared (figures_speed.md / figures_speed.json)")
@@ -229,6 +237,18 @@ def main(argv=None) -> int:
         atomic_write_text(args.out / "ablation.json", json.dumps(report, indent=1, allow_nan=False, default=str))
         atomic_write_text(args.out / "ablation.md", ablation_markdown(report) + "\n")
         print((args.out / "ablation.md").read_text(encoding="utf-8"))
+        return 0
+    if args.magnify:
+        require_extras("render", command="repro.bench --magnify")
+        from defocus_cache import atomic_write_text
+        from experiments.bench.magnify_targets import magnify_markdown, magnify_report
+        from method import DefocusParams
+
+        report = magnify_report("robust", speed_row=_run_magnify(DefocusParams.preset("robust").magnify_renderer))
+        args.out.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(args.out / "magnify.json", json.dumps(report, indent=1, default=str))
+        atomic_write_text(args.out / "magnify.md", magnify_markdown(report) + "\n")
+        print((args.out / "magnify.md").read_text(encoding="utf-8"))
         return 0
     if args.figures:
         require_extras("sweep", "render", command="repro.bench --figures")

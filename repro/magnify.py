@@ -2,7 +2,7 @@
 ``factor`` × its estimated blur, as if shot with a ``factor``× wider aperture.
 
 ``python -m repro.magnify PHOTO --factor 2 [-o OUT.jpg] [--renderer gather|scatter] [--aperture disk|hexagon]
-[--kernel gaussian|disk] [--map MAP [--png-scale S]] [--save-map MAP.exr] [--floor clamp|subtract|shift]
+[--kernel gaussian|disk] [--map MAP [--png-scale S]] [--save-map MAP.exr] [--floor clamp|subtract|shift|auto]
 [--preset NAME] [--encoding NAME] [--focus-point X,Y] [--keep-sharp MASK] [--depth DEPTH]
 [--highlights [GAIN]] [--html PAGE.html]``
 
@@ -137,7 +137,9 @@ def _parser() -> ArgumentParser:
                         "sharp regions soften) or subtract (the map's lower-5%% value is removed in "
                         "quadrature, sqrt(max(σ² − floor², 0)): pixels at that floor get no extra "
                         "blur, in-focus pixels estimated above it still get some); shift subtracts "
-                        f"it linearly (method.magnify.magnification.MAP_FLOOR_MODES: {', '.join(MAP_FLOOR_MODES)}). "
+                        "it linearly; auto estimates the in-focus floor from the map's sharpest mode and adds no "
+                        "blur up to it plus its uncertainty, growing smoothly above "
+                        f"(method.magnify.magnification.MAP_FLOOR_MODES: {', '.join(MAP_FLOOR_MODES)}). "
                         f"Default: the preset's map_floor, {by_preset('map_floor')}")
     p.add_argument("--map", default=None, metavar="MAP",
                    help="use this defocus map instead of estimating one: σ in px of the photo, .npy, .npz, "

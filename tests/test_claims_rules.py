@@ -250,6 +250,28 @@ def test_sharp_stays_sharp_sides_and_noop():
         "not evaluated"
 
 
+@pytest.mark.parametrize("gather_in_focus, default_in_focus, expected", [
+    (core.SHARP_MIN_PSNR_DB - 5, core.SHARP_MIN_PSNR_DB + 1, "reproduced"),  # the user's default keeps it sharp
+    (core.SHARP_MIN_PSNR_DB + 5, core.SHARP_MIN_PSNR_DB - 1, "partly reproduced"),  # the default softens it
+])
+def test_sharp_stays_sharp_is_judged_on_the_presets_own_magnification(gather_in_focus, default_in_focus, expected):
+    """A robust cell is judged on its own renderer and floor; the gather + clamp row is shown beside it."""
+    from tests.claims_tables import rows
+
+    table = fig7(fig7_scene(in_focus=(99.0, gather_in_focus), defocused=(28.0, 29.0)), preset="robust") + rows("fig7", [(
+        {"scene_set": SET, "scene": "s0", "aperture": 8.0, "encoding": "srgb", "preset": "robust"},
+        {"image_vs_large": {"magnified_estimated_default": {"psnr_in_focus_db": default_in_focus,
+                                                            "psnr_defocused_db": 29.5}},
+         "default_magnification": {"renderer_scatter": True, "floor_auto": True}})])
+    v = _v(table, "sharp_stays_sharp", preset="robust")
+    assert v.verdict == expected
+    assert "s0 (scatter, floor auto): in-focus PSNR 99.0 → " in v.evidence
+    assert f"s0 gather, floor clamp: in-focus {gather_in_focus:.1f} dB" in v.evidence
+    # without the row (a table of the paper preset) the gather + clamp row decides
+    assert _verdict(fig7(fig7_scene(in_focus=(99.0, gather_in_focus), defocused=(28.0, 29.0))),
+                    "sharp_stays_sharp") == ("partly reproduced" if expected == "reproduced" else "reproduced")
+
+
 # --- Fig. 8 ------------------------------------------------------------------------------------------
 def test_refocus_sides_and_noop():
     assert _verdict(fig8(est=(24.0, 0.70)), "refocus") == "reproduced"

@@ -87,6 +87,7 @@ CASES = [  # (module, argv, missing module, command in the message, extra)
     ("repro.sweep", ["--scenes", "planes", "--fnumber", "8", "--out", "OUT"], "mitsuba", "repro.sweep", "render"),
     ("repro.bench", ["--accuracy", "--out", "OUT"], "mitsuba", "repro.bench --accuracy", "render"),
     ("repro.bench", ["--sweep", "--out", "OUT"], "distributed", "repro.bench --sweep", "sweep"),
+    ("repro.bench", ["--magnify", "--out", "OUT"], "mitsuba", "repro.bench --magnify", "render"),
 ]
 
 

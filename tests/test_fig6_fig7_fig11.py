@@ -257,6 +257,21 @@ def test_fig7_rows_per_renderer_and_the_occlusion_band(fig7):
                         assert 0 < q[key][metric] <= 1, (o.case.label, key, metric)
 
 
+def test_fig7_each_preset_scores_its_own_magnification(fig7):
+    """The paper preset's default row is its gather + clamp row; robust's is its scatter with the estimated
+    floor, which keeps the in-focus pixels closer to the f/4 render than the literal clamp on every scene."""
+    for o in fig7.find(variant=None):
+        m = o.nested()
+        q, flags = m["image_vs_large"], {k for k, v in m["default_magnification"].items() if v}
+        if o.case.preset == "paper":
+            assert flags == {"renderer_gather", "floor_clamp"}
+            assert q["magnified_estimated_default"] == q["magnified_estimated"]
+        else:
+            assert flags == {"renderer_scatter", "floor_auto"}
+            assert q["magnified_estimated_default"]["psnr_in_focus_db"] > q["magnified_estimated"]["psnr_in_focus_db"], \
+                o.case.label
+
+
 def test_fig7_scatter_closer_to_the_lens_with_the_oracle_map(fig7):
     """Measured finding: with the true map on the 8-bit sRGB f/8 input, the scatter renderer (linear light,
     disks, occlusion layers) is closer to the real f/4 render than the gather, overall and in the

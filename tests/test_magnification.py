@@ -149,7 +149,7 @@ def _floor_map(h=48, w=240):
 
 
 def test_floor_modes_registered():
-    assert set(MAP_FLOOR_MODES) == {"clamp", "subtract", "shift"}
+    assert set(MAP_FLOOR_MODES) == {"clamp", "subtract", "shift", "auto"}
 
 
 def test_floor_subtract_removes_the_floor_in_quadrature():

@@ -50,6 +50,7 @@ PAPER_BEFORE_THE_SPLIT = {
     "propagation_refinement": "galerkin",
     # Sec. 5
     "map_clip_percent": 5.0, "map_smoothing": 0.005, "map_floor": "clamp",
+    "magnify_renderer": "gather",
 }
 
 STAGE_CLASSES = {"edges": EdgeParams, "blur": BlurParams, "region": RegionParams, "refinement": RefineParams,
@@ -166,7 +167,7 @@ def test_every_flat_field_reads_its_stage(name):
 
 def test_field_names_are_one_namespace():
     names = [f.name for cls in STAGE_CLASSES.values() for f in dataclasses.fields(cls)]
-    assert len(names) == len(set(names)) == len(DefocusParams.field_types()) == 71
+    assert len(names) == len(set(names)) == len(DefocusParams.field_types()) == 72
     assert not set(names) & set(STAGE_CLASSES)
     assert DefocusParams.stage_classes() == STAGE_CLASSES
     with pytest.raises(ValueError, match="'nope' is invalid"):

@@ -168,9 +168,15 @@ def _scene_rows(sub, data, scene, config, k, ns, nl, others=()):
         pq, pmm = pm["image_vs_large"], pm["maps_vs_gt_large"]
         _image_panel(row[0], data[f"{scene}__{pname}__magnified"],
                      f"{pname}: f/{ns:g} ×{k:g}, its map\n(Sec. 5 floor: clamp at 0)", pq["magnified_estimated"])
-        _image_panel(row[1], data[f"{scene}__{pname}__magnified_subtract"],
-                     f"{pname}: f/{ns:g} ×{k:g}, its map\n(floor {pm['map_floor_px']:.2f} px subtracted)",
-                     pq["magnified_estimated_subtract"])
+        if "magnified_estimated_default" in pq and f"{scene}__{pname}__magnified_default" in data:
+            # what a user of the preset gets: its own renderer and map floor
+            used = sorted(f.split("_", 1)[1] for f, v in pm.get("default_magnification", {}).items() if v)
+            _image_panel(row[1], data[f"{scene}__{pname}__magnified_default"],
+                         f"{pname}: f/{ns:g} ×{k:g}, its default\n({', '.join(used)})", pq["magnified_estimated_default"])
+        else:
+            _image_panel(row[1], data[f"{scene}__{pname}__magnified_subtract"],
+                         f"{pname}: f/{ns:g} ×{k:g}, its map\n(floor {pm['map_floor_px']:.2f} px subtracted)",
+                         pq["magnified_estimated_subtract"])
         _map_panel(row[2], data[f"{scene}__{pname}__map_small"], f"{pname}: f/{ns:g} map", pmm["map_small"], vmax, nl)
         _map_panel(row[3], k * data[f"{scene}__{pname}__map_small"], f"{pname}: {k:g} × f/{ns:g} map",
                    pmm["k_x_map_small"], vmax, nl)

@@ -29,17 +29,10 @@ Kernels of the gather (:data:`MAGNIFICATION_KERNELS`):
   per-axis variance R²/4, so R = 2σ matches the second moment of the Gaussian σ_e (equivalently a
   circle of confusion of diameter c has σ = c/4).
 
-Map floor (:data:`MAP_FLOOR_MODES`). Sec. 5 prepares the map by "cropping the upper and lower 5 %
-of the defocus map and clamping its minimum value to 0". Two readings:
-
-* ``"clamp"`` (default, the literal reading): B ← max(B, 0). It only removes negative overshoots,
-  so an estimated map keeps its in-focus floor (σ ≈ 0.3–0.7 px of pixel-filter / sensor blur that
-  does not scale with the aperture) and magnification adds √(k² − 1)·floor of blur to sharp regions.
-* ``"subtract"``: make the map's minimum (the lower-percentile value p_lo after cropping) zero, as
-  in a lens-blur depth map whose black is the focal plane — in quadrature, B ← √(max(B² − p_lo², 0)),
-  because a Gaussian floor adds to the defocus blur in quadrature (B² = σ_d² + p_lo²).
-* ``"shift"``: the same with a linear shift, B ← max(B − p_lo, 0) (over-corrects: removes more than
-  the floor wherever B > p_lo, offered for comparison).
+Map floor (:data:`MAP_FLOOR_MODES`, :mod:`method.magnify.map_floor`): how Sec. 5's "clamping its
+minimum value to 0" is read — ``"clamp"`` (the literal max(B, 0), default here and in the paper preset),
+``"subtract"``, ``"shift"`` or ``"auto"`` (the in-focus floor estimated per photo, no blur added within
+its uncertainty; the robust preset's). ``focus_point`` and ``keep_sharp`` name the subject.
 
 ``factor < 1`` would need deblurring and is rejected.
 """
@@ -51,11 +44,12 @@ from collections.abc import Callable
 
 import numpy as np
 from scipy import fft as sfft
-from scipy import ndimage
 
 from ..luma import LIGHTS, decode, encode, light_of
 from ..validation import validate_image, validate_map
 from ..registry import Entry, Registry
+from .map_floor import (MAP_FLOOR_MODES, floor_at_point, keep_sharp_weight, preprocess_defocus_map,
+                        soft_floor)
 from .scatter import APERTURES, scatter_blur
 
 __all__ = ["MAGNIFICATION_KERNELS", "MAGNIFICATION_RENDERERS", "MAP_FLOOR_MODES",
@@ -107,93 +101,6 @@ MAGNIFICATION_KERNELS = Registry("magnification kernel", {
 def _check_map(defocus_map, shape=None, *, name="defocus_map"):
     # may be negative here: Sec. 5's preprocessing clamps it
     return validate_map(defocus_map, shape, name=name, allow_negative=True)
-
-
-def _floor_clamp(m, floor):
-    """Literal Sec. 5 reading: max(m, 0) px (``floor`` is not used)."""
-    return np.maximum(m, 0.0)
-
-
-def _floor_subtract(m, floor):
-    """Remove a Gaussian floor of σ ``floor`` px in quadrature: √(max(m² − floor², 0))."""
-    m = np.maximum(m, 0.0)
-    return np.sqrt(np.maximum(m * m - floor * floor, 0.0))
-
-
-def _floor_shift(m, floor):
-    """Shift the map so that ``floor`` px becomes 0: max(m − floor, 0)."""
-    return np.maximum(m - floor, 0.0)
-
-
-#: How the map's floor is removed before the Sec. 5 smoothing, by name:
-#: (clipped map px, floor p_lo px ≥ 0) → map px ≥ 0. See the module docstring.
-MAP_FLOOR_MODES = Registry("map floor", {
-    "clamp": Entry(_floor_clamp, "max(σ, 0), the literal Sec. 5 reading"),
-    "subtract": Entry(_floor_subtract, "remove the floor in quadrature"),
-    "shift": Entry(_floor_shift, "max(σ − floor, 0)"),
-})
-
-
-def _check_floor(floor):
-    return MAP_FLOOR_MODES.check(floor, what="floor")
-
-
-def preprocess_defocus_map(defocus_map, *, clip_percent=5.0, smoothing=0.005, floor="clamp") -> np.ndarray:
-    """Prepare a defocus map for magnification as the paper does before lens blur (Sec. 5).
-
-    Parameters
-    ----------
-    defocus_map : ndarray, HxW, float
-        Dense blur σ, px (may hold small negative overshoots).
-    clip_percent : float, keyword-only
-        Clip values below the ``clip_percent`` and above the ``100 − clip_percent`` percentile, %
-        (paper: 5). In [0, 50).
-    smoothing : float, keyword-only
-        σ of the Gaussian blur of the map as a fraction of max(H, W) (paper: 0.5 % → 0.005). ≥ 0.
-    floor : str, keyword-only
-        Key of :data:`MAP_FLOOR_MODES`, how "clamp its minimum value to 0" (Sec. 5) is read:
-        ``"clamp"`` (default; max(B, 0), the literal reading), ``"subtract"`` (remove the floor
-        p_lo = max(P_clip, 0) px in quadrature, √(max(B² − p_lo², 0))) or ``"shift"``
-        (max(B − p_lo, 0)).
-
-    Returns
-    -------
-    ndarray, HxW, float64, ≥ 0
-        Processed σ map, px.
-
-    Raises
-    ------
-    ValueError
-        Bad map (not HxW, NaN/Inf), clip_percent outside [0, 50), smoothing < 0, unknown floor.
-
-    Notes
-    -----
-    1. Clip to [P_clip, P_(100−clip)] (percentiles of the map's values, px).
-    2. Floor (Sec. 5 "clamp its minimum value to 0"): with p_lo = max(P_clip, 0) px,
-       ``"clamp"`` → max(B, 0); ``"subtract"`` → √(max(B² − p_lo², 0)); ``"shift"`` →
-       max(B − p_lo, 0). Quadrature is the physically consistent one: an estimated in-focus σ
-       is the defocus σ_d combined with a pixel-filter / sensor blur σ_f that does not change with
-       the aperture, B = √(σ_d² + σ_f²), so √(B² − σ_f²) recovers σ_d everywhere, whereas a linear
-       shift also shrinks every defocused value by up to p_lo (B − p_lo < σ_d for B > p_lo).
-       This assumes p_lo is the in-focus floor σ_f (at least ``clip_percent`` % of the pixels are
-       in focus and estimated no lower); in-focus pixels estimated above p_lo keep some extra blur.
-       A zero map stays zero in every mode.
-    3. Gaussian blur with σ = smoothing·max(H, W) px (reflecting borders).
-    """
-    m = _check_map(defocus_map)
-    clip_percent = float(clip_percent)
-    if not 0.0 <= clip_percent < 50.0:
-        raise ValueError(f"clip_percent={clip_percent!r} is invalid; allowed: 0 <= p < 50")
-    smoothing = float(smoothing)
-    if not (np.isfinite(smoothing) and smoothing >= 0):
-        raise ValueError(f"smoothing={smoothing!r} is invalid; allowed: finite and >= 0")
-    floor = _check_floor(floor)
-    lo, hi = np.percentile(m, [clip_percent, 100.0 - clip_percent])
-    m = MAP_FLOOR_MODES[floor](np.clip(m, lo, hi), max(float(lo), 0.0))
-    sigma = smoothing * max(m.shape)
-    if sigma > 0:
-        m = ndimage.gaussian_filter(m, sigma, mode="reflect")
-    return np.maximum(m, 0.0)
 
 
 def _levels(max_sigma):
@@ -390,7 +297,8 @@ def _check_renderer_options(renderer, kernel, aperture, in_front, light, shape):
 
 def magnify_defocus(image, defocus_map, *, factor=2.0, kernel=None, clip_percent=5.0, smoothing=0.005,
                     floor="clamp", preprocess=True, renderer="gather", aperture=None, encoding="srgb", light=None,
-                    in_front=None, progress: Callable[[str], None] | None = None) -> np.ndarray:
+                    in_front=None, focus_point=None, keep_sharp=None,
+                    progress: Callable[[str], None] | None = None) -> np.ndarray:
     """Magnify the defocus of a photo: blur each pixel so its total blur is factor·B(p) (Sec. 5).
 
     Parameters
@@ -411,9 +319,10 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel=None, clip_percent
     floor : str, keyword-only
         Key of :data:`MAP_FLOOR_MODES` (Sec. 5 "clamp its minimum value to 0"): ``"clamp"``
         (default, literal: max(B, 0); an in-focus floor of σ_f px gets √(factor² − 1)·σ_f px of extra
-        blur), ``"subtract"`` (the lower-percentile value p_lo px is removed in quadrature, so
-        pixels at the floor get no extra blur and the others √(factor² − 1)·√(B² − p_lo²) px) or
-        ``"shift"`` (B − p_lo). Checked even when ``preprocess=False``, where it is not used.
+        blur), ``"subtract"`` (the lower-percentile value p_lo px removed in quadrature), ``"shift"``
+        (B − p_lo) or ``"auto"`` (the floor estimated from the smoothed map, no extra blur at or below
+        it plus its uncertainty, smoothly growing above: :func:`method.magnify.map_floor.soft_floor`).
+        Checked even when ``preprocess=False``, where it is not used.
     preprocess : bool, keyword-only
         Apply :func:`preprocess_defocus_map` first (paper: yes).
     renderer : str, keyword-only
@@ -430,6 +339,14 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel=None, clip_percent
         default, ``"display"`` for the gather, ``"linear"`` for the scatter).
     in_front : ndarray of bool, HxW, optional, keyword-only
         Scatter only: pixels in front of the focus plane (:func:`method.magnify.scatter.layer_index`).
+    focus_point : (float, float), optional, keyword-only
+        (x, y) px (column, row) of a pixel of the subject: the floor is read at the map around it
+        and no blur is added to pixels as sharp as it, growing smoothly above
+        (:func:`method.magnify.map_floor.floor_at_point`; with ``preprocess=False`` applied to the
+        given map as it is).
+    keep_sharp : ndarray, HxW, bool or float in [0, 1], optional, keyword-only
+        Where no blur is added (1 = none), feathered outside the mask
+        (:func:`method.magnify.map_floor.keep_sharp_weight`).
     progress : callable, optional, keyword-only
         Scatter: called with ``"scatter layer i/n"`` before each occlusion layer.
 
@@ -443,7 +360,8 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel=None, clip_percent
     ValueError
         Bad image, map shape mismatch, NaN/Inf, negative map without preprocessing, factor < 1,
         unknown renderer, kernel, aperture, encoding, light or floor, an option the renderer does not take,
-        an extra blur σ_e above the image size (:func:`check_extra_blur`).
+        an extra blur σ_e above the image size (:func:`check_extra_blur`), a focus point outside the
+        image, a keep_sharp mask not of the image's HxW.
 
     Notes
     -----
@@ -477,11 +395,15 @@ def magnify_defocus(image, defocus_map, *, factor=2.0, kernel=None, clip_percent
     if not (np.isfinite(factor) and factor >= 1.0):
         raise ValueError(f"factor={factor!r} is invalid; allowed: finite and >= 1 "
                          "(factor < 1 would need deblurring, which this module does not do)")
-    floor = _check_floor(floor)
+    floor = MAP_FLOOR_MODES.check(floor, what="floor")
     if preprocess:
-        m = preprocess_defocus_map(m, clip_percent=clip_percent, smoothing=smoothing, floor=floor)
+        m = preprocess_defocus_map(m, clip_percent=clip_percent, smoothing=smoothing, floor=floor,
+                                   focus_point=focus_point, keep_sharp=keep_sharp)
     elif m.size and float(m.min()) < 0:
         raise ValueError(f"defocus_map must be >= 0 (blur σ, px) when preprocess=False, got min {float(m.min()):.6g}")
+    else:  # the subject named on a map given as it is
+        m = m if focus_point is None else soft_floor(m, floor_at_point(m, focus_point))
+        m = m if keep_sharp is None else m * keep_sharp_weight(keep_sharp, m.shape, 2.0)
     check_extra_blur(factor, m, image.shape)
     image64 = image.astype(np.float64, copy=False)
     sigma_extra = np.sqrt(factor * factor - 1.0) * m

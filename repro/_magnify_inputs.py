@@ -16,7 +16,7 @@ import numpy as np
 from repro._cli import CLIError
 
 __all__ = ["DEPTH_SUFFIXES", "FOCUS_WINDOW_FRACTION", "SHARPEST_PERCENT", "FrontBack", "fit_to_photo", "front_back",
-           "parse_focus_point", "read_depth", "read_keep_sharp", "supported_options"]
+           "parse_focus_point", "read_depth", "read_keep_sharp"]
 
 #: Files ``--depth`` reads (:func:`experiments.external_maps.read_map`: first array / first channel).
 DEPTH_SUFFIXES = (".npy", ".npz", ".exr")
@@ -232,9 +232,3 @@ def front_back(depth, *, focus_point=None, sigma=None) -> FrontBack:
     lo, hi = np.percentile(depth, [1.0, 99.0])
     tolerance = max(3.0 * 1.4826 * float(np.median(np.abs(region - focus))), 1e-3 * float(hi - lo))
     return FrontBack(depth < focus - tolerance, focus, tolerance, where)
-
-
-def supported_options(function, **options) -> dict:
-    """The ``options`` that are not None and that ``function`` takes as keyword arguments."""
-    params = inspect.signature(function).parameters
-    return {k: v for k, v in options.items() if v is not None and k in params}

@@ -374,20 +374,14 @@ def _front_back(args, renderer, depth, point, sigma, *, prog):
 def _render(args, photo, sigma, params, *, factor, renderer, kernel, aperture, floor, gain, subject, progress):
     """(result in the magnifier's encoding, that encoding, display values of the result) of the whole photo."""
     from method.luma import to_light
-    from method.magnify.magnification import check_extra_blur, magnify_defocus, preprocess_defocus_map
+    from method.magnify.magnification import check_extra_blur, preprocess_defocus_map
     from method.magnify.upsampling import magnify_defocus_tiled
-    from repro._magnify_inputs import supported_options
     from repro.photo_io.highlights import compress_highlights, expand_highlights
 
     point, mask, depth = subject
-    options = {"focus_point": point, "keep_sharp": mask}
-    before = supported_options(preprocess_defocus_map, **options)
-    # Sec. 5 preprocessing on the whole map (a global operation), then tiled magnification
+    # Sec. 5 preprocessing on the whole map (a global operation: the floor, the subject), then tiled magnification
     processed = preprocess_defocus_map(sigma, clip_percent=params.map_clip_percent, smoothing=params.map_smoothing,
-                                       floor=floor, **before)
-    during = supported_options(magnify_defocus, **options)
-    if mask is not None and "keep_sharp" not in before and "keep_sharp" not in during:
-        processed = processed * (1.0 - mask)  # no blur is added where the mask is set
+                                       floor=floor, focus_point=point, keep_sharp=mask)
     with user_input():  # --factor too large for this photo: before any big allocation
         check_extra_blur(factor, processed, photo.image.shape, name="--factor")
     in_front = _front_back(args, renderer, depth, point, sigma, prog=PROG)
@@ -395,7 +389,7 @@ def _render(args, photo, sigma, params, *, factor, renderer, kernel, aperture, f
                                                                          "linear")
     result = magnify_defocus_tiled(image, processed, factor=factor, kernel=kernel, preprocess=False, renderer=renderer,
                                    aperture=aperture, tile_pixels=args.tile_pixels, progress=progress,
-                                   encoding=encoding, in_front=in_front, **during)
+                                   encoding=encoding, in_front=in_front)
     display = (to_light(result, "display", encoding=encoding) if gain is None
                else compress_highlights(result, gain=gain))
     return result, encoding, display

@@ -39,15 +39,15 @@ run, assert_one_line_error = cli_runner(main, PROG)
 
 
 class Recorder:
-    """Stands in for ``magnify_defocus`` with the subject's keyword arguments; records what it is given."""
+    """Stands in for a magnifier function; records the keyword arguments it is given and calls the real one."""
 
     def __init__(self, real):
         self.real, self.calls = real, []
 
-    def __call__(self, image, defocus_map, *, focus_point=None, keep_sharp=None, **kwargs):
-        self.calls.append({"focus_point": focus_point, "keep_sharp": keep_sharp, "in_front": kwargs.get("in_front"),
-                           "shape": image.shape})
-        return self.real(image, defocus_map, **kwargs)
+    def __call__(self, *args, **kwargs):
+        self.calls.append({"focus_point": kwargs.get("focus_point"), "keep_sharp": kwargs.get("keep_sharp"),
+                           "in_front": kwargs.get("in_front"), "shape": np.shape(args[0])})
+        return self.real(*args, **kwargs)
 
 
 @pytest.fixture
@@ -56,6 +56,16 @@ def recorder(monkeypatch):
 
     rec = Recorder(magnification.magnify_defocus)
     monkeypatch.setattr(magnification, "magnify_defocus", rec)
+    return rec
+
+
+@pytest.fixture
+def prep_recorder(monkeypatch):
+    """Records the Sec. 5 preprocessing's calls, which take the subject (focus point, mask)."""
+    import method.magnify.magnification as magnification
+
+    rec = Recorder(magnification.preprocess_defocus_map)
+    monkeypatch.setattr(magnification, "preprocess_defocus_map", rec)
     return rec
 
 
@@ -68,21 +78,22 @@ def _outputs(folder: Path) -> list[str]:
 # ------------------------------------------------------------------------------------------------
 
 
-def test_focus_point_and_mask_reach_magnify_defocus_under_their_names(tmp_path, photo, sigma_map, recorder, capsys):
+def test_focus_point_and_mask_reach_the_preprocessing_under_their_names(tmp_path, photo, sigma_map, prep_recorder,
+                                                                        capsys):
     mask = np.zeros((H, W), np.uint8)
     mask[10:40, 10:50] = 255
     write_photo(tmp_path / "mask.png", mask / 255.0)
     status, _, err = run([photo, "--map", sigma_map, "--focus-point", "20,30", "--keep-sharp", tmp_path / "mask.png",
                           "-o", tmp_path / "out.png"], capsys)
     assert status == 0, err
-    (call,) = recorder.calls
+    (call,) = prep_recorder.calls
     assert call["focus_point"] == (20, 30)
     assert call["keep_sharp"].shape == (H, W)
     np.testing.assert_array_equal(call["keep_sharp"] > 0.5, mask > 0)
 
 
-def test_without_support_the_mask_still_keeps_its_pixels_unchanged(tmp_path, photo, capsys):
-    """magnify_defocus without a keep_sharp argument: the CLI adds no blur under the mask itself."""
+def test_the_mask_keeps_its_pixels_unchanged(tmp_path, photo, capsys):
+    """No blur is added under the mask, even where the map is blurry."""
     m = np.full((H, W), 3.0)  # everything blurry
     np.save(tmp_path / "flat.npy", m)
     mask = np.zeros((H, W))
@@ -98,14 +109,14 @@ def test_without_support_the_mask_still_keeps_its_pixels_unchanged(tmp_path, pho
     assert outside.mean() > 0.02      # the rest is blurred
 
 
-def test_mask_of_the_photos_aspect_ratio_is_resized(tmp_path, photo, sigma_map, recorder, capsys):
+def test_mask_of_the_photos_aspect_ratio_is_resized(tmp_path, photo, sigma_map, prep_recorder, capsys):
     small = np.zeros((H // 2, W // 2))
     small[5:20, 5:25] = 1.0
     write_photo(tmp_path / "mask.png", small)
     status, _, err = run([photo, "--map", sigma_map, "--keep-sharp", tmp_path / "mask.png", "-o", tmp_path / "out.png"],
                          capsys)
     assert status == 0, err
-    assert recorder.calls[0]["keep_sharp"].shape == (H, W)
+    assert prep_recorder.calls[0]["keep_sharp"].shape == (H, W)
 
 
 @pytest.mark.parametrize("args,needles", [
@@ -204,13 +215,3 @@ def test_front_back_tolerance_both_sides():
     assert 0.02 < fb.tolerance < 0.1
     with pytest.raises(ValueError, match="focus_point or sigma"):
         front_back(depth)
-
-
-def test_supported_options_keeps_what_the_function_takes():
-    from repro._magnify_inputs import supported_options
-
-    def f(image, *, focus_point=None):
-        return image
-
-    assert supported_options(f, focus_point=(1, 2), keep_sharp=np.ones(2)) == {"focus_point": (1, 2)}
-    assert supported_options(f, focus_point=None) == {}

@@ -416,7 +416,7 @@ def _halo(sigma_extra_max: float, renderer: str = "gather") -> int:
 def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel=None, clip_percent=5.0,
                           smoothing=0.005, preprocess=True, tile_pixels=DEFAULT_TILE_PIXELS,
                           renderer="gather", aperture=None, encoding="srgb", light=None, in_front=None,
-                          progress: Callable[[str], None] | None = None, **subject) -> np.ndarray:
+                          progress: Callable[[str], None] | None = None) -> np.ndarray:
     """:func:`method.magnify.magnification.magnify_defocus` for large photos, in overlapping tiles.
 
     Parameters
@@ -427,8 +427,8 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel=None, clip_p
         Dense blur σ, px of ``image``.
     factor, kernel, clip_percent, smoothing, preprocess, renderer, aperture, encoding, light : keyword-only
         As :func:`method.magnify.magnification.magnify_defocus` (factor ≥ 1).
-    in_front, **subject : keyword-only
-        Passed on to ``magnify_defocus`` per tile: HxW arrays cut to it, ``focus_point`` (x, y) in its coordinates.
+    in_front : ndarray, HxW bool, optional, keyword-only
+        As :func:`~method.magnify.magnification.magnify_defocus`, cut to each tile.
     tile_pixels : int, keyword-only
         Pixels of one tile, halo included; bounds the working memory (≈ 290 B/px). A photo that fits
         is magnified in one call, exactly as :func:`~method.magnify.magnification.magnify_defocus` does.
@@ -460,11 +460,9 @@ def magnify_defocus_tiled(image, defocus_map, *, factor=2.0, kernel=None, clip_p
 
     def call(img, mp, label, y0=0, x0=0):
         inner = None if progress is None else (lambda stage: progress(f"{label}: {stage}"))
-        cut = {k: (v[0] - x0, v[1] - y0) if k == "focus_point" and v is not None else
-               np.asarray(v)[y0:y0 + mp.shape[0], x0:x0 + mp.shape[1]] if np.ndim(v) == 2 else v
-               for k, v in {"in_front": in_front, **subject}.items()}
+        cut = None if in_front is None else np.asarray(in_front)[y0:y0 + mp.shape[0], x0:x0 + mp.shape[1]]
         return magnify_defocus(img, mp, factor=factor, kernel=kernel, preprocess=False, renderer=renderer,
-                               aperture=aperture, encoding=encoding, light=light, progress=inner, **cut)
+                               aperture=aperture, encoding=encoding, light=light, progress=inner, in_front=cut)
 
     H, W = image.shape[:2]
     if H * W <= tile_pixels or m.shape != (H, W):

@@ -37,6 +37,9 @@ ROBUST_CHANGES: dict = {
     # curve makes a blurred step asymmetric). The region cue (region_estimator) was measured and left
     # out: it did not improve the lens bench, the renders and the real photos at once (docs/presets.md).
     "measure_light": "linear",
+    # the noise of Eq. (9) and of the fit's residual test per pixel: a·x + b in linear light, estimated
+    # from the image per intensity level and carried through the tone curve (docs/presets.md, docs/noise.md).
+    "noise_model": "signal_dependent",
 }
 
 #: The region (spectral) cue as the robust preset fused it before it was judged on lens blur (Gaussian

@@ -29,6 +29,8 @@ _OUTLIER_FACTOR = 1.5
 #: σ (px) of the smoothing that gives the signal level at each pixel, and of the variance map itself.
 _LEVEL_SIGMA = 1.0
 _MAP_SIGMA = 2.0
+#: Levels of the grid on which :func:`noise_variance` evaluates a tone curve for a whole image.
+_LUT_SIZE = 4097
 #: Smallest variance of the map, image units² (keeps Eq. 9's thresholds positive on a noise-free image).
 _MIN_VARIANCE = 1e-12
 
@@ -62,13 +64,16 @@ def noise_variance(level, a: float, b: float, *, light: str, encoding: str = "sr
     -------
     ndarray, same shape, float64
         Variance in ``light``, image units²: a·x + b in linear light; (a·decode(y) + b) / decode′(y)²
-        in display light.
+        in display light (for more than 4097 values, interpolated linearly from a grid of 4097 levels).
     """
     LIGHTS.check(light, what="light")
     y = np.clip(np.asarray(level, dtype=np.float64), 0.0, 1.0)
     if light == "linear":
         return a * y + b
     curve = display_curve(encoding)
+    if y.size > _LUT_SIZE:  # a whole image: the curve once on a grid (colour-science per pixel is slow)
+        grid = np.linspace(0.0, 1.0, _LUT_SIZE)
+        return np.interp(y, grid, noise_variance(grid, a, b, light=light, encoding=encoding))
     return (a * to_light(y, "linear", encoding=curve) + b) / decode_slope(y, curve) ** 2
 
 
@@ -126,7 +131,7 @@ def estimate_noise_levels(gray, *, light: str = "linear", encoding: str = "srgb"
     Notes
     -----
     1. Local estimates: the 3×3 second-difference response (zero on any linear ramp) over 8×8
-       blocks, each block's mean squared response and mean level (3×3 box mean of the image).
+       blocks, each block's mean squared response and mean level.
     2. Per intensity bin (:data:`NOISE_LEVEL_BINS` equal bins of ``light``, ≥ 12 blocks): the
        10 % quantile of the block energies over that of unit white noise (the smooth blocks; texture
        only raises energies), as :func:`~method.blur.image_noise.estimate_noise_variance` does for
@@ -189,7 +194,11 @@ def noise_variance_map(gray, params, *, encoding: str = "srgb"):
         a, b = estimate_noise_levels(g, light=light, encoding=encoding)
     else:
         a, b = float(params.noise_a), float(params.noise_b)
-    level = ndimage.gaussian_filter(g, _LEVEL_SIGMA, mode="nearest")
-    v = ndimage.gaussian_filter(noise_variance(level, a, b, light=light, encoding=encoding), _MAP_SIGMA,
-                                mode="nearest")
+    if light == "linear":  # the variance is linear in the level: one Gaussian of σ √(1² + 2²) px
+        v = noise_variance(ndimage.gaussian_filter(g, np.hypot(_LEVEL_SIGMA, _MAP_SIGMA), mode="nearest"), a, b,
+                           light=light)
+    else:
+        level = ndimage.gaussian_filter(g, _LEVEL_SIGMA, mode="nearest")
+        v = ndimage.gaussian_filter(noise_variance(level, a, b, light=light, encoding=encoding), _MAP_SIGMA,
+                                    mode="nearest")
     return np.maximum(v, _MIN_VARIANCE)

@@ -91,6 +91,7 @@ class EdgeParams:
                 raise invalid_field(name, getattr(self, name), "non-empty tuple of positive scales (px)")
             object.__setattr__(self, name, scales)
         require_field(self, "noise_std", self.noise_std > 0, "> 0")
+        check_field_choice(self, "measure_light", MEASURE_LIGHTS)
         check_field_choice(self, "noise_model", SENSOR_NOISE_MODELS)
         for name in ("noise_a", "noise_b"):
             value = getattr(self, name)

@@ -319,7 +319,7 @@ NOISE_MODEL_VARIANCE_RTOL = 0.028
 #: Relative error of the estimated a and of the estimated variance a·x + b for x in [0.1, 0.9] on lens
 #: mosaics (dead leaves, shading, photo crops; camera pipeline, 8 bits) at iso100 / iso800 / iso3200,
 #: in linear and in display light. Measured (docs/noise.md): a within 0.98–1.08×, a·x + b within
-#: 0.99–1.16× (worst: dead leaves, iso100, linear light, x = 0.1).
+#: 0.99–1.17× (worst: dead leaves, iso100, linear light, x = 0.1).
 NOISE_ESTIMATE_A_RTOL = 0.15
 NOISE_ESTIMATE_VARIANCE_RTOL = 0.25
 #: |decode_slope − analytic sRGB derivative|: central differences of half-width 1e-4 on a C¹ curve.

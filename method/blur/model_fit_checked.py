@@ -182,7 +182,8 @@ def estimate_blur_model_fit_checked_confidence(gray, edge_map, *, params):
     so the relaxed measures (fits of blurry edges, but also of in-focus low-contrast edges fitted
     too wide) decide the map only where no strict measure is near. The fit runs once.
     """
-    return _checked(model_fit_diagnostics(gray, edge_map, params=params), params, _noise_variance(gray, edge_map, params))
+    diagnostics = model_fit_diagnostics(gray, edge_map, params=params)
+    return _checked(diagnostics, params, _noise_variance(gray, edge_map, params))
 
 
 def estimate_blur_model_fit_checked_psf(gray, edge_map, *, params):

@@ -93,7 +93,7 @@ def _bin_variances(gray, bins):
 
 
 def _line_fit(x, v, n):
-    """Non-negative (a, b) of v ≈ a·x + b, weighted by the bins' relative errors (√n / v); texture outliers dropped."""
+    """Non-negative (a, b) of v ≈ a·x + b, weighted by the bins' relative errors (√n / v), outliers dropped."""
     keep = np.ones(x.size, dtype=bool)
     a = b = 0.0
     for _ in range(4):

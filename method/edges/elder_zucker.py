@@ -106,8 +106,8 @@ def _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, c2, noise, scale, level, si
     """One σ2 scale of the 2nd-derivative test for every undecided pixel with a reliable gradient.
 
     A pixel is decided at this scale (σ2 := scale) when the responses along θ at both neighbours
-    across the edge, p ± e, are reliable (|r| > c2 times the noise std factor there). It becomes an edge (edge_level := level) if
-    moreover r(p − e) > 0 > r(p + e), the linearly interpolated crossing lies in [−1/2, 1/2)
+    across the edge, p ± e, are reliable (|r| > c2 times the noise std factor there). It becomes an
+    edge (edge_level := level) if moreover r(p − e) > 0 > r(p + e), the linearly interpolated crossing lies in [−1/2, 1/2)
     steps of p, and neither neighbour became an edge at a smaller scale. Returns the number of
     pixels still undecided and the number of new edge pixels.
 

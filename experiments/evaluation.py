@@ -162,7 +162,7 @@ def sparse_estimates(image, estimators, *, params=None, encoding: str = "srgb") 
     names = validate_estimators(estimators)
     seen = measure_input(image, params, encoding=encoding).seen
     reuse = [n for n in names if "detector_hessians" in BLUR_ESTIMATORS.entry(n).capabilities]
-    em = edges_stage(seen, params=params.replace(estimator=reuse[0]) if reuse else params)
+    em = edges_stage(seen, params=params.replace(estimator=reuse[0]) if reuse else params, encoding=encoding)
     out = {}
     for name in names:
         sparse, _, _, _ = blur_stage(seen, em, params=params.replace(estimator=name))

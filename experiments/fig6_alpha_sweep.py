@@ -153,7 +153,8 @@ def sweep_alpha(image, alphas, params=None, *, also_from_sparse=False, encoding=
     rgb, gray, seen = measured.rgb, measured.gray, measured.seen
     timings = {}
     t0 = time.perf_counter()
-    sparse, confidence, edge_map, psf_disk = blur_stage(seen, edges_stage(seen, params=params), params=params)
+    sparse, confidence, edge_map, psf_disk = blur_stage(seen, edges_stage(seen, params=params, encoding=encoding),
+                                                      params=params)
     if not np.any(np.isfinite(sparse)):
         raise ValueError("no edge pixel found in the image; the α sweep needs edge measures")
     if params.edge_isolation is not None:

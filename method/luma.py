@@ -27,7 +27,7 @@ import numpy as np
 
 from .registry import Entry, Registry
 
-__all__ = ["ENCODINGS", "LIGHTS", "LUMA_WEIGHTS", "MEASURE_LIGHTS", "MeasuredInput", "decode", "encode", "light_of",
+__all__ = ["ENCODINGS", "LIGHTS", "LUMA_WEIGHTS", "MEASURE_LIGHTS", "MeasuredInput", "decode", "decode_slope", "encode", "light_of",
            "luminance", "measure_input", "measure_luminance", "to_light"]
 
 #: Rec. 709 luma weights (R, G, B), applied to the RGB values in the light at hand: the edge
@@ -174,6 +174,31 @@ def to_light(image, light: str, *, encoding: str = "srgb") -> np.ndarray:
     if source == light:
         return x
     return decode(x, encoding) if light == "linear" else encode(x, "srgb")
+
+
+def decode_slope(values, encoding: str = "srgb", *, step: float = 1e-4) -> np.ndarray:
+    """Slope decode′(y) of an encoding's decoding (encoded value → linear light), by central differences.
+
+    Parameters
+    ----------
+    values : ndarray or float, any shape
+        Encoded values y in [0, 1] (clipped).
+    encoding : str
+        Key of :data:`ENCODINGS`; its decoding is :func:`to_light` (..., "linear", encoding=...), so
+        every registered curve has a slope.
+    step : float, keyword-only
+        Half-width of the difference, encoded units (one-sided at 0 and 1).
+
+    Returns
+    -------
+    ndarray, same shape, float64
+        d(linear)/d(encoded), dimensionless (1 for "linear"; sRGB: 0.077 at 0, 0.31 at y = 0.2, 1.98 at
+        y = 0.9, 2.27 at 1). Noise of variance v in linear light has variance v / decode′(y)² in the
+        encoded values, to first order.
+    """
+    y = np.clip(np.asarray(values, dtype=np.float64), 0.0, 1.0)
+    lo, hi = np.clip(y - step, 0.0, 1.0), np.clip(y + step, 0.0, 1.0)
+    return (to_light(hi, "linear", encoding=encoding) - to_light(lo, "linear", encoding=encoding)) / (hi - lo)
 
 
 def luminance(image) -> np.ndarray:

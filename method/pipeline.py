@@ -25,6 +25,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .blur.estimators import BLUR_ESTIMATORS, estimate_blur_measures
+from .blur.noise_model import noise_variance_map
 from .edges.canny import detect_edges_canny
 from .refine.cross_bilateral import biased_cross_bilateral
 from .propagation.cue_fusion import fuse_cues
@@ -171,7 +172,7 @@ def estimate_defocus_map(image, params=None, *, encoding: str = "srgb",
         cpu[name] = time.process_time() - c_last[0]
 
     t = stage("edges")
-    edge_map = edges_stage(seen, params=params)
+    edge_map = edges_stage(seen, params=params, encoding=encoding)
     done("edges", t)
 
     t = stage("blur_at_edges")
@@ -231,7 +232,7 @@ def estimate_defocus_map(image, params=None, *, encoding: str = "srgb",
     )
 
 
-def edges_stage(gray, *, params):
+def edges_stage(gray, *, params, encoding: str = "srgb"):
     """Elder–Zucker edges with minimum reliable scales (Sec. 3.1) as ``params`` configure them.
 
     Parameters
@@ -244,7 +245,13 @@ def edges_stage(gray, *, params):
         the ``"detector_hessians"`` capability in :data:`method.blur.estimators.BLUR_ESTIMATORS`). With ``edge_detector="canny"``
         (beyond the paper: Zhuo & Sim's edge set) Canny edges instead, from ``canny_sigma`` (px),
         ``canny_low_threshold`` and ``canny_high_threshold``
-        (:func:`method.edges.canny.detect_edges_canny`).
+        (:func:`method.edges.canny.detect_edges_canny`). With ``noise_model="signal_dependent"``
+        (beyond the paper) the thresholds of Eq. (9) read the per-pixel noise variance of
+        :func:`method.blur.noise_model.noise_variance_map` (from ``noise_a``, ``noise_b`` or
+        estimated from ``gray``), kept on the EdgeMap for the checked fit's residual test.
+    encoding : str, keyword-only
+        The input's encoding (key of :data:`method.luma.ENCODINGS`): its tone curve carries the noise
+        into display light (``noise_model="signal_dependent"`` only).
 
     Returns
     -------
@@ -255,6 +262,7 @@ def edges_stage(gray, *, params):
                                   high_threshold=params.canny_high_threshold)
     return detect_edges(gray, sigma1_scales=params.sigma1_scales, sigma2_scales=params.sigma2_scales,
                         noise_std=params.noise_std, false_positive_rate=params.false_positive_rate,
+                        noise_variance=noise_variance_map(gray, params, encoding=encoding),
                         keep_hessians="detector_hessians" in BLUR_ESTIMATORS.entry(params.estimator).capabilities)
 
 

@@ -41,6 +41,9 @@ ROBUST_CHANGES: dict = {
     # the scatter (occlusion, linear light); measured in docs/magnification.md
     "map_floor": "auto",
     "magnify_renderer": "scatter",
+    # the noise of Eq. (9) and of the fit's residual test per pixel: a·x + b in linear light, estimated
+    # from the image per intensity level and carried through the tone curve (docs/presets.md, docs/noise.md).
+    "noise_model": "signal_dependent",
 }
 
 #: The region (spectral) cue as the robust preset fused it before it was judged on lens blur (Gaussian

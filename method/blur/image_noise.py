@@ -6,7 +6,7 @@ import functools
 
 import numpy as np
 
-__all__ = ["estimate_noise_variance"]
+__all__ = ["block_energies", "estimate_noise_variance", "noise_quantile_bias"]
 
 
 #: 3×3 high-pass of the noise estimate (second differences in x and y): its response to white
@@ -17,15 +17,51 @@ _NOISE_BLOCK = 8
 _NOISE_QUANTILE = 0.1
 
 
+def _second_differences(g):
+    return (g[:-2, :-2] - 2 * g[:-2, 1:-1] + g[:-2, 2:] - 2 * g[1:-1, :-2] + 4 * g[1:-1, 1:-1]
+            - 2 * g[1:-1, 2:] + g[2:, :-2] - 2 * g[2:, 1:-1] + g[2:, 2:])
+
+
 def _block_energy_quantile(g):
-    h = (g[:-2, :-2] - 2 * g[:-2, 1:-1] + g[:-2, 2:] - 2 * g[1:-1, :-2] + 4 * g[1:-1, 1:-1]
-         - 2 * g[1:-1, 2:] + g[2:, :-2] - 2 * g[2:, 1:-1] + g[2:, 2:])
+    h = _second_differences(g)
     b = _NOISE_BLOCK
     hh, ww = (h.shape[0] // b) * b, (h.shape[1] // b) * b
     if hh == 0 or ww == 0:
         return float(np.mean(h ** 2)) if h.size else 0.0
     e = (h[:hh, :ww] ** 2).reshape(hh // b, b, ww // b, b).mean(axis=(1, 3))
     return float(np.quantile(e, _NOISE_QUANTILE))
+
+
+def block_energies(gray):
+    """Mean squared 3×3 second-difference response and mean level of each 8×8 block.
+
+    Parameters
+    ----------
+    gray : ndarray, HxW, float
+        Image in [0, 1], sides ≥ 10 px.
+
+    Returns
+    -------
+    energy : ndarray, (n,), float64
+        Mean squared response per block, image units² (36·v on white noise of variance v).
+    level : ndarray, (n,), float64
+        Mean of the image over the block (its signal level), image units.
+    """
+    g = np.asarray(gray, dtype=np.float64)
+    h = _second_differences(g)
+    m = g[1:-1, 1:-1]
+    b = _NOISE_BLOCK
+    hh, ww = (h.shape[0] // b) * b, (h.shape[1] // b) * b
+
+    def blocks(a):
+        return a[:hh, :ww].reshape(hh // b, b, ww // b, b).mean(axis=(1, 3)).ravel()
+
+    return blocks(h ** 2), blocks(m)
+
+
+def noise_quantile_bias() -> float:
+    """10 % quantile of the 8×8 block energies of unit white noise, / 36 (:func:`block_energies`)."""
+    return _noise_quantile_bias()
 
 
 @functools.lru_cache(maxsize=1)

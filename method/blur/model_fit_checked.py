@@ -16,6 +16,7 @@ import functools
 import numpy as np
 
 from .model_fit import model_fit_diagnostics, paper_rules, apply_fit_rules
+from .noise_model import noise_variance_map
 
 __all__ = ["estimate_blur_model_fit_checked", "estimate_blur_model_fit_checked_confidence",
            "estimate_blur_model_fit_checked_psf", "noise_residual_share", "relaxed_confidence_used",
@@ -61,7 +62,7 @@ def steered_second_noise_variance(sigma2, noise_std):
     return out * float(noise_std) ** 2
 
 
-def noise_residual_share(diagnostics, *, noise_std):
+def noise_residual_share(diagnostics, *, noise_std, noise_variance=None):
     """Expected share of the fit residual ρ that white sensor noise alone leaves: N · v_n(σ2) / ‖r‖².
 
     Parameters
@@ -71,6 +72,9 @@ def noise_residual_share(diagnostics, *, noise_std):
         ``sigma2``: px, ``energy``: ‖r‖² over the window).
     noise_std : float, keyword-only
         Noise std, image units (the pipeline's ``params.noise_std``).
+    noise_variance : ndarray, (H, W), float, or None, keyword-only
+        Per-pixel noise variance, image units² (``noise_model="signal_dependent"``:
+        :func:`method.blur.noise_model.noise_variance_map`); replaces ``noise_std``² where given.
 
     Returns
     -------
@@ -81,8 +85,11 @@ def noise_residual_share(diagnostics, *, noise_std):
         a fixed limit keeps blurry edges only when they are unusually narrow or contrasted.
     """
     with np.errstate(invalid="ignore", divide="ignore"):
-        share = (diagnostics["window"] * steered_second_noise_variance(diagnostics["sigma2"], noise_std)
-                 / diagnostics["energy"])
+        if noise_variance is None:
+            v_n = steered_second_noise_variance(diagnostics["sigma2"], noise_std)
+        else:
+            v_n = steered_second_noise_variance(diagnostics["sigma2"], 1.0) * noise_variance
+        share = diagnostics["window"] * v_n / diagnostics["energy"]
     return np.where(np.isfinite(share), share, 0.0)
 
 
@@ -130,7 +137,9 @@ def estimate_blur_model_fit_checked(gray, edge_map, *, params):
     3. Keep σb where ρ ≤ ``params.fit_max_residual``; NaN elsewhere.
     4. ``params.fit_residual_noise`` = k > 0 (beyond the paper; robust preset: k = 2): the limit is
        ``fit_max_residual`` + k · :func:`noise_residual_share` (per pixel), i.e. the residual the
-       sensor noise ``params.noise_std`` is expected to leave is allowed on top.
+       sensor noise ``params.noise_std`` is expected to leave is allowed on top. With
+       ``params.noise_model="signal_dependent"`` the noise is the edge pixel's own variance
+       (``edge_map.noise_variance``, else :func:`method.blur.noise_model.noise_variance_map` of ``gray``).
 
     For a blurred step edge the model is exact up to sampling, noise and the window's truncation
     (measured ρ ≤ 0.004 noise-free, ≤ 0.03 with noise 2.5/255 + 8 bits); two opposite edges 1–3σ
@@ -173,7 +182,8 @@ def estimate_blur_model_fit_checked_confidence(gray, edge_map, *, params):
     so the relaxed measures (fits of blurry edges, but also of in-focus low-contrast edges fitted
     too wide) decide the map only where no strict measure is near. The fit runs once.
     """
-    return _checked(model_fit_diagnostics(gray, edge_map, params=params), params)
+    diagnostics = model_fit_diagnostics(gray, edge_map, params=params)
+    return _checked(diagnostics, params, _noise_variance(gray, edge_map, params))
 
 
 def estimate_blur_model_fit_checked_psf(gray, edge_map, *, params):
@@ -188,11 +198,18 @@ def estimate_blur_model_fit_checked_psf(gray, edge_map, *, params):
         (``params.fit_psf``: :func:`method.blur.model_fit.select_psf_model`); False elsewhere.
     """
     diagnostics = model_fit_diagnostics(gray, edge_map, params=params)
-    sigma_b, confidence = _checked(diagnostics, params)
+    sigma_b, confidence = _checked(diagnostics, params, _noise_variance(gray, edge_map, params))
     return sigma_b, confidence, diagnostics["disk"] & np.isfinite(sigma_b)
 
 
-def _checked(diagnostics, params):
+def _noise_variance(gray, edge_map, params):
+    """Per-pixel noise variance of the residual test: the detector's, else from ``gray``; None if constant."""
+    if params.noise_model == "constant":
+        return None
+    return edge_map.noise_variance if edge_map.noise_variance is not None else noise_variance_map(gray, params)
+
+
+def _checked(diagnostics, params, noise_variance=None):
     """(σb, confidence) of the checked fit from the model fit's diagnostics (Notes of the estimator)."""
     sigma_b, residual = diagnostics["sigma_b"], diagnostics["residual"]
     if not paper_rules(params):  # the beyond-the-paper plausibility rules (robust preset) first
@@ -201,7 +218,8 @@ def _checked(diagnostics, params):
     limit = strict_limit
     k = float(params.fit_residual_noise)
     if k > 0:  # beyond the paper: allow the residual that the sensor noise alone leaves (Notes, 4)
-        limit = limit + k * noise_residual_share(diagnostics, noise_std=params.noise_std)
+        limit = limit + k * noise_residual_share(diagnostics, noise_std=params.noise_std,
+                                                 noise_variance=noise_variance)
     with np.errstate(invalid="ignore"):
         good = residual <= limit  # False where residual is NaN
         strict = residual <= strict_limit

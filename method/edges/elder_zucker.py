@@ -61,6 +61,10 @@ class EdgeMap:
         image units / px² (Eq. 8a, 8c, 8b, from the detector's single-precision FFT bank), for every
         σ2 at which at least one edge pixel was found. ``None`` (the default, and after
         :func:`method.pipeline.estimate_defocus_map` returns) means "recompute". Not compared.
+    noise_variance : ndarray or None
+        The per-pixel noise variance the thresholds used, (H, W) float64, image units²
+        (``detect_edges(noise_variance=...)``), read again by the checked fit's residual test; None:
+        the constant ``noise_std``. Not compared.
     """
 
     edges: np.ndarray
@@ -69,11 +73,12 @@ class EdgeMap:
     sigma1: np.ndarray
     sigma2: np.ndarray
     hessians: dict | None = dataclasses.field(default=None, repr=False, compare=False)
+    noise_variance: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)
 
 
 @numba.njit(cache=True, nogil=True, parallel=True)
-def _gradient_pass(ix, iy, c1, scale, sigma1, theta, gmag):
-    """Assign σ1 = scale, θ and |∇| to unresolved pixels whose |∇| exceeds c1; count the rest.
+def _gradient_pass(ix, iy, c1, noise, scale, sigma1, theta, gmag):
+    """Assign σ1 = scale, θ and |∇| to unresolved pixels whose |∇| exceeds c1·noise; count the rest.
 
     Every pixel reads and writes only itself: rows run in parallel (the count is an integer sum),
     with the same result for any thread count.
@@ -87,7 +92,7 @@ def _gradient_pass(ix, iy, c1, scale, sigma1, theta, gmag):
             gx = np.float64(ix[i, j])
             gy = np.float64(iy[i, j])
             m = np.sqrt(gx * gx + gy * gy)
-            if m > c1:
+            if m > c1 * noise[i, j]:
                 sigma1[i, j] = scale
                 theta[i, j] = np.arctan2(gy, gx)
                 gmag[i, j] = m
@@ -97,12 +102,12 @@ def _gradient_pass(ix, iy, c1, scale, sigma1, theta, gmag):
 
 
 @numba.njit(cache=True, nogil=True, parallel=True)
-def _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, c2, scale, level, sigma1, sigma2, edge_level):
+def _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, c2, noise, scale, level, sigma1, sigma2, edge_level):
     """One σ2 scale of the 2nd-derivative test for every undecided pixel with a reliable gradient.
 
     A pixel is decided at this scale (σ2 := scale) when the responses along θ at both neighbours
-    across the edge, p ± e, are reliable (|r| > c2). It becomes an edge (edge_level := level) if
-    moreover r(p − e) > 0 > r(p + e), the linearly interpolated crossing lies in [−1/2, 1/2)
+    across the edge, p ± e, are reliable (|r| > c2 times the noise std factor there). It becomes an
+    edge (edge_level := level) if moreover r(p − e) > 0 > r(p + e), the linearly interpolated crossing lies in [−1/2, 1/2)
     steps of p, and neither neighbour became an edge at a smaller scale. Returns the number of
     pixels still undecided and the number of new edge pixels.
 
@@ -127,7 +132,7 @@ def _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, c2, scale, level, sigma1, s
             cc, cs2, ss = second_steering_weights(c, s)
             vm = cc * ixx[im, jm] + cs2 * ixy[im, jm] + ss * iyy[im, jm]
             vp = cc * ixx[ip, jp] + cs2 * ixy[ip, jp] + ss * iyy[ip, jp]
-            if abs(vm) <= c2 or abs(vp) <= c2:
+            if abs(vm) <= c2 * noise[im, jm] or abs(vp) <= c2 * noise[ip, jp]:
                 left += 1
                 continue
             sigma2[i, j] = scale
@@ -162,7 +167,7 @@ def _scales(scales, name):
 
 
 def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_SIGMA2,
-                 noise_std=2.5 / 255, false_positive_rate=1e-6, keep_hessians=False):
+                 noise_std=2.5 / 255, false_positive_rate=1e-6, keep_hessians=False, noise_variance=None):
     """Elder–Zucker multiscale edges with minimum reliable scale (Sec. 3.1, Eq. 7–9).
 
     Parameters
@@ -181,6 +186,10 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
         Keep the 2nd-derivative responses of every σ2 that produced edge pixels in
         ``EdgeMap.hessians`` so the model-fit estimator does not recompute them (≈ 12 MB per σ2 at
         1 MP). Default False.
+    noise_variance : ndarray, shape (H, W), float, or None, keyword-only
+        Beyond the paper: the per-pixel noise variance, image units² (> 0; e.g.
+        :func:`method.blur.noise_model.noise_variance_map`); the thresholds of Eq. (9) then use the
+        pixel's own s_n = √variance instead of ``noise_std``. None (default): ``noise_std`` everywhere.
 
     Returns
     -------
@@ -193,7 +202,8 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
 
     Notes
     -----
-    1. α_p from α_I and n = H·W; thresholds c1(σ1), c2(σ2) (Eq. 9).
+    1. α_p from α_I and n = H·W; thresholds c1(σ1), c2(σ2) (Eq. 9). With ``noise_variance`` the
+       thresholds are those of unit noise times the pixel's √variance (c2: at each of p ± e).
     2. Gradient, smallest σ1 first (Eq. 7, FFT bank in single precision — its round-off is
        < 1e−3 of the thresholds): the first σ1 with |∇| > c1(σ1) is the pixel's
        minimum reliable σ1; θ = atan2(I_y, I_x) and |∇| are taken at that scale.
@@ -222,15 +232,23 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
     alpha_p = per_pixel_false_positive_rate(false_positive_rate, h * w)
     if not (np.isfinite(noise_std) and noise_std > 0):
         raise ValueError(f"noise_std={noise_std!r} is invalid; allowed: > 0 (image units)")
+    if noise_variance is None:  # c·1.0 == c: the paper's constant thresholds, bit for bit
+        noise, s_n, var = np.ones((h, w)), noise_std, None
+    else:
+        var = np.asarray(noise_variance, dtype=np.float64)
+        if var.shape != (h, w) or not (np.all(np.isfinite(var)) and np.all(var > 0)):
+            raise ValueError(f"noise_variance (shape {var.shape}) is invalid; allowed: None or finite values > 0 "
+                             f"of the image's shape {(h, w)}")
+        noise, s_n = np.sqrt(var), 1.0
 
     bank = GaussianDerivativeBank(img, max(s1[-1], s2[-1]), precision="single")
     sigma1 = np.full((h, w), np.nan)
     theta = np.zeros((h, w))
     gmag = np.zeros((h, w))
     for s in s1:
-        c1 = first_derivative_threshold(s, noise_std=noise_std, alpha_p=alpha_p)
+        c1 = first_derivative_threshold(s, noise_std=s_n, alpha_p=alpha_p)
         ix, iy = bank.gradient(s)
-        if _gradient_pass(ix, iy, float(c1), float(s), sigma1, theta, gmag) == 0:
+        if _gradient_pass(ix, iy, float(c1), noise, float(s), sigma1, theta, gmag) == 0:
             break
 
     sigma2 = np.full((h, w), np.nan)
@@ -239,9 +257,9 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
     if np.isfinite(sigma1).any():
         cos_t, sin_t = np.cos(theta), np.sin(theta)
         for level, s in enumerate(s2, start=1):
-            c2 = second_derivative_threshold(s, noise_std=noise_std, alpha_p=alpha_p)
+            c2 = second_derivative_threshold(s, noise_std=s_n, alpha_p=alpha_p)
             ixx, ixy, iyy = bank.hessian(s)
-            left, new = _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, float(c2), float(s), level,
+            left, new = _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, float(c2), noise, float(s), level,
                                             sigma1, sigma2, edge_level)
             if keep_hessians and new:
                 hessians[float(s)] = (ixx, ixy, iyy)
@@ -249,7 +267,7 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
                 break
     edges = edge_level > 0
     return EdgeMap(edges=edges, theta=theta, gradient_magnitude=gmag, sigma1=sigma1, sigma2=sigma2,
-                   hessians=hessians if keep_hessians else None)
+                   hessians=hessians if keep_hessians else None, noise_variance=var)
 
 
 def check_edge_inputs(gray, edge_map):

@@ -11,11 +11,21 @@ import math
 import numpy as np
 from scipy.special import erfcinv
 
+from ..registry import Registry
+
 __all__ = [
+    "SENSOR_NOISE_MODELS",
     "first_derivative_threshold",
     "per_pixel_false_positive_rate",
     "second_derivative_threshold",
 ]
+
+#: ``EdgeParams.noise_model``: what the noise s_n of Eq. (9) and of the checked fit's residual test is.
+SENSOR_NOISE_MODELS = Registry("noise model", {
+    "constant": "one std noise_std everywhere, in the light measured (the paper's s_n)",
+    "signal_dependent": "variance a·x + b in linear light carried through the tone curve, per pixel "
+                        "(Foi et al. 2008; method.blur.noise_model)",
+})
 
 
 def _positive(value, name):

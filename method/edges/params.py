@@ -13,6 +13,7 @@ from ..luma import MEASURE_LIGHTS
 from ..registry import Registry
 from ..validation import check_field_choice, invalid_field, require_field
 from .isolation import EDGE_ISOLATION_METHODS
+from .noise_thresholds import SENSOR_NOISE_MODELS
 
 __all__ = ["EDGE_DETECTORS", "EdgeParams"]
 
@@ -40,6 +41,16 @@ class EdgeParams:
     noise_std: float = 2.5 / 255.0
     # sensor noise s_n, image units ([0, 1] scale): 2.5 grey levels of 8 bits (Sec. 3.1, Eq. 9).
     # Also read by the checked fit's noise allowance and the fusion's island test.
+    noise_model: str = "constant"
+    # beyond the paper: the noise of Eq. (9)'s thresholds and of the checked fit's residual test (key of
+    # method.edges.noise_thresholds.SENSOR_NOISE_MODELS): "constant" (noise_std everywhere, paper) or
+    # "signal_dependent" (per pixel, variance a·x + b of the linear signal x carried through the tone
+    # curve into measure_light; method.blur.noise_model).
+    noise_a: float | None = None
+    noise_b: float | None = None
+    # noise_model "signal_dependent": shot-noise gain a (linear units) and read-noise variance b (linear
+    # units²) of the measured luminance's noise, a·x + b; None (both): estimated from the image per
+    # intensity level (method.blur.noise_model.estimate_noise_levels).
     measure_light: str = "display"
     # the light edges are detected and their blur measured in (key of method.luma.MEASURE_LIGHTS):
     # "display" (sRGB-encoded values, paper) or "linear" (linear light: a lens blurs linear radiance;
@@ -81,6 +92,15 @@ class EdgeParams:
             object.__setattr__(self, name, scales)
         require_field(self, "noise_std", self.noise_std > 0, "> 0")
         check_field_choice(self, "measure_light", MEASURE_LIGHTS)
+        check_field_choice(self, "noise_model", SENSOR_NOISE_MODELS)
+        for name in ("noise_a", "noise_b"):
+            value = getattr(self, name)
+            require_field(self, name, value is None or (isinstance(value, (int, float)) and not isinstance(value, bool)
+                                                        and 0 <= value < _INF), "None or finite and >= 0")
+        require_field(self, "noise_b", (self.noise_a is None) == (self.noise_b is None),
+                      "None together with noise_a, or a value with it")
+        require_field(self, "noise_b", self.noise_a is None or self.noise_a + self.noise_b > 0,
+                      "noise_a + noise_b > 0 (a noise-free sensor has no Eq. (9) threshold)")
         require_field(self, "false_positive_rate", 0 < self.false_positive_rate < 1, "0 < α_I < 1")
         check_field_choice(self, "edge_detector", EDGE_DETECTORS)
         require_field(self, "canny_sigma", 0 < self.canny_sigma < _INF, "finite and > 0 (px)")

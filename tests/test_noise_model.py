@@ -29,7 +29,7 @@ def test_decode_slope_is_the_curves_derivative():
     np.testing.assert_allclose(decode_slope(y, "linear"), 1.0, atol=DECODE_SLOPE_ATOL)
     assert decode_slope(0.2, "srgb") == pytest.approx(0.31, abs=0.01)
     assert decode_slope(0.9, "srgb") == pytest.approx(1.98, abs=0.01)
-    with pytest.raises(ValueError, match="allowed: 'linear', 'srgb'"):
+    with pytest.raises(ValueError, match="allowed: .*'linear', 'srgb'"):
         decode_slope(0.5, "bogus")
 
 

@@ -77,3 +77,20 @@ def test_fit_follow_scale_validated(bad):
 
 def test_paper_has_it_off():
     assert DefocusParams().fit_follow_scale is None
+
+
+def test_large_lens_grid_and_its_flags():
+    from experiments.bench import lens
+    from tests.cli_run import run_in_process
+
+    cfg = lens.lens_config(grid="large")
+    assert cfg["sigmas"] == (8.0, 12.0, 16.0) and cfg["tile"] > lens.LENS_CONFIG["tile"] and not cfg["regions"]
+    assert lens.lens_config(grid="large", psfs=["disk"])["psfs"] == ("disk",)
+    assert lens.lens_config(grid="default") == lens.lens_config()
+    with pytest.raises(ValueError, match="grid='huge' is invalid; allowed: default, full, large"):
+        lens.lens_config(grid="huge")
+    for argv, text in ((["--accuracy", "--grid", "huge"], "allowed: default, full, large"),
+                       (["--grid", "large"], "--grid goes with --accuracy"),
+                       (["--accuracy", "--full", "--grid", "large"], "exclude each other")):
+        r = run_in_process("repro.bench", argv)
+        assert r.returncode == 2 and text in r.stderr and r.stderr.count("\n") == 1, (argv, r.stderr)

@@ -13,7 +13,8 @@ __all__ = ["build_html"]
 
 def build_html(infos: dict, table, matrix: dict, *, figures_rel: str, bench: str | None,
                figures_dir: Path | None = None, leaderboard: dict | None = None,
-               generalisation: dict | None = None, fragile: list | None = None) -> str:
+               generalisation: dict | None = None, fragile: list | None = None,
+               doubling: str | None = None) -> str:
     """A self-contained HTML page (images by relative path); the arguments as in
     :func:`repro._report_markdown.build_markdown`."""
     from experiments.claims import SELF_CHECK_NOTE, fragile_claims
@@ -32,6 +33,9 @@ def build_html(infos: dict, table, matrix: dict, *, figures_rel: str, bench: str
                     for n, w, sc in scene_set_lines()) + "</ul>"
     figs = _html_figures(infos, figures_rel=figures_rel, figures_dir=figures_dir)
     bench_html = f"<h2>Speed</h2><pre>{e(bench)}</pre>" if bench else ""
+    if doubling:  # the doubling claim at both render sizes, after the evidence
+        title, _, body = doubling.partition("\n")
+        details_html += f"<h2>{e(title.lstrip('# '))}</h2><pre>{e(body.strip())}</pre>"
     preset_html = _html_tables(preset_tables(table), "presets")
     if preset_html:
         preset_html = ("<h2>Presets side by side</h2><p><code>paper</code> is the reproduction, <code>robust</code> "

@@ -21,7 +21,8 @@ def md_verdict_cell(text) -> str:
 
 def build_markdown(infos: dict, table, matrix: dict, *, figures_rel: str, bench: str | None,
                    figures_dir: Path | None = None, leaderboard: dict | None = None,
-                   generalisation: dict | None = None, fragile: list | None = None) -> str:
+                   generalisation: dict | None = None, fragile: list | None = None,
+                   doubling: str | None = None) -> str:
     """The Markdown report (GitHub renders it next to the figures).
 
     Parameters
@@ -44,6 +45,8 @@ def build_markdown(infos: dict, table, matrix: dict, *, figures_rel: str, bench:
         :func:`repro._report_gap.load_generalisation`'s result: dev and test side by side, test − dev.
     fragile : list, optional, keyword-only
         :func:`experiments.claims.fragile_claims` (default: computed from ``matrix``).
+    doubling : str, optional, keyword-only
+        The doubling claim at both render sizes (Markdown, ``repro.bench --doubling``'s doubling.md), if any.
     """
     from experiments.claims import fragile_claims
 
@@ -64,6 +67,8 @@ def build_markdown(infos: dict, table, matrix: dict, *, figures_rel: str, bench:
     lines += fragile_lines(fragile)
     lines += _scene_sets()
     lines += _evidence(matrix)
+    if doubling:
+        lines += ["## " + doubling.lstrip("# "), ""]
     lines += _mismatch(table)
     tables = preset_tables(table)
     if tables:

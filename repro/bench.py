@@ -24,7 +24,10 @@ analytic and rendered cases run on the case runner (:mod:`repro._runner`): ``--w
 
 ``--psf NAME…`` chooses the PSFs of its lens part (:mod:`experiments.bench.lens`: texture families and
 steps blurred by a lens PSF in linear light, then a camera's noise and tone curve) and ``--full`` its
-full grid. ``python -m repro.bench --ablation`` runs the robust preset's ablation on the lens bench, the
+full grid; ``--grid large`` runs its large-blur grid instead (σ 8–16 px on 224-px tiles, its own variants).
+``python -m repro.bench --doubling`` runs the doubling claim of Fig. 7 at both render sizes of the same
+scenes with the f/4 stage attribution (:mod:`experiments.doubling_sizes`; ``doubling.md``, which
+``repro.report`` shows). ``python -m repro.bench --ablation`` runs the robust preset's ablation on the lens bench, the
 paper_cameras renders and the real photos (:mod:`experiments.bench.ablation`; ``ablation.md``).
 
 ``python -m repro.bench --magnify [--out report/bench]`` records the targets of the magnification as
@@ -164,6 +167,12 @@ def _parser():
     parser.add_argument("--tone-curves", action="store_true",
                         help="with --accuracy: the lens tone grid (ISO 100, every tone curve and display-value blur; "
                              "robust in both lights and with its curve fitted)")
+    parser.add_argument("--grid", default=None, metavar="NAME",
+                        help="with --accuracy: the lens grid by name (default, full, tones, large: σ 8–16 px on 224-px "
+                             "tiles, the fit's scale following off and on)")
+    parser.add_argument("--doubling", action="store_true",
+                        help="run the doubling claim (Fig. 7) at both render sizes of the same scenes with the f/4 "
+                             "stage attribution instead (doubling.md / doubling.json)")
     from ._runner import add_engine_options
 
     add_engine_options(parser, what="with --accuracy: the analytic and rendered cases")
@@ -208,6 +217,10 @@ def main(argv=None) -> int:
         return 0
     if (args.psf or args.full or args.tone_curves) and not args.accuracy:
         raise CLIError("--psf, --full and --tone-curves go with --accuracy")
+    if args.grid and not args.accuracy:
+        raise CLIError("--grid goes with --accuracy; allowed: --accuracy --grid NAME")
+    if args.full and args.grid:
+        raise CLIError("--full and --grid exclude each other; allowed: --full or --grid NAME")
     if (args.workers is not None or args.scheduler is not None) and not args.accuracy:
         raise CLIError("--workers and --scheduler go with --accuracy; allowed: --accuracy --workers N")
     if args.accuracy:
@@ -218,9 +231,10 @@ def main(argv=None) -> int:
         if config.get("lens") is not None and args.tone_curves:
             with user_input():  # --psf names
                 config["lens"] = lens_config(psfs=args.psf, full=args.full, tones=True)
-        elif config.get("lens") is not None and (args.psf or args.full):
-            with user_input():  # --psf names
-                config["lens"] = {**lens_config(psfs=args.psf, full=args.full), "variants": config["lens"]["variants"]}
+        elif config.get("lens") is not None and (args.psf or args.full or args.grid):
+            with user_input():  # --psf and --grid names
+                cfg = lens_config(psfs=args.psf, full=args.full, grid=args.grid)
+                config["lens"] = cfg if args.grid else {**cfg, "variants": config["lens"]["variants"]}
         from ._runner import engine_choice
 
         workers, scheduler = engine_choice(args.workers, args.scheduler, command=f"{PROG} --accuracy")
@@ -249,6 +263,18 @@ def main(argv=None) -> int:
         atomic_write_text(args.out / "magnify.json", json.dumps(report, indent=1, default=str))
         atomic_write_text(args.out / "magnify.md", magnify_markdown(report) + "\n")
         print((args.out / "magnify.md").read_text(encoding="utf-8"))
+        return 0
+    if args.doubling:
+        require_extras("render", command="repro.bench --doubling")
+        from defocus_cache import atomic_write_text
+        from experiments.cache_keys import to_jsonable
+        from experiments.doubling_sizes import doubling_markdown, doubling_report
+
+        report = doubling_report(progress=not args.quiet)
+        args.out.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(args.out / "doubling.json", json.dumps(to_jsonable(report), indent=1, allow_nan=False))
+        atomic_write_text(args.out / "doubling.md", doubling_markdown(report))
+        print((args.out / "doubling.md").read_text(encoding="utf-8"))
         return 0
     if args.figures:
         require_extras("sweep", "render", command="repro.bench --figures")

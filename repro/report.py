@@ -129,8 +129,8 @@ def check_full_mode(infos: dict, table, *, figures: Path) -> None:
                          "a quick run's report: python -m repro.report --figures report/quick/figures")
 
 
-def _bench_summary(out: Path) -> str | None:
-    path = out / "bench" / "bench.md"
+def _bench_summary(out: Path, name: str = "bench.md") -> str | None:
+    path = out / "bench" / name
     return path.read_text() if path.exists() else None
 
 
@@ -294,7 +294,7 @@ def main(argv=None) -> int:
     if generalisation is not None:
         _write_json(args.out / "generalisation.json", {k: v for k, v in generalisation.items() if k != "tables"})
     pages = dict(figures_rel=rel, bench=_bench_summary(args.out), figures_dir=args.figures, leaderboard=board,
-                 generalisation=generalisation, fragile=fragile)
+                 generalisation=generalisation, fragile=fragile, doubling=_bench_summary(args.out, "doubling.md"))
     atomic_write_text(args.out / "README.md", build_markdown(infos, table, matrix, **pages))
     atomic_write_text(args.out / "index.html", build_html(infos, table, matrix, **pages))
     first = next(iter(matrix), None)

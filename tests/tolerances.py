@@ -324,3 +324,11 @@ NOISE_ESTIMATE_A_RTOL = 0.15
 NOISE_ESTIMATE_VARIANCE_RTOL = 0.25
 #: |decode_slope − analytic sRGB derivative|: central differences of half-width 1e-4 on a C¹ curve.
 DECODE_SLOPE_ATOL = 1e-6
+
+# --- large blur: the model fit's scale following a coarse estimate (method/blur/scale_follow.py) ---
+#: Isolated disk steps in linear light (320², ISO 100, 8 bits, seeds 0–1), robust + fit_follow_scale
+#: 0.5 + σ2 16: share of edge pixels within max(2, σ/2) px of the step that measure, and |median
+#: error| / σ. Measured 2026-12-06: coverage 0.97–1.00 and |median| ≤ 0.03 px at σ 12 and 16
+#: (robust without it: coverage 0; with σ2 16 added but no re-fit, 0.18–0.23 at median −10 to −14 px).
+LARGE_BLUR_MIN_COVERAGE = 0.9
+LARGE_BLUR_MAX_REL_MEDIAN = 0.05

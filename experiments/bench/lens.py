@@ -31,9 +31,9 @@ import warnings
 from .mosaics import lens_step_mosaic, sigma_bins, tile_contrast_snr
 from .targets import TARGET_MIN_COVERAGE
 
-__all__ = ["LENS_CONFIG", "LENS_FULL_CONFIG", "LENS_TARGETS", "LENS_TONES", "LENS_TONE_CONFIG", "PERIODIC_FAMILIES",
-           "REGION_NO_INFORMATION", "judge_lens", "lens_case", "lens_config", "lens_markdown", "measure_lens",
-           "tone_label"]
+__all__ = ["LENS_CONFIG", "LENS_FULL_CONFIG", "LENS_GRIDS", "LENS_LARGE_CONFIG", "LENS_TARGETS", "LENS_TONES",
+           "LENS_TONE_CONFIG", "PERIODIC_FAMILIES", "REGION_NO_INFORMATION", "judge_lens", "lens_case", "lens_config",
+           "lens_markdown", "measure_lens", "tone_label"]
 
 #: The tone axis: (the camera's tone curve, a key of scenes.display.ENCODINGS; where the blur acts,
 #: scenes.analytic.lens.LIGHTS). ("srgb", "linear") is a lens and a camera JPEG; the other curves
@@ -76,6 +76,18 @@ LENS_TONE_CONFIG = {**LENS_CONFIG, "noises": ("iso100",), "tones": LENS_TONES,
                                  "robust, display light": ("robust", {"measure_light": "display"}),
                                  "robust, curve fitted (encoding auto)": ("robust", {}, "auto")},
                     "regions": {"disk + adequacy gate": LENS_CONFIG["regions"]["disk + adequacy gate"]}}
+#: The large-blur grid (``python -m repro.bench --accuracy --grid large``): σ 8, 12 and 16 px on tiles of
+#: 224 px (a disk of σ 16 is 64 px wide and its edge response spans ±64 px), ISO 100, the robust preset
+#: with and without the fit's scale following a coarse estimate (``fit_follow_scale``); no region cue.
+#: Timed in docs/performance.md ("The large-blur lens grid").
+LENS_LARGE_CONFIG = {**LENS_CONFIG, "noises": ("iso100",), "sigmas": (8.0, 12.0, 16.0), "tile": 224,
+                     "variants": {"paper": ("paper", {}), "robust": ("robust", {}),
+                                  "robust + scale following": ("robust", {"fit_follow_scale": 0.5}),
+                                  "robust + scale following + σ2 16": ("robust", {
+                                      "fit_follow_scale": 0.5, "sigma2_scales": (0.5, 1.0, 2.0, 4.0, 8.0, 16.0)})},
+                     "regions": {}}
+#: The lens grids by name (``--grid``).
+LENS_GRIDS = {"default": LENS_CONFIG, "full": LENS_FULL_CONFIG, "tones": LENS_TONE_CONFIG, "large": LENS_LARGE_CONFIG}
 
 #: Targets (robust), on every tone curve of the grid: edge fit on lens-blurred steps, the region cue, the
 #: dense map at ISO 100 on every family (shading included; the periodic ones only where their blurred
@@ -105,17 +117,21 @@ PERIODIC_FAMILIES = ("checker", "stripes", "brick")
 REGION_NO_INFORMATION = ("flat_patches", "shading")
 
 
-def lens_config(*, psfs=None, full=False, tones=False) -> dict:
-    """The grid to run: :data:`LENS_CONFIG` (:data:`LENS_FULL_CONFIG`, :data:`LENS_TONE_CONFIG`), optionally with other PSFs.
+def lens_config(*, psfs=None, full=False, tones=False, grid=None) -> dict:
+    """The grid to run: :data:`LENS_CONFIG` (``full``: :data:`LENS_FULL_CONFIG`; ``tones``: :data:`LENS_TONE_CONFIG`;
+    ``grid``: a key of :data:`LENS_GRIDS`), optionally with other PSFs.
 
     Raises
     ------
     ValueError
-        An unknown PSF (the message lists them).
+        An unknown PSF or grid (the message lists them).
     """
     from scenes.analytic.psfs import check_psf
 
-    cfg = dict(LENS_FULL_CONFIG if full else LENS_TONE_CONFIG if tones else LENS_CONFIG)
+    if grid is not None and grid not in LENS_GRIDS:
+        raise ValueError(f"grid={grid!r} is invalid; allowed: {', '.join(LENS_GRIDS)}")
+    cfg = dict(LENS_GRIDS[grid] if grid is not None else LENS_FULL_CONFIG if full else LENS_TONE_CONFIG if tones
+               else LENS_CONFIG)
     if psfs:
         cfg["psfs"] = tuple(dict.fromkeys(check_psf(p) for p in psfs))
     return cfg

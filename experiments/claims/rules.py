@@ -17,7 +17,7 @@ from .core import (ALPHA_VISIBLE_CHANGE_PX, BIAS_MIN_OUTLIERS_BEFORE, BIAS_MIN_R
                    SHARP_MAX_DROP_DB, SHARP_MIN_PSNR_DB, SMALL_CHANGE_MAX_REL, MissingData, Verdict, closer, compare,
                    err_or_inf, fmt, image_verdict, num)
 
-__all__ = ["alpha_balance", "bias_outliers", "dense_map", "doubled_map", "eq5", "eq6", "fit_name",
+__all__ = ["alpha_balance", "bias_outliers", "dense_map", "doubled_map", "doubling_verdict", "eq5", "eq6", "fit_name",
            "magnified_close", "model_fit_analytic", "neighbouring_edges", "refinement_small_change", "refocus",
            "rendered_edges", "sharp_stays_sharp"]
 
@@ -267,6 +267,18 @@ def doubled_map(r):
                       "doubled_f8_vs_gt_median_rel": num(_need(kx, "median_rel_error", w)),
                       "map_f4_vs_gt_median_rel": num(_need(fl, "median_rel_error", w)),
                       "doubled_f8_vs_gt_mae": num(_need(kx, "mae", w)), "map_f4_vs_gt_mae": num(_need(fl, "mae", w))}
+    v, evidence = doubling_verdict(rows)
+    return Verdict(v, evidence, rows)
+
+
+def doubling_verdict(rows: dict) -> tuple[str, str]:
+    """The doubling claim's rule on per-scene numbers: (verdict, evidence).
+
+    ``rows``: ``{scene: {"doubled_f8_vs_map_f4_median_rel", "doubled_f8_vs_gt_median_rel",
+    "map_f4_vs_gt_median_rel" (dimensionless), "doubled_f8_vs_map_f4_mae", "doubled_f8_vs_gt_mae",
+    "map_f4_vs_gt_mae" (px)}}`` (:func:`doubled_map` reads them from Fig. 7's rows;
+    :mod:`experiments.doubling_sizes` computes them at two render sizes).
+    """
     similar = [x["doubled_f8_vs_map_f4_median_rel"] <= DOUBLING_MAX_MEDIAN_REL_DIFF for x in rows.values()]
     accurate = [max(x["doubled_f8_vs_gt_median_rel"], x["map_f4_vs_gt_median_rel"]) <= DOUBLING_MAX_MEDIAN_REL_ERR
                 for x in rows.values()]
@@ -276,7 +288,7 @@ def doubled_map(r):
         f"{x['doubled_f8_vs_map_f4_mae']:.2f} px); vs σ_gt(f/4) median error 2×map(f/8) "
         f"{100 * x['doubled_f8_vs_gt_median_rel']:.0f} % (MAE {x['doubled_f8_vs_gt_mae']:.2f} px), map(f/4) "
         f"{100 * x['map_f4_vs_gt_median_rel']:.0f} % (MAE {x['map_f4_vs_gt_mae']:.2f} px)" for k, x in rows.items())
-    return Verdict(v, f"{parts}.", rows)
+    return v, f"{parts}."
 
 
 def _need(node: dict, key: str, where: str):

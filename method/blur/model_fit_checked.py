@@ -15,8 +15,9 @@ import functools
 
 import numpy as np
 
-from .model_fit import model_fit_diagnostics, paper_rules, apply_fit_rules
+from .model_fit import paper_rules, apply_fit_rules
 from .noise_model import noise_variance_map
+from .scale_follow import follow_scale_diagnostics
 
 __all__ = ["estimate_blur_model_fit_checked", "estimate_blur_model_fit_checked_confidence",
            "estimate_blur_model_fit_checked_psf", "noise_residual_share", "relaxed_confidence_used",
@@ -140,6 +141,9 @@ def estimate_blur_model_fit_checked(gray, edge_map, *, params):
        sensor noise ``params.noise_std`` is expected to leave is allowed on top. With
        ``params.noise_model="signal_dependent"`` the noise is the edge pixel's own variance
        (``edge_map.noise_variance``, else :func:`method.blur.noise_model.noise_variance_map` of ``gray``).
+    5. ``params.fit_follow_scale`` (beyond the paper): step 1's fit is re-done at a scale that
+       follows a coarse estimate of the blur where that blur is large
+       (:func:`method.blur.scale_follow.follow_scale_diagnostics`); None: off.
 
     For a blurred step edge the model is exact up to sampling, noise and the window's truncation
     (measured ρ ≤ 0.004 noise-free, ≤ 0.03 with noise 2.5/255 + 8 bits); two opposite edges 1–3σ
@@ -182,8 +186,7 @@ def estimate_blur_model_fit_checked_confidence(gray, edge_map, *, params):
     so the relaxed measures (fits of blurry edges, but also of in-focus low-contrast edges fitted
     too wide) decide the map only where no strict measure is near. The fit runs once.
     """
-    diagnostics = model_fit_diagnostics(gray, edge_map, params=params)
-    return _checked(diagnostics, params, _noise_variance(gray, edge_map, params))
+    return _checked(follow_scale_diagnostics(gray, edge_map, params=params), params, _noise_variance(gray, edge_map, params))
 
 
 def estimate_blur_model_fit_checked_psf(gray, edge_map, *, params):
@@ -197,7 +200,7 @@ def estimate_blur_model_fit_checked_psf(gray, edge_map, *, params):
         True at the measures (finite ``sigma_b``) whose edge response was fitted with the disk model
         (``params.fit_psf``: :func:`method.blur.model_fit.select_psf_model`); False elsewhere.
     """
-    diagnostics = model_fit_diagnostics(gray, edge_map, params=params)
+    diagnostics = follow_scale_diagnostics(gray, edge_map, params=params)
     sigma_b, confidence = _checked(diagnostics, params, _noise_variance(gray, edge_map, params))
     return sigma_b, confidence, diagnostics["disk"] & np.isfinite(sigma_b)
 

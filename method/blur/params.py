@@ -63,6 +63,11 @@ class BlurParams:
     fit_max_scale: float | None = None
     # beyond the paper: fit Eq. (2c) to the responses at min(σ2(p), fit_max_scale) px: at coarse σ2 the
     # fit window spans neighbouring texture edges that widen the response. None: the paper (σ2(p)).
+    fit_follow_scale: float | None = None
+    # beyond the paper (estimator "model_fit_checked"): r = σ2 / σ̂, dimensionless in (0, 1]; where the
+    # detector's σ2(p) exceeds the capped fit scale, a coarse fit at σ2(p) gives σ̂c and the edge is
+    # re-fitted at the sigma2_scales value nearest r·σ̂c (in log), its window grown to hold the response
+    # (method.blur.scale_follow): large blur is fitted at a scale that sees it. None: off.
     fit_min_samples: int = 3
     # beyond the paper: fewest response samples in the fit window for a measure (NaN below); 3 (the
     # smallest window, paper) fits (s, t0) exactly and lets noise choose any width.
@@ -106,6 +111,8 @@ class BlurParams:
         require_field(self, "fit_scale_ratio", 0 < self.fit_scale_ratio <= 1, "0 < ratio <= 1 (dimensionless)")
         if self.fit_max_scale is not None and not self.fit_max_scale > 0:
             raise invalid_field("fit_max_scale", self.fit_max_scale, "None or > 0 (px)")
+        if self.fit_follow_scale is not None and not 0 < self.fit_follow_scale <= 1:
+            raise invalid_field("fit_follow_scale", self.fit_follow_scale, "None or 0 < r <= 1 (dimensionless)")
         require_field(self, "fit_min_samples", is_integer(self.fit_min_samples, 3), "integer >= 3")
         require_field(self, "fit_max_width_ratio", self.fit_max_width_ratio > 0, "> 0 (inf: no limit)")
         check_field_choice(self, "fit_below_scale", BELOW_SCALE_RULES)

@@ -16,6 +16,7 @@ import functools
 import numpy as np
 
 from .model_fit import model_fit_diagnostics, paper_rules, apply_fit_rules
+from .step_plateau import gate_step_measures
 
 __all__ = ["estimate_blur_model_fit_checked", "estimate_blur_model_fit_checked_confidence",
            "estimate_blur_model_fit_checked_psf", "noise_residual_share", "relaxed_confidence_used",
@@ -131,6 +132,8 @@ def estimate_blur_model_fit_checked(gray, edge_map, *, params):
     4. ``params.fit_residual_noise`` = k > 0 (beyond the paper; robust preset: k = 2): the limit is
        ``fit_max_residual`` + k · :func:`noise_residual_share` (per pixel), i.e. the residual the
        sensor noise ``params.noise_std`` is expected to leave is allowed on top.
+    5. ``params.fit_step_gate`` other than ``"none"`` (beyond the paper): NaN where the profile across
+       the edge is not that of a blurred step (:func:`method.blur.step_plateau.gate_step_measures`).
 
     For a blurred step edge the model is exact up to sampling, noise and the window's truncation
     (measured ρ ≤ 0.004 noise-free, ≤ 0.03 with noise 2.5/255 + 8 bits); two opposite edges 1–3σ
@@ -173,7 +176,7 @@ def estimate_blur_model_fit_checked_confidence(gray, edge_map, *, params):
     so the relaxed measures (fits of blurry edges, but also of in-focus low-contrast edges fitted
     too wide) decide the map only where no strict measure is near. The fit runs once.
     """
-    return _checked(model_fit_diagnostics(gray, edge_map, params=params), params)
+    return _checked(model_fit_diagnostics(gray, edge_map, params=params), params, gray, edge_map)
 
 
 def estimate_blur_model_fit_checked_psf(gray, edge_map, *, params):
@@ -188,12 +191,13 @@ def estimate_blur_model_fit_checked_psf(gray, edge_map, *, params):
         (``params.fit_psf``: :func:`method.blur.model_fit.select_psf_model`); False elsewhere.
     """
     diagnostics = model_fit_diagnostics(gray, edge_map, params=params)
-    sigma_b, confidence = _checked(diagnostics, params)
+    sigma_b, confidence = _checked(diagnostics, params, gray, edge_map)
     return sigma_b, confidence, diagnostics["disk"] & np.isfinite(sigma_b)
 
 
-def _checked(diagnostics, params):
-    """(σb, confidence) of the checked fit from the model fit's diagnostics (Notes of the estimator)."""
+def _checked(diagnostics, params, gray, edge_map):
+    """(σb, confidence) of the checked fit from the model fit's diagnostics (Notes of the estimator),
+    then ``params.fit_step_gate`` (:func:`method.blur.step_plateau.gate_step_measures`)."""
     sigma_b, residual = diagnostics["sigma_b"], diagnostics["residual"]
     if not paper_rules(params):  # the beyond-the-paper plausibility rules (robust preset) first
         sigma_b = apply_fit_rules(diagnostics, params=params)
@@ -205,7 +209,7 @@ def _checked(diagnostics, params):
     with np.errstate(invalid="ignore"):
         good = residual <= limit  # False where residual is NaN
         strict = residual <= strict_limit
-    sigma_b = np.where(good, sigma_b, np.nan)
+    sigma_b = gate_step_measures(gray, edge_map, np.where(good, sigma_b, np.nan), params=params)
     c_relaxed = float(params.relaxed_fit_weight)
     confidence = np.where(strict, 1.0, c_relaxed)
     confidence[~np.isfinite(sigma_b)] = np.nan

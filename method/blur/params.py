@@ -15,6 +15,7 @@ from .estimators import BLUR_ESTIMATORS
 from .local_spectrum import REGION_GATES
 from .model_fit import FIT_PSF_MODELS
 from .region_estimators import REGION_ESTIMATORS, REGION_NOISE_MODELS, REGION_PSFS
+from .step_plateau import STEP_GATES
 
 __all__ = ["BELOW_SCALE_RULES", "BlurParams", "RegionParams"]
 
@@ -78,6 +79,11 @@ class BlurParams:
     # method.blur.disk_edge_response), "best" (both, per edge the smaller residual) or "auto" (both, one
     # model per image: method.blur.model_fit.select_psf_model). Every model reports the per-axis std of
     # its PSF through Eq. (2d) (a disk of diameter c: c/4).
+    fit_step_gate: str = "none"
+    # beyond the paper (estimator "model_fit_checked"): the test of the image profile across each measured
+    # edge that tells shading and shadows from a defocus-blurred step (key of
+    # method.blur.step_plateau.STEP_GATES): "none" (paper), "plateau" (no measure where the profile has no
+    # plateau 1.5σb–3σb from the edge) or "plateau_flat" (also where a side keeps changing there).
     ratio_gradient_sigma: float = 0.5
     # σg of the Gaussian-derivative gradient |∇I| of estimator "gradient_ratio", px (Eq. 7 kernels);
     # 0.5: the smallest Elder–Zucker scale (Zhuo & Sim's public code: 1).
@@ -110,6 +116,7 @@ class BlurParams:
         require_field(self, "fit_max_width_ratio", self.fit_max_width_ratio > 0, "> 0 (inf: no limit)")
         check_field_choice(self, "fit_below_scale", BELOW_SCALE_RULES)
         check_field_choice(self, "fit_psf", FIT_PSF_MODELS)
+        check_field_choice(self, "fit_step_gate", STEP_GATES)
         for name in ("ratio_gradient_sigma", "ratio_reblur_sigma"):
             require_field(self, name, 0 < getattr(self, name) < _INF, "finite and > 0 (px)")
         if self.ratio_max_sigma is not None and not (0 < self.ratio_max_sigma < _INF):

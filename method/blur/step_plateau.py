@@ -28,8 +28,8 @@ __all__ = ["PLATEAU_FLATNESS", "PLATEAU_MIN_SIGMA", "PLATEAU_REACH", "STEP_GATES
 #: pixel filter and the 1-px pre-smoothing shape the profile more than the blur does.
 PLATEAU_MIN_SIGMA = 1.0
 #: Smallest reach (dimensionless) of a kept measure, on each side: the mean level over 1.5σb–3σb from the
-#: edge, measured from the profile's midpoint, over the level at σb. A Gaussian step gives 1.46, a disk
-#: step 1.62, a linear ramp 1.68; a cosine read as blur σ (period ≈ 4σ) about −0.3.
+#: edge, measured from the profile's midpoint, over the level at σb. A Gaussian step gives 1.40, a disk
+#: step 1.60, a linear ramp 1.70; a cosine read as blur σ (period ≈ 4σ) −0.27.
 PLATEAU_REACH = 1.0
 #: Largest flatness (dimensionless) of a kept measure, on each side: |I(3σb) − I(1.5σb)| over the level
 #: at σb (from the midpoint). A Gaussian step gives 0.19, a disk step 0.24, a linear ramp 0.23; a linear

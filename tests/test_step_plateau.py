@@ -8,7 +8,7 @@ import pytest
 from scipy.special import ndtr
 
 from method.blur.estimators import estimate_blur
-from method.blur.step_plateau import (PLATEAU_FLATNESS, PLATEAU_MIN_SIGMA, PLATEAU_REACH, STEP_GATES,
+from method.blur.step_plateau import (GAUSSIAN_STEP_REACH, PLATEAU_FLATNESS, PLATEAU_MIN_SIGMA, STEP_GATES,
                                       gate_step_measures, plateau_profile)
 from method.edges.elder_zucker import detect_edges
 from method.params import DefocusParams
@@ -103,8 +103,8 @@ def test_the_profile_measures_of_a_gaussian_step_and_of_a_cosine():
     step = ndtr((t - x0) / 4.0)
     reach, flat, evident = plateau_profile(step, rows, cols, np.array([ANGLE]), np.array([4.0]), noise_std=0.0)
     assert evident.all()
-    assert reach == pytest.approx(1.401, abs=0.005) and flat == pytest.approx(0.192, abs=0.005)
-    assert reach.min() > PLATEAU_REACH and flat.max() < PLATEAU_FLATNESS
+    assert reach == pytest.approx(GAUSSIAN_STEP_REACH, abs=0.005) and flat == pytest.approx(0.192, abs=0.005)
+    assert reach.min() > ROBUST.fit_plateau_reach and flat.max() < PLATEAU_FLATNESS
     wave = np.sin(2 * np.pi * (t - x0) / 24.0)
     reach, _, evident = plateau_profile(wave, rows, cols, np.array([ANGLE]), np.array([6.0]), noise_std=0.0)
     assert evident.all() and (reach < 0).all()

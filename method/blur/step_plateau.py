@@ -21,16 +21,17 @@ from scipy import ndimage
 
 from ..registry import Entry, Registry
 
-__all__ = ["PLATEAU_FLATNESS", "PLATEAU_MIN_SIGMA", "PLATEAU_REACH", "STEP_GATES", "gate_step_measures",
+__all__ = ["GAUSSIAN_STEP_REACH", "PLATEAU_FLATNESS", "PLATEAU_MIN_SIGMA", "STEP_GATES", "gate_step_measures",
            "plateau_profile"]
 
 #: Smallest measure σb (px) the tests judge: below it the plateaus lie within 2 px of the edge, where the
 #: pixel filter and the 1-px pre-smoothing shape the profile more than the blur does.
 PLATEAU_MIN_SIGMA = 1.0
-#: Smallest reach (dimensionless) of a kept measure, on each side: the mean level over 1.5σb–3σb from the
-#: edge, measured from the profile's midpoint, over the level at σb. A Gaussian step gives 1.40, a disk
-#: step 1.60, a linear ramp 1.70; a cosine read as blur σ (period ≈ 4σ) −0.27.
-PLATEAU_REACH = 1.0
+#: Reach (dimensionless) of a Gaussian step, the smallest of a blurred step's: the mean level over 1.5σ–3σ
+#: from the edge, measured from the profile's midpoint, over the level at σ (:func:`plateau_profile`). A
+#: disk step gives 1.60, a linear ramp 1.70; a cosine read as blur σ (period ≈ 4σ) −0.27. The smallest
+#: reach a kept measure has is ``params.fit_plateau_reach``.
+GAUSSIAN_STEP_REACH = 1.401
 #: Largest flatness (dimensionless) of a kept measure, on each side: |I(3σb) − I(1.5σb)| over the level
 #: at σb (from the midpoint). A Gaussian step gives 0.19, a disk step 0.24, a linear ramp 0.23; a linear
 #: shading gradient that continues past the edge 1.5.
@@ -64,7 +65,7 @@ def plateau_profile(gray, rows, cols, theta, sigma_b, *, noise_std):
         normal, m = (I(w) + I(−w))/2 and a = (I(w) − I(−w))/2 (the core's half-contrast):
         reach = (mean of ±(I(±u·w) − m) over u ∈ [1.5, 3] + δ) / a and flatness =
         max(|I(±3w) − I(±1.5w)| − δ, 0) / a, with δ three times the smoothed noise std (a noise
-        allowance in favour of a step). Dimensionless; :data:`PLATEAU_REACH`, :data:`PLATEAU_FLATNESS`.
+        allowance in favour of a step). Dimensionless; :data:`GAUSSIAN_STEP_REACH`, :data:`PLATEAU_FLATNESS`.
     evident : ndarray, shape (n,), bool
         a > 2δ: the core rises above the noise (a measure without that evidence is never rejected).
     """
@@ -87,32 +88,32 @@ def plateau_profile(gray, rows, cols, theta, sigma_b, *, noise_std):
     return reach, flat, a > 2.0 * delta
 
 
-def _keep(gray, rows, cols, theta, sigma_b, noise_std, *, flat):
+def _keep(gray, rows, cols, theta, sigma_b, params, *, flat):
     keep = np.ones(rows.size, dtype=bool)
     judged = sigma_b >= PLATEAU_MIN_SIGMA
     if judged.any():
         reach, flatness, evident = plateau_profile(gray, rows[judged], cols[judged], theta[judged],
-                                                   sigma_b[judged], noise_std=noise_std)
-        bad = (reach < PLATEAU_REACH).any(axis=1)
+                                                   sigma_b[judged], noise_std=float(params.noise_std))
+        bad = (reach < float(params.fit_plateau_reach)).any(axis=1)
         if flat:
             bad |= (flatness > PLATEAU_FLATNESS).any(axis=1)
         keep[judged] = ~(evident & bad)
     return keep
 
 
-def _keep_all(gray, rows, cols, theta, sigma_b, noise_std):
+def _keep_all(gray, rows, cols, theta, sigma_b, params):
     return np.ones(rows.size, dtype=bool)
 
 
-def _keep_reached(gray, rows, cols, theta, sigma_b, noise_std):
-    return _keep(gray, rows, cols, theta, sigma_b, noise_std, flat=False)
+def _keep_reached(gray, rows, cols, theta, sigma_b, params):
+    return _keep(gray, rows, cols, theta, sigma_b, params, flat=False)
 
 
-def _keep_flat(gray, rows, cols, theta, sigma_b, noise_std):
-    return _keep(gray, rows, cols, theta, sigma_b, noise_std, flat=True)
+def _keep_flat(gray, rows, cols, theta, sigma_b, params):
+    return _keep(gray, rows, cols, theta, sigma_b, params, flat=True)
 
 
-#: name -> fn(gray, rows, cols, theta, sigma_b, noise_std) -> (n,) bool, True where the measure is kept
+#: name -> fn(gray, rows, cols, theta, sigma_b, params) -> (n,) bool, True where the measure is kept
 #: (``BlurParams.fit_step_gate``).
 STEP_GATES = Registry("step gate", {
     "none": Entry(_keep_all, "every measure of the fit kept (the paper)"),
@@ -133,7 +134,8 @@ def gate_step_measures(gray, edge_map, sigma_b, *, params):
     sigma_b : ndarray, shape (H, W), float
         The fit's σb, px; NaN where there is no measure.
     params : DefocusParams, keyword-only
-        ``fit_step_gate`` (key of :data:`STEP_GATES`) and ``noise_std`` (image units).
+        ``fit_step_gate`` (key of :data:`STEP_GATES`), ``fit_plateau_reach`` (dimensionless) and
+        ``noise_std`` (image units).
 
     Returns
     -------
@@ -145,7 +147,7 @@ def gate_step_measures(gray, edge_map, sigma_b, *, params):
     At each measure with σb ≥ :data:`PLATEAU_MIN_SIGMA` (:func:`plateau_profile`), where the core rises
     above the noise:
 
-    1. ``"plateau"``: rejected where a side's reach is below :data:`PLATEAU_REACH`;
+    1. ``"plateau"``: rejected where a side's reach is below ``params.fit_plateau_reach``;
     2. ``"plateau_flat"``: 1, and also where a side's flatness exceeds :data:`PLATEAU_FLATNESS`.
     """
     name = params.fit_step_gate
@@ -156,7 +158,6 @@ def gate_step_measures(gray, edge_map, sigma_b, *, params):
     rows, cols = np.nonzero(np.isfinite(sigma_b))
     if rows.size:
         theta = np.asarray(edge_map.theta, dtype=np.float64)[rows, cols]
-        keep = fn(np.asarray(gray, dtype=np.float64), rows, cols, theta, sigma_b[rows, cols],
-                  float(params.noise_std))
+        keep = fn(np.asarray(gray, dtype=np.float64), rows, cols, theta, sigma_b[rows, cols], params)
         sigma_b[rows[~keep], cols[~keep]] = np.nan
     return sigma_b

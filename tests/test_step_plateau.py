@@ -27,7 +27,7 @@ def _distance(shape=SHAPE, angle=ANGLE):
     return (xx - (shape[1] - 1) / 2) * math.cos(angle) + (yy - (shape[0] - 1) / 2) * math.sin(angle)
 
 
-def _gate_at_line(image, sigma_b, gate, *, angle=ANGLE, inner=40):
+def _gate_at_line(image, sigma_b, gate, *, angle=ANGLE, inner=40, reach=1.0):
     """Share of the pixels within 0.5 px of the centre line (away from the borders) the gate keeps,
     given the measure σb there and the line's normal as θ."""
     t = _distance(image.shape, angle)
@@ -35,7 +35,7 @@ def _gate_at_line(image, sigma_b, gate, *, angle=ANGLE, inner=40):
     line[:inner], line[-inner:], line[:, :inner], line[:, -inner:] = False, False, False, False
     sb = np.where(line, float(sigma_b), np.nan)
     edge_map = types.SimpleNamespace(theta=np.full(image.shape, angle))
-    out = gate_step_measures(image, edge_map, sb, params=ROBUST.replace(fit_step_gate=gate))
+    out = gate_step_measures(image, edge_map, sb, params=ROBUST.replace(fit_step_gate=gate, fit_plateau_reach=reach))
     return np.isfinite(out[line]).mean()
 
 
@@ -108,6 +108,18 @@ def test_the_profile_measures_of_a_gaussian_step_and_of_a_cosine():
     wave = np.sin(2 * np.pi * (t - x0) / 24.0)
     reach, _, evident = plateau_profile(wave, rows, cols, np.array([ANGLE]), np.array([6.0]), noise_std=0.0)
     assert evident.all() and (reach < 0).all()
+
+
+def test_the_reach_limit_decides_a_profile_that_turns_partly_back():
+    """A step (σ 3) whose bright side falls back by half its contrast 2σ beyond the edge has a reach
+    between 0.5 and 1: rejected at the default limit 1, kept at 0.5."""
+    t = _distance()
+    img = _noisy(0.2 + 0.3 * (ndtr(t / 3.0) - 0.5 * ndtr((t - 6.0) / 3.0)), seed=9)
+    reach, _, _ = plateau_profile(img, np.array([64]), np.array([64]), np.array([ANGLE]), np.array([3.0]),
+                                  noise_std=NOISE)
+    assert 0.5 < reach.min() < 1.0
+    assert _gate_at_line(img, 3.0, "plateau") == 0.0
+    assert _gate_at_line(img, 3.0, "plateau", reach=0.5) == 1.0
 
 
 def test_a_core_hidden_in_the_noise_is_never_rejected_and_small_measures_are_not_judged():

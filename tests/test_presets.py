@@ -233,7 +233,10 @@ REFINEMENT_FIELDS = ("bilateral_sigma_spatial", "bilateral_sigma_range", "bilate
 #:   fit_max_residual +0.028, fit_max_width_ratio +0.082 (+0.013 / +0.234 / 0.000 per seed);
 #: * relaxed_fit_weight (0.1; at 0.02 +0.021, +0.039 / +0.020 / +0.007 per seed; at 0.1 +0.017): with it off the
 #:   measures the noise allowance adds count fully and the in-focus tiles get their too-wide fits;
-DENSE_HELPS = ("estimator", "fit_max_scale", "fit_max_residual", "fit_max_width_ratio")
+#: * fit_step_gate ("plateau", reach 0.5; 2026-12-06): +0.037 px (0.281 with, 0.318 without; per seed
+#:   +0.083 / +0.003 / +0.027), sparse +0.056 px: the mosaic's blurred texture bands that turn back
+#:   before their plateaus were read as edges of the wrong width;
+DENSE_HELPS = ("estimator", "fit_max_scale", "fit_max_residual", "fit_max_width_ratio", "fit_step_gate")
 #: * relaxed_fit_weight: with the region cue fused into Eq. (4) its gain here fell to +0.013 px (below
 #:   the helps-limit; edge-only robust +0.017): the region measures now cover much of what the
 #:   relaxed measures decided;

@@ -30,7 +30,7 @@ PAPER_BEFORE_THE_SPLIT = {
     "estimator": "model_fit", "fit_window_min": 3, "fit_window_max": 71, "max_sigma": 64.0, "fit_max_residual": 0.05,
     "fit_residual_noise": 0.0, "relaxed_fit_weight": 1.0, "fit_scale_ratio": 1.0, "fit_max_scale": None,
     "fit_min_samples": 3, "fit_max_width_ratio": float("inf"), "fit_below_scale": "zero", "fit_psf": "gaussian",
-    "fit_step_gate": "none", "fit_plateau_reach": 1.0,
+    "fit_step_gate": "none", "fit_plateau_reach": 0.5,
     "ratio_gradient_sigma": 0.5, "ratio_reblur_sigma": 1.0, "ratio_max_sigma": None, "ratio_zero_is_measure": True,
     # region
     "region_estimator": None, "region_psf": "gaussian", "region_gate": "none", "region_noise_model": "white",

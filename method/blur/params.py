@@ -84,10 +84,11 @@ class BlurParams:
     # edge that tells shading and shadows from a defocus-blurred step (key of
     # method.blur.step_plateau.STEP_GATES): "none" (paper), "plateau" (no measure where the profile has no
     # plateau 1.5σb–3σb from the edge) or "plateau_flat" (also where a side keeps changing there).
-    fit_plateau_reach: float = 1.0
+    fit_plateau_reach: float = 0.5
     # beyond the paper (fit_step_gate other than "none"): smallest reach of a kept measure on each side,
     # dimensionless: the mean level 1.5σb–3σb from the edge over the level at σb, both from the profile's
-    # midpoint (method.blur.step_plateau.plateau_profile; a Gaussian step 1.40, a cosine read as blur −0.27).
+    # midpoint (method.blur.step_plateau.plateau_profile; a Gaussian step 1.40, a cosine read as blur −0.27;
+    # 0.5 chosen on dev over 1: docs/presets.md).
     ratio_gradient_sigma: float = 0.5
     # σg of the Gaussian-derivative gradient |∇I| of estimator "gradient_ratio", px (Eq. 7 kernels);
     # 0.5: the smallest Elder–Zucker scale (Zhuo & Sim's public code: 1).

@@ -33,6 +33,9 @@ ROBUST_CHANGES: dict = {
     "bilateral_range_kernel": "product",
     "bilateral_sigma_spatial": 0.05,
     "sharpness_bias": False,
+    # no measure where the profile across the edge turns back before its plateaus (in-focus shading bands
+    # read as blur; method.blur.step_plateau, reach limit fit_plateau_reach; docs/presets.md)
+    "fit_step_gate": "plateau",
     # edges detected and their blur fitted in linear light (a lens blurs linear radiance; the sRGB
     # curve makes a blurred step asymmetric). The region cue (region_estimator) was measured and left
     # out: it did not improve the lens bench, the renders and the real photos at once (docs/presets.md).

@@ -229,7 +229,7 @@ REFINEMENT_FIELDS = ("bilateral_sigma_spatial", "bilateral_sigma_range", "bilate
                      "refinement_robust_scale")
 
 #: What each robust switch was measured to do on the mosaic (seed-mean dense textured MAE over seeds
-#: 0–2; gain = MAE with the switch off − MAE with all on, px; robust 0.311, paper 0.526):
+#: 0–2; gain = MAE with the switch off − MAE with all on, px; robust 0.311, 0.281 with the plateau gate of 2026-12-06; paper 0.526):
 #:
 #: * helps the dense map: estimator="model_fit_checked" +0.260, fit_max_residual +0.028,
 #:   fit_max_width_ratio +0.082 (+0.013 / +0.234 / 0.000 per seed); with the per-pixel noise model
@@ -237,7 +237,10 @@ REFINEMENT_FIELDS = ("bilateral_sigma_spatial", "bilateral_sigma_range", "bilate
 #:   +0.151 and noise_model="signal_dependent" +0.089 (sparse +0.128);
 #: * relaxed_fit_weight (0.1; at 0.02 +0.021, +0.039 / +0.020 / +0.007 per seed; at 0.1 +0.017): with it off the
 #:   measures the noise allowance adds count fully and the in-focus tiles get their too-wide fits;
-DENSE_HELPS = ("estimator", "fit_max_residual", "fit_max_width_ratio", "noise_model")
+#: * fit_step_gate ("plateau", reach 0.5; 2026-12-06): +0.037 px (0.281 with, 0.318 without; per seed
+#:   +0.083 / +0.003 / +0.027), sparse +0.056 px: the mosaic's blurred texture bands that turn back
+#:   before their plateaus were read as edges of the wrong width;
+DENSE_HELPS = ("estimator", "fit_max_width_ratio", "noise_model", "fit_step_gate")
 #: * fit_max_scale: +0.039 with the constant noise; with the per-pixel noise model neutral here
 #:   (dense −0.001, sparse +0.005 px): the thresholds that follow the noise no longer hand the fit the
 #:   coarse-σ2 texture edges the cap removed;
@@ -260,7 +263,9 @@ REGION_CUE = ("region_estimator", "fusion_edge_error_rel", "fusion_island_weight
 DENSE_NEUTRAL_BLURRY_HELPS = ("fit_residual_noise",)
 #: * no effect on the dense map but helps the sparse stage: fit_below_scale, dense +0.001, sparse
 #:   +0.032 (0.348 → 0.379 px with the paper's σb = 0);
-DENSE_NEUTRAL_SPARSE_HELPS = ("fit_below_scale",)
+#: * fit_max_residual (0.03 instead of 0.05): with the plateau gate on (2026-12-06) its dense gain fell
+#:   from +0.028 to +0.010 px (the gate rejects many of the same poor fits); it still rejects measures;
+DENSE_NEUTRAL_SPARSE_HELPS = ("fit_below_scale", "fit_max_residual")
 #: * HURTS the dense map on the mosaic: bilateral_range_kernel −0.053 (0.311 → 0.258 px with the sum
 #:   kernel), bilateral_sigma_spatial (5 %) −0.042, sharpness_bias=False −0.038. With the estimated
 #:   (noisy, sparse) measures a wider, colour-blind average and the sharpness bias's pull toward the

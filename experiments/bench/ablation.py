@@ -36,6 +36,7 @@ def _rows():
         "+ region cue, disk model + adequacy gate": {**REGION_CUE_CHANGES, "region_psf": "disk",
                                                      "region_gate": "adequacy"},
         "+ edge isolation weights": {"edge_isolation": "normal"},
+        "− plateau gate (shading bands measured as blur)": {"fit_step_gate": "none"},
         "fit_max_scale 3 px (instead of 2)": {"fit_max_scale": 3.0},
         "− noise allowance, Eq. (3) with the sharpness bias, σs 10 %": {
             "fit_residual_noise": 0.0, "relaxed_fit_weight": 1.0, "sharpness_bias": True,

@@ -18,6 +18,7 @@ import numpy as np
 from .model_fit import paper_rules, apply_fit_rules
 from .noise_model import noise_variance_map
 from .scale_follow import follow_scale_diagnostics
+from .step_plateau import gate_step_measures
 
 __all__ = ["estimate_blur_model_fit_checked", "estimate_blur_model_fit_checked_confidence",
            "estimate_blur_model_fit_checked_psf", "noise_residual_share", "relaxed_confidence_used",
@@ -144,6 +145,8 @@ def estimate_blur_model_fit_checked(gray, edge_map, *, params):
     5. ``params.fit_follow_scale`` (beyond the paper): step 1's fit is re-done at a scale that
        follows a coarse estimate of the blur where that blur is large
        (:func:`method.blur.scale_follow.follow_scale_diagnostics`); None: off.
+    6. ``params.fit_step_gate`` other than ``"none"`` (beyond the paper): NaN where the profile across
+       the edge is not that of a blurred step (:func:`method.blur.step_plateau.gate_step_measures`).
 
     For a blurred step edge the model is exact up to sampling, noise and the window's truncation
     (measured ρ ≤ 0.004 noise-free, ≤ 0.03 with noise 2.5/255 + 8 bits); two opposite edges 1–3σ
@@ -186,7 +189,8 @@ def estimate_blur_model_fit_checked_confidence(gray, edge_map, *, params):
     so the relaxed measures (fits of blurry edges, but also of in-focus low-contrast edges fitted
     too wide) decide the map only where no strict measure is near. The fit runs once.
     """
-    return _checked(follow_scale_diagnostics(gray, edge_map, params=params), params, _noise_variance(gray, edge_map, params))
+    return _checked(follow_scale_diagnostics(gray, edge_map, params=params), params, gray, edge_map,
+                    _noise_variance(gray, edge_map, params))
 
 
 def estimate_blur_model_fit_checked_psf(gray, edge_map, *, params):
@@ -201,7 +205,7 @@ def estimate_blur_model_fit_checked_psf(gray, edge_map, *, params):
         (``params.fit_psf``: :func:`method.blur.model_fit.select_psf_model`); False elsewhere.
     """
     diagnostics = follow_scale_diagnostics(gray, edge_map, params=params)
-    sigma_b, confidence = _checked(diagnostics, params, _noise_variance(gray, edge_map, params))
+    sigma_b, confidence = _checked(diagnostics, params, gray, edge_map, _noise_variance(gray, edge_map, params))
     return sigma_b, confidence, diagnostics["disk"] & np.isfinite(sigma_b)
 
 
@@ -212,8 +216,9 @@ def _noise_variance(gray, edge_map, params):
     return edge_map.noise_variance if edge_map.noise_variance is not None else noise_variance_map(gray, params)
 
 
-def _checked(diagnostics, params, noise_variance=None):
-    """(σb, confidence) of the checked fit from the model fit's diagnostics (Notes of the estimator)."""
+def _checked(diagnostics, params, gray, edge_map, noise_variance=None):
+    """(σb, confidence) of the checked fit from the model fit's diagnostics (Notes of the estimator),
+    then ``params.fit_step_gate`` (:func:`method.blur.step_plateau.gate_step_measures`)."""
     sigma_b, residual = diagnostics["sigma_b"], diagnostics["residual"]
     if not paper_rules(params):  # the beyond-the-paper plausibility rules (robust preset) first
         sigma_b = apply_fit_rules(diagnostics, params=params)
@@ -226,7 +231,7 @@ def _checked(diagnostics, params, noise_variance=None):
     with np.errstate(invalid="ignore"):
         good = residual <= limit  # False where residual is NaN
         strict = residual <= strict_limit
-    sigma_b = np.where(good, sigma_b, np.nan)
+    sigma_b = gate_step_measures(gray, edge_map, np.where(good, sigma_b, np.nan), params=params)
     c_relaxed = float(params.relaxed_fit_weight)
     confidence = np.where(strict, 1.0, c_relaxed)
     confidence[~np.isfinite(sigma_b)] = np.nan

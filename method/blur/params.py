@@ -15,6 +15,7 @@ from .estimators import BLUR_ESTIMATORS
 from .local_spectrum import REGION_GATES
 from .model_fit import FIT_PSF_MODELS
 from .region_estimators import REGION_ESTIMATORS, REGION_NOISE_MODELS, REGION_PSFS
+from .step_plateau import GAUSSIAN_STEP_REACH, STEP_GATES
 
 __all__ = ["BELOW_SCALE_RULES", "BlurParams", "RegionParams"]
 
@@ -83,6 +84,16 @@ class BlurParams:
     # method.blur.disk_edge_response), "best" (both, per edge the smaller residual) or "auto" (both, one
     # model per image: method.blur.model_fit.select_psf_model). Every model reports the per-axis std of
     # its PSF through Eq. (2d) (a disk of diameter c: c/4).
+    fit_step_gate: str = "none"
+    # beyond the paper (estimator "model_fit_checked"): the test of the image profile across each measured
+    # edge that tells shading and shadows from a defocus-blurred step (key of
+    # method.blur.step_plateau.STEP_GATES): "none" (paper), "plateau" (no measure where the profile has no
+    # plateau 1.5σb–3σb from the edge) or "plateau_flat" (also where a side keeps changing there).
+    fit_plateau_reach: float = 0.5
+    # beyond the paper (fit_step_gate other than "none"): smallest reach of a kept measure on each side,
+    # dimensionless: the mean level 1.5σb–3σb from the edge over the level at σb, both from the profile's
+    # midpoint (method.blur.step_plateau.plateau_profile; a Gaussian step 1.40, a cosine read as blur −0.27;
+    # 0.5 chosen on dev over 1: docs/presets.md).
     ratio_gradient_sigma: float = 0.5
     # σg of the Gaussian-derivative gradient |∇I| of estimator "gradient_ratio", px (Eq. 7 kernels);
     # 0.5: the smallest Elder–Zucker scale (Zhuo & Sim's public code: 1).
@@ -117,6 +128,9 @@ class BlurParams:
         require_field(self, "fit_max_width_ratio", self.fit_max_width_ratio > 0, "> 0 (inf: no limit)")
         check_field_choice(self, "fit_below_scale", BELOW_SCALE_RULES)
         check_field_choice(self, "fit_psf", FIT_PSF_MODELS)
+        check_field_choice(self, "fit_step_gate", STEP_GATES)
+        require_field(self, "fit_plateau_reach", 0 <= self.fit_plateau_reach < GAUSSIAN_STEP_REACH,
+                      f"0 <= reach < {GAUSSIAN_STEP_REACH} (dimensionless; a Gaussian step's reach)")
         for name in ("ratio_gradient_sigma", "ratio_reblur_sigma"):
             require_field(self, name, 0 < getattr(self, name) < _INF, "finite and > 0 (px)")
         if self.ratio_max_sigma is not None and not (0 < self.ratio_max_sigma < _INF):

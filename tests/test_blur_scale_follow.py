@@ -87,9 +87,9 @@ def test_large_lens_grid_and_its_flags():
     assert cfg["sigmas"] == (8.0, 12.0, 16.0) and cfg["tile"] > lens.LENS_CONFIG["tile"] and not cfg["regions"]
     assert lens.lens_config(grid="large", psfs=["disk"])["psfs"] == ("disk",)
     assert lens.lens_config(grid="default") == lens.lens_config()
-    with pytest.raises(ValueError, match="grid='huge' is invalid; allowed: default, full, large"):
+    with pytest.raises(ValueError, match="grid='huge' is invalid; allowed: default, full, tones, large"):
         lens.lens_config(grid="huge")
-    for argv, text in ((["--accuracy", "--grid", "huge"], "allowed: default, full, large"),
+    for argv, text in ((["--accuracy", "--grid", "huge"], "allowed: default, full, tones, large"),
                        (["--grid", "large"], "--grid goes with --accuracy"),
                        (["--accuracy", "--full", "--grid", "large"], "exclude each other")):
         r = run_in_process("repro.bench", argv)

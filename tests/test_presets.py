@@ -243,8 +243,10 @@ REFINEMENT_FIELDS = ("bilateral_sigma_spatial", "bilateral_sigma_range", "bilate
 DENSE_HELPS = ("estimator", "fit_max_width_ratio", "noise_model", "fit_step_gate")
 #: * fit_max_scale: +0.039 with the constant noise; with the per-pixel noise model neutral here
 #:   (dense −0.001, sparse +0.005 px): the thresholds that follow the noise no longer hand the fit the
-#:   coarse-σ2 texture edges the cap removed;
-DENSE_NEUTRAL = ("fit_max_scale",)
+#:   coarse-σ2 texture edges the cap removed; with the plateau gate too it HURTS here (−0.024 px, below);
+#: * sharpness_bias=False: −0.038 before the per-pixel noise model and the plateau gate, −0.017 with both
+#:   (2026-12-06): within the margin;
+DENSE_NEUTRAL = ("sharpness_bias",)
 #: * relaxed_fit_weight: with the region cue fused into Eq. (4) its gain here fell to +0.013 px (below
 #:   the helps-limit; edge-only robust +0.017): the region measures now cover much of what the
 #:   relaxed measures decided;
@@ -272,7 +274,10 @@ DENSE_NEUTRAL_SPARSE_HELPS = ("fit_below_scale", "fit_max_residual")
 #:   sharp measures win on this mosaic, whose tiles share one colour distribution. Each of them does
 #:   lower the error the refinement adds to *perfect* measures (oracle_refine; asserted in
 #:   tests/test_stage_attribution.py::test_oracle_refine_credits_the_refinement_switches).
-DENSE_HURTS = ("bilateral_range_kernel", "bilateral_sigma_spatial", "sharpness_bias")
+#: * fit_max_scale (2 px) with the per-pixel noise model and the plateau gate (2026-12-06): −0.024 px on
+#:   this mosaic (the cap drops coarse-scale measures the gate now vets); kept for its gain on the lens
+#:   bench's blurry tiles and the renders (docs/presets.md).
+DENSE_HURTS = ("bilateral_range_kernel", "bilateral_sigma_spatial", "fit_max_scale")
 #: * identical on this Gaussian-blurred mosaic (its "auto" model selection picks Eq. 2c there) and
 #:   better on disk-blurred images, the thin lens's defocus: fit_psf (
 #:   tests/test_disk_edge_response.py shows both sides of the selection and the disk fit's accuracy).

@@ -42,6 +42,15 @@ searched), so **none of the defaults is taken from the paper**:
 
 Solver (measured; see :data:`MATTING_SOLVERS`)
 ----------------------------------------------
+Default ``"cg_amg"``: CG preconditioned by pyamg smoothed aggregation whose candidate vectors are
+1, R, G, B of the guide (the near-null space of L: maps locally affine in the colour cost ~ε; with
+Zhuo & Sim's ε = 9e-7 and data term λ·d̂ ≈ 1e-3 that space is what a geometric V-cycle fails to
+reduce). On the stages figure's ``zhuo_sim`` systems (640×480 renders, λ = 0.001, ε = 9e-7,
+D = d̂; portrait f/8, tol 1e-6) it needed 205 CG iterations against ≈ 1050 for ``"cg_vcycle"`` and
+1.4–1.6× less CPU (set-up 2 s included), 1.5e-6 px from the ``"cg_vcycle"`` solution; plain
+smoothed aggregation (constant candidate only) needed 710 iterations and was slower than the
+V-cycle. ``benchmarks/matting_solve.py`` measures both on the stage cases (docs/figures.md).
+The earlier measurements of ``"cg_vcycle"`` and ``"cg_ichol"`` (Zhuo & Sim's options not used):
 Conjugate gradients (:func:`pymatting.cg`, BLAS limited to one thread) started from the mean of the
 sparse values (exact when they are all equal, since L·1 = 0), preconditioned by pymatting's
 geometric multigrid V-cycle (:func:`pymatting.vcycle`: 1 pre-/post-Jacobi sweep, ω = 0.8) or by its
@@ -52,7 +61,7 @@ ran (load 3–4); CG iterations and max |error| against ``"direct"`` (where run)
 photo with slightly noisier sparse values:
 
 =========  ===============================  ===============================  ============
-size       ``"cg_vcycle"`` (default)        ``"cg_ichol"``                   ``"direct"``
+size       ``"cg_vcycle"``                  ``"cg_ichol"``                   ``"direct"``
 =========  ===============================  ===============================  ============
 256²       2.5–3.0 s, 206 it, 3.6e-6 px     2.0–2.3 s, 19 it, 3.7e-6 px      10 s
 512²       10.1 s, 212 it, 1.1e-5 px        16.5–20 s, 31 it, 4.8e-6 px      70 s
@@ -65,8 +74,8 @@ but its factor has ~3× the non-zeros of L + λD, its set-up and sequential tria
 faster than linearly, and its iteration count grows with the image (19 → 31 → 63) while the
 V-cycle's stays ~150–330 over the photos tried (astronaut, coffee, chelsea, rocket, noise; odd sizes
 included). On coffee at 1024² the thresholded factorisation also broke down twice before a
-diagonal shift of 1e-3 made it succeed (113 s vs 50 s CPU for the V-cycle). Hence the V-cycle is
-the default: 2× faster at 512², 2.3–3.7× at 1024², and less than half the memory. ``tol=1e-8``
+diagonal shift of 1e-3 made it succeed (113 s vs 50 s CPU for the V-cycle). Hence the V-cycle was
+preferred to incomplete Cholesky: 2× faster at 512², 2.3–3.7× at 1024², and less than half the memory. ``tol=1e-8``
 costs ~1.3× the iterations of ``tol=1e-6`` with either and reaches ~1e-7 px. Jacobi-preconditioned
 CG (not offered) needed 2000–2900 iterations and was 2.5–5× slower than either.
 """
@@ -331,8 +340,9 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
         Relative residual ‖λDd̂ − (L + λD) d‖ / ‖λDd̂‖ at which CG stops (0 < tol < 1). 1e-6 leaves
         ~1e-5 px from the exact solve on photos up to 512²; ignored by ``"direct"``.
     solver : str, keyword-only
-        Key of :data:`MATTING_SOLVERS`: ``"cg_vcycle"`` (default; CG + pymatting's multigrid
-        V-cycle), ``"cg_ichol"`` (CG + incomplete Cholesky; ~15 % faster at 256², 2–4× slower and
+        Key of :data:`MATTING_SOLVERS`: ``"cg_amg"`` (default; CG + pyamg smoothed aggregation
+        with the guide's colours as candidates), ``"cg_vcycle"`` (CG + pymatting's multigrid
+        V-cycle, the earlier default), ``"cg_ichol"`` (CG + incomplete Cholesky; ~15 % faster at 256², 2–4× slower and
         2.5× the memory at 1024²) or ``"direct"`` (sparse LU; ≤ 512² px, for tests and small images).
     max_iterations : int, keyword-only
         Most CG iterations (≥ 1; default 2000, ~10× what the V-cycle needed up to 1024²).
@@ -367,7 +377,8 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
        positive definite (one estimate suffices, see the module docstring), so no regulariser
        is added.
     4. Solve A d = b with ``solver``: CG to relative residual ``tol`` from d₀ = mean of the
-       sparse σ, preconditioned by a V-cycle (``"cg_vcycle"``) or an incomplete Cholesky factor
+       sparse σ, preconditioned by smoothed aggregation (``"cg_amg"``), a V-cycle
+       (``"cg_vcycle"``) or an incomplete Cholesky factor
        (``"cg_ichol"``), or sparse LU (``"direct"``).
     5. Reshape to HxW. Deterministic: no random numbers are drawn and CG's BLAS reductions run
        on one thread.

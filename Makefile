@@ -42,6 +42,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q -e '.[all,test]'
+	$(BIN)/python -m repro.warmup
 	touch $(STAMP)
 
 figures: setup

@@ -98,7 +98,8 @@ def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, textur
     2. Oracle sparse map: σ_gt at the detected edge pixels (``result.edges``), NaN elsewhere.
     3. ``oracle_refine``: :func:`method.pipeline.refine_stage` then
        :func:`method.pipeline.propagate_stage` on it; ``oracle_propagate``: ``propagate_stage``
-       directly (both with ``params``).
+       directly (both with ``params``; when the refinement returns the oracle map unchanged, e.g.
+       ``params.refine`` False, both inputs are equal and Eq. (4) is solved once for the two).
     4. Errors per stage and per σ_gt bin, over valid pixels (edges for the sparse/refined stages).
     """
     from method import NoEdgesWarning, estimate_defocus_map
@@ -131,9 +132,12 @@ def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, textur
     oracle = np.where(edges & np.isfinite(gt), gt, np.nan)
     if oracles and np.isfinite(oracle).any():
         refined = refine_stage(oracle, rgb, params=params)
-        out["oracle_refine"] = {"refined": _errors(refined, gt, at_edges, bins),
-                                **dense_block(propagate_stage(refined, rgb, params=params, sparse_sigma=oracle))}
-        out["oracle_propagate"] = dense_block(propagate_stage(oracle, rgb, params=params, sparse_sigma=oracle))
+        dense_refined = propagate_stage(refined, rgb, params=params, sparse_sigma=oracle)
+        out["oracle_refine"] = {"refined": _errors(refined, gt, at_edges, bins), **dense_block(dense_refined)}
+        # Without Eq. (3) (params.refine False) the two oracle inputs reach Eq. (4) equal: one solve.
+        same = np.array_equal(refined, oracle, equal_nan=True)
+        out["oracle_propagate"] = dense_block(dense_refined if same else
+                                              propagate_stage(oracle, rgb, params=params, sparse_sigma=oracle))
     else:
         out["oracle_refine"] = {}
         out["oracle_propagate"] = {}

@@ -126,6 +126,7 @@ COMMANDS: dict[str, str] = {
     "bench": "time each stage and the whole pipeline, with peak memory",
     "sweep": "run a parameter sweep over scenes, cameras and presets",
     "dataset": "export the rendered scenes and their ground truth as a dataset",
+    "warmup": "compile every numba kernel of the photo tools into numba's cache (after an install)",
 }
 
 

@@ -40,6 +40,11 @@ Writes ``magnify.json`` and ``magnify.md``.
 (renders cached), 1 and 2 workers, the two tables compared row for row; ``figures_speed.json`` and
 ``figures_speed.md`` (target: ≥ 1.3× with 2 workers on a 2-core machine).
 
+``python -m repro.bench --first-photo [--out report/bench]`` times the first ``repro.estimate`` of a new
+install (:func:`first_photo_bench`): ``skimage.data.chelsea`` (451×300) in a fresh process with an empty
+numba cache (``NUMBA_CACHE_DIR`` a new temporary folder) and an empty map cache, once as installed and
+once after ``python -m repro.warmup``; ``first_photo.json`` and ``first_photo.md`` (target ≤ 10 s).
+
 ``python -m repro.bench --sweep [--out report/bench]`` benchmarks the sweep engine
 (:func:`repro._sweep_bench.run_sweep_bench`): cells per minute for 1 and 2 workers on the small preset and the
 engine's overhead per cell. Writes ``sweep.json`` and ``sweep.md``.
@@ -110,6 +115,81 @@ def run_accuracy(config: dict | None = None, *, out: Path, progress: bool = True
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(out / "accuracy.json", json.dumps(report, allow_nan=False, separators=(",", ":")))
     atomic_write_text(out / "accuracy.md", accuracy_markdown(report) + "\n")
+    return report
+
+
+#: The first photo's wall-time target after ``repro.warmup``, s.
+FIRST_PHOTO_TARGET_S = 10.0
+
+
+def _timed(cmd, env) -> dict:
+    """Run ``cmd`` with ``env``; its wall time and its CPU (user + system of the child), s."""
+    import os
+    import resource
+    import time
+
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True, check=False, env={**os.environ, **env})
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if proc.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return {"wall_s": round(wall, 2), "cpu_s": round(cpu, 2)}
+
+
+def first_photo_bench(out: Path) -> dict:
+    """The first ``repro.estimate`` of a new install, without and with ``repro.warmup`` first.
+
+    Each case gets a new empty numba cache (``NUMBA_CACHE_DIR``) and map cache (``DEFOCUS_CACHE_DIR``);
+    ``repro.estimate`` (default preset) runs on ``skimage.data.chelsea`` written as a PNG, in a fresh
+    process. Writes ``first_photo.json`` and ``first_photo.md`` to ``out`` (atomically).
+
+    Returns
+    -------
+    dict
+        ``cold`` and ``warm`` (``wall_s``, ``cpu_s`` of the first estimate), ``warmup`` (of
+        ``repro.warmup``), ``target_s``, ``ok``, ``load_before`` / ``load_after`` (1-min load average),
+        ``date``, ``machine``.
+    """
+    import datetime
+    import os
+    import tempfile
+
+    from PIL import Image
+    from skimage import data
+
+    from defocus_cache import atomic_write_text
+    from experiments.bench.speed import machine_info
+
+    report = {"date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+              "machine": machine_info(), "load_before": round(os.getloadavg()[0], 2)}
+    with tempfile.TemporaryDirectory(prefix="defocus-first-photo-") as tmp:
+        photo = Path(tmp) / "chelsea.png"
+        Image.fromarray(data.chelsea()).save(photo)
+        for case in ("cold", "warm"):
+            env = {"NUMBA_CACHE_DIR": str(Path(tmp) / f"numba-{case}"), "DEFOCUS_CACHE_DIR": str(Path(tmp) / case)}
+            if case == "warm":
+                report["warmup"] = _timed([sys.executable, "-m", "repro.warmup", "--quiet"], env)
+            report[case] = _timed([sys.executable, "-m", "repro.estimate", str(photo), "-o",
+                                   str(Path(tmp) / f"{case}.npy"), "--quiet"], env)
+    report["load_after"] = round(os.getloadavg()[0], 2)
+    report["target_s"] = FIRST_PHOTO_TARGET_S
+    report["ok"] = bool(report["warm"]["wall_s"] <= FIRST_PHOTO_TARGET_S)
+    md = ["# The first photo of a new install", "",
+          f"`python -m repro.bench --first-photo`, {report['date']}, 1-min load {report['load_before']} before, "
+          f"{report['load_after']} after. `repro.estimate` (default preset) on chelsea (451×300) in a fresh "
+          "process with empty numba and map caches.", "",
+          "| run | wall (s) | CPU (s) |", "|---|---|---|",
+          f"| first estimate, no warm-up | {report['cold']['wall_s']} | {report['cold']['cpu_s']} |",
+          f"| `python -m repro.warmup` | {report['warmup']['wall_s']} | {report['warmup']['cpu_s']} |",
+          f"| first estimate after the warm-up | {report['warm']['wall_s']} | {report['warm']['cpu_s']} |", "",
+          f"Target: first estimate after the warm-up ≤ {FIRST_PHOTO_TARGET_S:g} s: "
+          f"{'met' if report['ok'] else 'not met'}."]
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out / "first_photo.json", json.dumps(report, indent=1))
+    atomic_write_text(out / "first_photo.md", "\n".join(md) + "\n")
     return report
 
 
@@ -185,6 +265,9 @@ def _parser():
     parser.add_argument("--figures", action="store_true",
                         help="benchmark the case runner instead: repro.figures --quick (every case recomputed) with 1 "
                              "and 2 workers, tables compared (figures_speed.md / figures_speed.json)")
+    parser.add_argument("--first-photo", action="store_true",
+                        help="time the first repro.estimate of a new install (empty numba cache) without and with "
+                             "repro.warmup instead (first_photo.md / first_photo.json)")
     parser.add_argument("--sweep", action="store_true",
                         help="benchmark the sweep engine instead (cells/minute for 1 and 2 workers, engine overhead "
                              "per cell; sweep.md / sweep.json)")
@@ -282,6 +365,10 @@ def main(argv=None) -> int:
 
         run_figures_bench(args.out, progress=not args.quiet)
         print((args.out / "figures_speed.md").read_text(encoding="utf-8"))
+        return 0
+    if args.first_photo:
+        first_photo_bench(args.out)
+        print((args.out / "first_photo.md").read_text(encoding="utf-8"))
         return 0
     if args.sweep:
         require_extras("sweep", "render", command="repro.bench --sweep")

@@ -167,7 +167,7 @@ def test_console_script_is_declared():
     meta = tomllib.loads((ROOT / "pyproject.toml").read_text())
     assert meta["project"]["scripts"] == {"defocus-repro": "repro._cli:console_main"}
     assert set(COMMANDS) == {"figures", "render", "evaluate", "compare", "estimate", "magnify", "report", "bench",
-                             "sweep", "dataset"}
+                             "sweep", "dataset", "warmup"}
     for name in ("figures", "render", "evaluate", "estimate", "magnify", "report", "bench", "dataset"):
         assert name in AVAILABLE
 

@@ -25,6 +25,9 @@ MATTING_VS_DIRECT_ATOL_PX = 1e-4
 #: λ = 0.005 lets the smoothness term pull both sides slightly toward each other; it is 0.01 px
 #: without noise and grows with it, because the colour-line model treats noise as misfit).
 MATTING_TWO_COLOUR_ATOL_PX = 0.1
+#: The default solver against the earlier default (``"cg_vcycle"``, tol 1e-6) on Zhuo & Sim's
+#: stage cases and in the test above, max |Δσ| px: the budget of the solver change.
+MATTING_SOLVER_CHANGE_ATOL_PX = 0.01
 #: A constant sparse map must come back as exactly that constant (returned without solving).
 MATTING_CONSTANT_ATOL = 0.0
 
@@ -52,7 +55,7 @@ def _oracle(sparse_sigma, ref, lam, epsilon, radius):
 
 
 def test_solver_registry():
-    assert set(MATTING_SOLVERS) == {"cg_vcycle", "cg_ichol", "direct"}
+    assert set(MATTING_SOLVERS) == {"cg_amg", "cg_vcycle", "cg_ichol", "direct"}
 
 
 # --- 1. equal to a direct sparse solve of the same system ------------------------------------
@@ -124,10 +127,24 @@ def test_no_finite_value_gives_zeros(rng):
     assert d.shape == (20, 25) and d.dtype == np.float64 and not d.any()
 
 
-def test_non_convergence_is_reported(rng):
+@pytest.mark.parametrize("solver", ["cg_amg", "cg_vcycle", "cg_ichol"])
+def test_non_convergence_is_reported(rng, solver):
     ref = _photo(rng, 40, 50)
     with pytest.raises(RuntimeError, match="max_iterations=1"):
-        propagate_defocus_matting(_sparse(rng, ref), ref, tol=1e-12, max_iterations=1)
+        propagate_defocus_matting(_sparse(rng, ref), ref, tol=1e-12, max_iterations=1, solver=solver)
+
+
+def test_default_solver_agrees_with_the_vcycle_oracle(rng):
+    """The default ``"cg_amg"`` against the earlier default ``"cg_vcycle"`` at tol 1e-6, with Zhuo & Sim's
+    preset options (λ = 0.001, ε = 9e-7, D = d̂): within MATTING_SOLVER_CHANGE_ATOL_PX, and not equal
+    (so the default really is the other solver)."""
+    ref = _photo(rng, 64, 80)
+    bm = _sparse(rng, ref, density=0.08)
+    opts = {"lam": 0.001, "epsilon": 9e-7, "data_weight": "sigma"}
+    old = propagate_defocus_matting(bm, ref, solver="cg_vcycle", tol=1e-6, **opts)
+    new = propagate_defocus_matting(bm, ref, **opts)
+    assert np.max(np.abs(new - old)) <= MATTING_SOLVER_CHANGE_ATOL_PX
+    assert not np.array_equal(new, old)
 
 
 # --- 4. bad inputs -----------------------------------------------------------------------------
@@ -169,7 +186,7 @@ def test_non_float_and_non_finite_reference(rng):
 
 def test_unknown_solver_names_the_allowed_ones(rng):
     bm, ref = _ok(rng)
-    with pytest.raises(ValueError, match=r"solver='amg' is invalid \(unknown .*\); allowed: 'cg_ichol', 'cg_vcycle', 'direct'$"):
+    with pytest.raises(ValueError, match=r"solver='amg' is invalid \(unknown .*\); allowed: 'cg_amg', 'cg_ichol', 'cg_vcycle', 'direct'$"):
         propagate_defocus_matting(bm, ref, solver="amg")
 
 

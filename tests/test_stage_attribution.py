@@ -279,3 +279,27 @@ def test_confidence_validation(rng):
     c = np.where(edge, 1.0, np.nan)
     np.testing.assert_array_equal(propagate_defocus(bm, ref, confidence=c, downsample=1),
                                   propagate_defocus(bm, ref, downsample=1))
+
+
+def test_unrefined_oracles_share_one_propagation(monkeypatch):
+    """Without Eq. (3) both oracle inputs reach Eq. (4) equal: one solve serves both (same numbers);
+    with it, each oracle input is propagated."""
+    import method.pipeline
+
+    img = texture_mosaic(texture="dead_leaves", sigmas=(1.0, 3.0), tile=32, noise_std=0.0, rng=0)
+    calls = []
+    real = method.pipeline.propagate_stage
+
+    def counting(*args, **kwargs):
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(method.pipeline, "propagate_stage", counting)
+    for params, solves in ((PAPER.replace(refine=False), 1), (PAPER, 2)):
+        result = estimate_defocus_map(img.image, params)
+        calls.clear()
+        errs = stage_errors(img.image, img.sigma, params=params, valid=~img.boundary, result=result)
+        assert len(calls) == solves
+    unrefined = stage_errors(img.image, img.sigma, params=PAPER.replace(refine=False), valid=~img.boundary)
+    assert unrefined["oracle_refine"]["dense_all"] == unrefined["oracle_propagate"]["dense_all"]
+    assert errs["oracle_refine"]["dense_all"] != errs["oracle_propagate"]["dense_all"]

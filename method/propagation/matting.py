@@ -42,6 +42,15 @@ searched), so **none of the defaults is taken from the paper**:
 
 Solver (measured; see :data:`MATTING_SOLVERS`)
 ----------------------------------------------
+Default ``"cg_amg"``: CG preconditioned by pyamg smoothed aggregation whose candidate vectors are
+1, R, G, B of the guide (the near-null space of L: maps locally affine in the colour cost ~ε; with
+Zhuo & Sim's ε = 9e-7 and data term λ·d̂ ≈ 1e-3 that space is what a geometric V-cycle fails to
+reduce). On the stages figure's ``zhuo_sim`` systems (640×480 renders, λ = 0.001, ε = 9e-7,
+D = d̂; portrait f/8, tol 1e-6) it needed 205 CG iterations against ≈ 1050 for ``"cg_vcycle"`` and
+1.4–1.6× less CPU (set-up 2 s included), 1.5e-6 px from the ``"cg_vcycle"`` solution; plain
+smoothed aggregation (constant candidate only) needed 710 iterations and was slower than the
+V-cycle. ``benchmarks/matting_solve.py`` measures both on the stage cases (docs/figures.md).
+The earlier measurements of ``"cg_vcycle"`` and ``"cg_ichol"`` (Zhuo & Sim's options not used):
 Conjugate gradients (:func:`pymatting.cg`, BLAS limited to one thread) started from the mean of the
 sparse values (exact when they are all equal, since L·1 = 0), preconditioned by pymatting's
 geometric multigrid V-cycle (:func:`pymatting.vcycle`: 1 pre-/post-Jacobi sweep, ω = 0.8) or by its
@@ -52,7 +61,7 @@ ran (load 3–4); CG iterations and max |error| against ``"direct"`` (where run)
 photo with slightly noisier sparse values:
 
 =========  ===============================  ===============================  ============
-size       ``"cg_vcycle"`` (default)        ``"cg_ichol"``                   ``"direct"``
+size       ``"cg_vcycle"``                  ``"cg_ichol"``                   ``"direct"``
 =========  ===============================  ===============================  ============
 256²       2.5–3.0 s, 206 it, 3.6e-6 px     2.0–2.3 s, 19 it, 3.7e-6 px      10 s
 512²       10.1 s, 212 it, 1.1e-5 px        16.5–20 s, 31 it, 4.8e-6 px      70 s
@@ -65,8 +74,8 @@ but its factor has ~3× the non-zeros of L + λD, its set-up and sequential tria
 faster than linearly, and its iteration count grows with the image (19 → 31 → 63) while the
 V-cycle's stays ~150–330 over the photos tried (astronaut, coffee, chelsea, rocket, noise; odd sizes
 included). On coffee at 1024² the thresholded factorisation also broke down twice before a
-diagonal shift of 1e-3 made it succeed (113 s vs 50 s CPU for the V-cycle). Hence the V-cycle is
-the default: 2× faster at 512², 2.3–3.7× at 1024², and less than half the memory. ``tol=1e-8``
+diagonal shift of 1e-3 made it succeed (113 s vs 50 s CPU for the V-cycle). Hence the V-cycle was
+preferred to incomplete Cholesky: 2× faster at 512², 2.3–3.7× at 1024², and less than half the memory. ``tol=1e-8``
 costs ~1.3× the iterations of ``tol=1e-6`` with either and reaches ~1e-7 px. Jacobi-preconditioned
 CG (not offered) needed 2000–2900 iterations and was 2.5–5× slower than either.
 """
@@ -234,12 +243,37 @@ def _pcg(A, b, x0, tol, max_iterations, M):
             f"({exc}); raise max_iterations or tol") from None
 
 
-def _solve_cg_vcycle(A, b, *, shape, x0, tol, max_iterations):
+def _solve_cg_amg(A, b, *, shape, x0, tol, max_iterations, guide):
+    """CG preconditioned by pyamg smoothed aggregation fitted to the matting Laplacian (default).
+
+    The near-null space of L is the maps that are locally affine in the colour (cost ~ε): the
+    aggregation's candidate vectors are therefore 1, R, G, B of the guide (centred), not only the
+    constant of a plain Laplacian. Deterministic prolongation smoother
+    (:data:`method.propagation.solvers.AMG_PROLONGATION_SMOOTHER`), BLAS on one thread.
+    """
+    import pyamg
+    from threadpoolctl import threadpool_limits
+
+    from .solvers import AMG_PROLONGATION_SMOOTHER
+
+    rgb = guide.reshape(-1, guide.shape[-1])
+    candidates = np.column_stack([np.ones(len(rgb)), rgb - rgb.mean(axis=0)])
+    with threadpool_limits(limits=1):
+        ml = pyamg.smoothed_aggregation_solver(A, B=candidates, symmetry="symmetric", max_coarse=500,
+                                               smooth=AMG_PROLONGATION_SMOOTHER)
+        x, info = ml.solve(b, x0=x0, tol=tol, accel="cg", maxiter=max_iterations, return_info=True)
+    if info != 0:
+        raise RuntimeError(f"conjugate gradients did not reach tol={tol:g} within max_iterations={max_iterations}; "
+                           "raise max_iterations or tol")
+    return np.asarray(x, dtype=np.float64)
+
+
+def _solve_cg_vcycle(A, b, *, shape, x0, tol, max_iterations, guide=None):
     """CG preconditioned by pymatting's geometric-multigrid V-cycle (default; fastest at ≥ 512²)."""
     return _pcg(A, b, x0, tol, max_iterations, _pymatting().vcycle(A, shape))
 
 
-def _solve_cg_ichol(A, b, *, shape, x0, tol, max_iterations):
+def _solve_cg_ichol(A, b, *, shape, x0, tol, max_iterations, guide=None):
     """CG preconditioned by pymatting's thresholded incomplete Cholesky factor of A.
 
     When the thresholded factorisation breaks down, :func:`pymatting.ichol` retries with a growing
@@ -256,7 +290,7 @@ def _solve_cg_ichol(A, b, *, shape, x0, tol, max_iterations):
     return _pcg(A, b, x0, tol, max_iterations, M)
 
 
-def _solve_direct(A, b, *, shape, x0, tol, max_iterations):
+def _solve_direct(A, b, *, shape, x0, tol, max_iterations, guide=None):
     """Sparse LU (SuperLU) of the same system; tests and small images (≤ DIRECT_MAX_PIXELS)."""
     if A.shape[0] > DIRECT_MAX_PIXELS:
         raise ValueError(f"solver='direct' is for small images; got {A.shape[0]} px, allowed <= {DIRECT_MAX_PIXELS}")
@@ -264,9 +298,11 @@ def _solve_direct(A, b, *, shape, x0, tol, max_iterations):
 
 
 #: Solvers of (L + λD) d = λ D d̂, chosen with ``solver="..."``. Each is called as
-#: ``solve(A, b, *, shape, x0, tol, max_iterations) -> d``; the iterative ones stop at relative
-#: residual ``tol`` and raise RuntimeError after ``max_iterations``; ``"direct"`` ignores both.
+#: ``solve(A, b, *, shape, x0, tol, max_iterations, guide) -> d`` (``guide``: the HxWx3 guide image);
+#: the iterative ones stop at relative residual ``tol`` and raise RuntimeError after ``max_iterations``;
+#: ``"direct"`` ignores both.
 MATTING_SOLVERS = Registry("matting solver", {
+    "cg_amg": Entry(_solve_cg_amg, "CG preconditioned by pyamg smoothed aggregation (colour candidates)"),
     "cg_vcycle": Entry(_solve_cg_vcycle, "CG preconditioned by pymatting's multigrid V-cycle"),
     "cg_ichol": Entry(_solve_cg_ichol, "CG preconditioned by pymatting's incomplete Cholesky"),
     "direct": Entry(_solve_direct, "sparse LU (scipy)"),
@@ -277,7 +313,7 @@ MATTING_SOLVERS = Registry("matting solver", {
 # public entry point
 # --------------------------------------------------------------------------------------------
 def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, epsilon=DEFAULT_EPSILON,
-                              radius=1, tol=1e-6, solver="cg_vcycle", max_iterations=2000,
+                              radius=1, tol=1e-6, solver="cg_amg", max_iterations=2000,
                               data_weight="constant") -> np.ndarray:
     """Dense defocus map from sparse blur σ by matting-Laplacian propagation (Zhuo & Sim 2011).
 
@@ -304,8 +340,9 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
         Relative residual ‖λDd̂ − (L + λD) d‖ / ‖λDd̂‖ at which CG stops (0 < tol < 1). 1e-6 leaves
         ~1e-5 px from the exact solve on photos up to 512²; ignored by ``"direct"``.
     solver : str, keyword-only
-        Key of :data:`MATTING_SOLVERS`: ``"cg_vcycle"`` (default; CG + pymatting's multigrid
-        V-cycle), ``"cg_ichol"`` (CG + incomplete Cholesky; ~15 % faster at 256², 2–4× slower and
+        Key of :data:`MATTING_SOLVERS`: ``"cg_amg"`` (default; CG + pyamg smoothed aggregation
+        with the guide's colours as candidates), ``"cg_vcycle"`` (CG + pymatting's multigrid
+        V-cycle, the earlier default), ``"cg_ichol"`` (CG + incomplete Cholesky; ~15 % faster at 256², 2–4× slower and
         2.5× the memory at 1024²) or ``"direct"`` (sparse LU; ≤ 512² px, for tests and small images).
     max_iterations : int, keyword-only
         Most CG iterations (≥ 1; default 2000, ~10× what the V-cycle needed up to 1024²).
@@ -340,7 +377,8 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
        positive definite (one estimate suffices, see the module docstring), so no regulariser
        is added.
     4. Solve A d = b with ``solver``: CG to relative residual ``tol`` from d₀ = mean of the
-       sparse σ, preconditioned by a V-cycle (``"cg_vcycle"``) or an incomplete Cholesky factor
+       sparse σ, preconditioned by smoothed aggregation (``"cg_amg"``), a V-cycle
+       (``"cg_vcycle"``) or an incomplete Cholesky factor
        (``"cg_ichol"``), or sparse LU (``"direct"``).
     5. Reshape to HxW. Deterministic: no random numbers are drawn and CG's BLAS reductions run
        on one thread.
@@ -368,5 +406,5 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
         return np.zeros((h, w))
     A, b = _assemble(ref, sparse_sigma, lam, epsilon, radius, data_weight)
     x0 = np.full(h * w, fill)
-    d = MATTING_SOLVERS[solver](A, b, shape=(h, w), x0=x0, tol=tol, max_iterations=max_iterations)
+    d = MATTING_SOLVERS[solver](A, b, shape=(h, w), x0=x0, tol=tol, max_iterations=max_iterations, guide=ref)
     return np.asarray(d, dtype=np.float64).reshape(h, w)

@@ -182,9 +182,10 @@ def _cases():
 
 
 def _cues_off_result(img, preset):
-    # the edge fit in display light, as the reference was stored (robust's linear light is judged on
-    # lens blur: tests/test_presets.py)
-    params = DefocusParams.preset(preset).replace(edge_isolation=None, region_estimator=None, measure_light="display")
+    # the edge fit in display light, with the constant noise and no plateau gate, as the reference was
+    # stored (robust's linear light, noise model and gate are judged in tests/test_presets.py)
+    params = DefocusParams.preset(preset).replace(edge_isolation=None, region_estimator=None, measure_light="display",
+                                                  noise_model="constant", fit_step_gate="none")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return estimate_defocus_map(img, params)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from scipy import ndimage
 
 from repro._cli import run_cli
@@ -39,3 +40,19 @@ def cli_runner(main, prog):
             assert n.lower() in err[0].lower(), err[0]
 
     return run, assert_one_line_error
+
+
+@pytest.fixture
+def cache_dir(tmp_path, monkeypatch):
+    """A private map cache for the photo tools (``DEFOCUS_CACHE_DIR``) under the test's tmp_path."""
+    d = tmp_path / "cache"
+    monkeypatch.setenv("DEFOCUS_CACHE_DIR", str(d))
+    return d
+
+
+@pytest.fixture
+def photo(tmp_path):
+    """:func:`textured_photo` written as an 8-bit PNG; its path."""
+    from repro.photo_io import write_photo
+
+    return write_photo(tmp_path / "photo.png", textured_photo())

@@ -17,21 +17,9 @@ import pytest
 
 from repro.estimate import PROG, main
 from repro.photo_io import write_photo
-from tests.photo_cli import cli_runner, textured_photo
+from tests.photo_cli import cache_dir, cli_runner, photo, textured_photo  # noqa: F401 (fixtures)
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-@pytest.fixture
-def cache_dir(tmp_path, monkeypatch):
-    d = tmp_path / "cache"
-    monkeypatch.setenv("DEFOCUS_CACHE_DIR", str(d))
-    return d
-
-
-@pytest.fixture
-def photo(tmp_path):
-    return write_photo(tmp_path / "photo.png", textured_photo())
 
 
 run, assert_one_line_error = cli_runner(main, PROG)
@@ -422,19 +410,20 @@ def test_force_re_estimates_and_replaces_the_cached_map(tmp_path, photo, cache_d
 
 
 def _disk_blurred_photo(h=96, w=128, radius=5.0):
-    """textured_photo's blocks, right half blurred by a uniform disk (a thin lens's defocus)."""
+    """textured_photo's blocks, right half blurred by a uniform disk (a thin lens's defocus) in linear light."""
     from scipy.signal import fftconvolve
 
+    from method.luma import to_light
     from tests.photo_cli import textured_photo
 
-    img = textured_photo(h, w, blur_right=1e-3)
+    img = to_light(textured_photo(h, w, blur_right=1e-3), "linear", encoding="srgb")
     yy, xx = np.mgrid[-8:9, -8:9]
     k = (xx ** 2 + yy ** 2 <= radius ** 2).astype(float)
     k /= k.sum()
     pad = np.pad(img, ((9, 9), (9, 9), (0, 0)), mode="edge")
     blurred = np.stack([fftconvolve(pad[..., c], k, mode="same")[9:-9, 9:-9] for c in range(3)], axis=-1)
     img[:, w // 2:] = blurred[:, w // 2:]
-    return np.clip(img, 0, 1)
+    return to_light(np.clip(img, 0, 1), "display", encoding="linear")
 
 
 @pytest.mark.parametrize("preset, blur, want", [

@@ -12,22 +12,12 @@ import pytest
 
 from repro.magnify import PROG, main
 from repro.photo_io import read_photo, write_photo
-from tests.photo_cli import cli_runner, textured_photo
+from tests.photo_cli import cache_dir, cli_runner, photo, textured_photo  # noqa: F401 (fixtures)
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-@pytest.fixture(autouse=True)
-def cache_dir(tmp_path, monkeypatch):
-    d = tmp_path / "cache"
-    monkeypatch.setenv("DEFOCUS_CACHE_DIR", str(d))
-    return d
-
-
-@pytest.fixture
-def photo(tmp_path):
-    return write_photo(tmp_path / "photo.png", textured_photo())
-
+pytestmark = pytest.mark.usefixtures("cache_dir")
 
 run, assert_one_line_error = cli_runner(main, PROG)
 

@@ -9,21 +9,9 @@ import pytest
 
 from repro.magnify import PROG, main
 from repro.photo_io import read_photo, write_photo
-from tests.photo_cli import cli_runner, textured_photo
+from tests.photo_cli import cache_dir, cli_runner, photo, textured_photo  # noqa: F401 (fixtures)
 
 H, W = 96, 128
-
-
-@pytest.fixture(autouse=True)
-def cache_dir(tmp_path, monkeypatch):
-    d = tmp_path / "cache"
-    monkeypatch.setenv("DEFOCUS_CACHE_DIR", str(d))
-    return d
-
-
-@pytest.fixture
-def photo(tmp_path):
-    return write_photo(tmp_path / "photo.png", textured_photo(H, W))
 
 
 @pytest.fixture
@@ -34,6 +22,8 @@ def sigma_map(tmp_path):
     np.save(tmp_path / "map.npy", m)
     return tmp_path / "map.npy"
 
+
+pytestmark = pytest.mark.usefixtures("cache_dir")
 
 run, assert_one_line_error = cli_runner(main, PROG)
 

@@ -153,7 +153,7 @@ def _evaluate_case(config: EvaluateConfig, case, inputs) -> dict:
     result, gt = score.result, ground_truth_sigma(render)
     nested = {**score.metrics,
               "stages": stage_errors(image, gt, params=params, valid=~np.asarray(render.occlusion_boundary, dtype=bool),
-                                     result=result, encoding=case.encoding),
+                                     result=result, encoding=case.encoding, store=True),
               "timings": {"render_load_s": t_render, **{f"{k}_s": v for k, v in result.timings.items()}}}
     key = {"estimator": params.estimator, "method_preset": case.preset, "scene": case.scene,
            "f_number": float(case.aperture), "preset": case.scene_size, "encoding": case.encoding, "quantize_bits": 8,

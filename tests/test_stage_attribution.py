@@ -303,3 +303,60 @@ def test_unrefined_oracles_share_one_propagation(monkeypatch):
     unrefined = stage_errors(img.image, img.sigma, params=PAPER.replace(refine=False), valid=~img.boundary)
     assert unrefined["oracle_refine"]["dense_all"] == unrefined["oracle_propagate"]["dense_all"]
     assert errs["oracle_refine"]["dense_all"] != errs["oracle_propagate"]["dense_all"]
+
+
+# --- the oracle runs in the case store ---------------------------------------------------------------
+
+@pytest.fixture
+def oracle_store(tmp_path, monkeypatch):
+    """The oracle runs stored under ``tmp_path`` (a cold store); returns a switch that makes computing them
+    fail, so that a later call can only succeed by reading the store."""
+    import functools
+
+    import experiments.stage_attribution as sa
+
+    monkeypatch.setattr(sa, "stored_oracle_runs", functools.partial(sa.stored_oracle_runs, cache_dir=tmp_path))
+
+    def forbid_computing():
+        def fail(*args, **kwargs):
+            raise AssertionError("oracle runs recomputed instead of read from the store")
+
+        monkeypatch.setattr(sa, "oracle_runs", fail)
+
+    return forbid_computing
+
+
+@pytest.mark.parametrize("params", [PAPER, PAPER.replace(refine=False)], ids=["refine", "no-refine"])
+def test_stored_oracle_runs_give_the_same_numbers(oracle_store, params):
+    """Computed in memory, stored (cold) and read back (warm): the stage errors are equal bit for bit."""
+    img = texture_mosaic(texture="dead_leaves", sigmas=(1.0, 3.0), tile=32, noise_std=0.0, rng=0)
+    result = estimate_defocus_map(img.image, params)
+    kw = dict(params=params, valid=~img.boundary, result=result)
+    plain = stage_errors(img.image, img.sigma, **kw)
+    cold = stage_errors(img.image, img.sigma, store=True, **kw)
+    oracle_store()
+    warm = stage_errors(img.image, img.sigma, store=True, **kw)
+    assert plain["oracle_refine"] and plain["oracle_propagate"]
+    np.testing.assert_equal(cold, plain)
+    np.testing.assert_equal(warm, plain)
+
+
+def test_oracle_store_is_keyed_by_inputs_and_params(oracle_store):
+    """The same oracle map, guide and parameters are read back; other parameters or another image are not."""
+    from experiments.cache_keys import code_fingerprint, to_jsonable
+    from experiments.cases import Case, case_key
+    from experiments.stage_attribution import ORACLE, _OracleInput
+
+    img = texture_mosaic(texture="dead_leaves", sigmas=(1.0, 3.0), tile=32, noise_std=0.0, rng=0)
+    result = estimate_defocus_map(img.image, PAPER)
+    kw = dict(valid=~img.boundary, result=result, store=True)
+    stage_errors(img.image, img.sigma, params=PAPER, **kw)
+    oracle_store()
+    stage_errors(img.image, img.sigma, params=PAPER, **kw)  # stored: read back
+    with pytest.raises(AssertionError, match="recomputed"):
+        stage_errors(img.image, img.sigma, params=PAPER.replace(bilateral_sigma_range=0.2), **kw)
+    with pytest.raises(AssertionError, match="recomputed"):  # another guide image, same edges
+        stage_errors(np.clip(img.image + 1 / 255, 0, 1), img.sigma, params=PAPER, **kw)
+    key = case_key(ORACLE, _OracleInput(oracle=img.sigma, rgb=img.image, params=PAPER), Case("oracle", variant="d"))
+    assert key["config"] == {"params": to_jsonable(PAPER)} and key["case"] == {"figure": "oracle", "variant": "d"}
+    assert key["code"] == code_fingerprint() and key["libraries"]

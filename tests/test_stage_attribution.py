@@ -360,3 +360,47 @@ def test_oracle_store_is_keyed_by_inputs_and_params(oracle_store):
     key = case_key(ORACLE, _OracleInput(oracle=img.sigma, rgb=img.image, params=PAPER), Case("oracle", variant="d"))
     assert key["config"] == {"params": to_jsonable(PAPER)} and key["case"] == {"figure": "oracle", "variant": "d"}
     assert key["code"] == code_fingerprint() and key["libraries"]
+
+
+def _without_cold_warm(compute, forbid_computing):
+    """``compute()`` with the oracle runs computed in place, then stored (cold store), then read back."""
+    import experiments.stage_attribution as sa
+
+    stored = sa.stored_oracle_runs
+    sa.stored_oracle_runs = lambda oracle, rgb, params: sa.oracle_runs(oracle, rgb, params)
+    try:
+        plain = compute()
+    finally:
+        sa.stored_oracle_runs = stored
+    cold = compute()
+    forbid_computing()
+    return plain, cold, compute()
+
+
+def test_stages_figure_case_is_the_same_with_the_stored_oracle(oracle_store):
+    """A stages figure case (quick mosaic, paper preset): the same metrics without, with a cold and with a
+    warm oracle store."""
+    from experiments.cases import Case
+    from experiments.figS1_stages import QUICK, compute_case
+
+    case = Case("stages", scene="dead_leaves", preset="paper", variant="mosaic")
+    plain, cold, warm = _without_cold_warm(lambda: compute_case(QUICK, case, {}), oracle_store)
+    assert plain["metrics"]["oracle_propagate"]["dense_textured"]["n"] > 0
+    np.testing.assert_equal(cold, plain)
+    np.testing.assert_equal(warm, plain)
+
+
+@pytest.mark.render
+def test_evaluate_case_is_the_same_with_the_stored_oracle(oracle_store):
+    """An evaluate case (planes, small render, f/8, paper): the same metrics and stage attribution without,
+    with a cold and with a warm oracle store (timings aside)."""
+    from experiments.cases import Case
+    from experiments.units import EvaluateConfig, _evaluate_case
+
+    case = Case("evaluate", scene="planes", preset="paper", aperture=8.0, encoding="srgb", noise="none",
+                scene_size="small")
+    outs = _without_cold_warm(lambda: _evaluate_case(EvaluateConfig(), case, {}), oracle_store)
+    plain, cold, warm = ({"metrics": o["metrics"], "stages": o["info"]["metrics"]["stages"]} for o in outs)
+    assert plain["stages"]["oracle_refine"]["dense_textured"]["n"] > 0
+    np.testing.assert_equal(cold, plain)
+    np.testing.assert_equal(warm, plain)

@@ -26,7 +26,7 @@ import warnings
 
 import numpy as np
 
-from .units import CaseUnit
+from .case_unit import CaseUnit
 
 __all__ = ["INPUTS", "ORACLE", "SIGMA_BINS", "ablation_params", "oracle_runs", "stage_errors", "stage_rows",
            "stored_oracle_runs"]

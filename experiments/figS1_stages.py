@@ -15,7 +15,8 @@ Notes
 2. Renders: ``render_scene(scene, preset=config.preset, f_number=N)``; input 8-bit sRGB; σ_gt the
    line-spread convention; occlusion boundaries excluded.
 3. :func:`experiments.stage_attribution.stage_errors` per case × preset (and per ablation row on
-   the mosaics).
+   the mosaics, estimated inputs only); the oracle runs are read from the case store
+   (:func:`experiments.stage_attribution.stored_oracle_runs`), shared with the evaluate cases.
 4. Targets (robust, mosaics): dense textured MAE ≤ 0.3 px in every bin with σ ≤ 4 px and ≤ 10 % of σ
    for 4 < σ ≤ 6 px; |bias| ≤ 0.3 px in every bin up to 6 px; rendered: textured dense MAE ≤ ½ of
    the paper's. Recorded as booleans with the numbers (no verdict is hard-coded).
@@ -144,11 +145,11 @@ def compute_case(config: StagesConfig, case, inputs) -> dict:
         warnings.simplefilter("ignore", NoEdgesWarning)
         if case.variant.startswith("ablation:"):
             params = _ablation_rows()[case.variant.split(":", 1)[1]]
-            e = stage_errors(img, gt, params=params, valid=valid)["estimated"]
+            e = stage_errors(img, gt, params=params, valid=valid, oracles=False)["estimated"]
             return {"metrics": {"sparse_mae": e["sparse"]["mae"], "sparse_coverage": e["sparse"]["coverage"],
                                 "dense_textured_mae": e["dense_textured"]["mae"],
                                 "dense_textured_bias": e["dense_textured"]["bias"]}}
-        errs = stage_errors(img, gt, params=DefocusParams.preset(case.preset), valid=valid)
+        errs = stage_errors(img, gt, params=DefocusParams.preset(case.preset), valid=valid, store=True)
     metrics = dict(errs)
     if case.variant == "mosaic" and case.preset == "robust":
         metrics["targets_robust"] = _targets(errs["estimated"]["dense_textured"])

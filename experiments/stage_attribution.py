@@ -20,11 +20,16 @@ map over ``all``, ``textured`` and ``edges`` pixels (:func:`experiments.metrics.
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import warnings
 
 import numpy as np
 
-__all__ = ["INPUTS", "SIGMA_BINS", "ablation_params", "stage_errors", "stage_rows"]
+from .case_unit import CaseUnit
+
+__all__ = ["INPUTS", "ORACLE", "SIGMA_BINS", "ablation_params", "oracle_runs", "stage_errors", "stage_rows",
+           "stored_oracle_runs"]
 
 #: σ_gt bin edges, px: each bin is [edges[i], edges[i+1]).
 SIGMA_BINS = (0.0, 0.75, 1.25, 1.75, 2.5, 3.5, 5.0, 7.0, 10.0, np.inf)
@@ -57,7 +62,7 @@ def _errors(estimate, truth, mask, bins) -> dict:
 
 
 def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, texture_threshold=0.02,
-                 result=None, oracles=True, encoding="srgb") -> dict:
+                 result=None, oracles=True, encoding="srgb", store=False) -> dict:
     """Errors after every stage for the estimated and the two oracle inputs.
 
     Parameters
@@ -80,6 +85,9 @@ def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, textur
         Also run the two oracle inputs (False: ``oracle_refine`` and ``oracle_propagate`` are empty).
     encoding : str, keyword-only
         What the image's values are, key of :data:`method.luma.ENCODINGS` ("srgb" or "linear").
+    store : bool, keyword-only
+        Read the oracle runs from the case store, computing and storing them when missing
+        (:func:`stored_oracle_runs`; the same numbers as without it).
 
     Returns
     -------
@@ -96,15 +104,14 @@ def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, textur
     1. Run :func:`method.estimate_defocus_map` with ``encoding`` (unless ``result`` is given); the
        oracle stages are guided by the same display-light RGB (:func:`method.luma.measure_input`).
     2. Oracle sparse map: σ_gt at the detected edge pixels (``result.edges``), NaN elsewhere.
-    3. ``oracle_refine``: :func:`method.pipeline.refine_stage` then
-       :func:`method.pipeline.propagate_stage` on it; ``oracle_propagate``: ``propagate_stage``
+    3. The oracle runs (:func:`oracle_runs`): ``oracle_refine`` is :func:`method.pipeline.refine_stage`
+       then :func:`method.pipeline.propagate_stage` on it; ``oracle_propagate`` is ``propagate_stage``
        directly (both with ``params``; when the refinement returns the oracle map unchanged, e.g.
        ``params.refine`` False, both inputs are equal and Eq. (4) is solved once for the two).
     4. Errors per stage and per σ_gt bin, over valid pixels (edges for the sparse/refined stages).
     """
     from method import NoEdgesWarning, estimate_defocus_map
     from method.luma import measure_input
-    from method.pipeline import propagate_stage, refine_stage
 
     from .metrics import region_masks
 
@@ -131,17 +138,101 @@ def stage_errors(image, sigma_gt, *, params, valid=None, bins=SIGMA_BINS, textur
            "n_edges": int(edges.sum())}
     oracle = np.where(edges & np.isfinite(gt), gt, np.nan)
     if oracles and np.isfinite(oracle).any():
-        refined = refine_stage(oracle, rgb, params=params)
-        dense_refined = propagate_stage(refined, rgb, params=params, sparse_sigma=oracle)
-        out["oracle_refine"] = {"refined": _errors(refined, gt, at_edges, bins), **dense_block(dense_refined)}
-        # Without Eq. (3) (params.refine False) the two oracle inputs reach Eq. (4) equal: one solve.
-        same = np.array_equal(refined, oracle, equal_nan=True)
-        out["oracle_propagate"] = dense_block(dense_refined if same else
-                                              propagate_stage(oracle, rgb, params=params, sparse_sigma=oracle))
+        runs = stored_oracle_runs(oracle, rgb, params) if store else oracle_runs(oracle, rgb, params)
+        out["oracle_refine"] = {"refined": _errors(runs["refined"], gt, at_edges, bins),
+                                **dense_block(runs["dense_refined"])}
+        out["oracle_propagate"] = dense_block(runs["dense_oracle"])
     else:
         out["oracle_refine"] = {}
         out["oracle_propagate"] = {}
     return out
+
+
+def oracle_runs(oracle, rgb, params) -> dict:
+    """The two oracle inputs through Eq. (3) and Eq. (4) (:func:`stage_errors`, note 3).
+
+    Parameters
+    ----------
+    oracle : ndarray, HxW, float
+        σ_gt at the detected edge pixels, px; NaN elsewhere.
+    rgb : ndarray, HxWx3, float
+        The display-light RGB guiding both stages (:func:`method.luma.measure_input`).
+    params : DefocusParams
+
+    Returns
+    -------
+    dict of ndarray, HxW, float (px)
+        ``refined`` (Eq. 3 of the oracle), ``dense_refined`` (Eq. 4 of ``refined``) and ``dense_oracle``
+        (Eq. 4 of the oracle itself; ``dense_refined`` when Eq. (3) left the oracle unchanged).
+    """
+    from method.pipeline import propagate_stage, refine_stage
+
+    refined = refine_stage(oracle, rgb, params=params)
+    dense_refined = propagate_stage(refined, rgb, params=params, sparse_sigma=oracle)
+    # Without Eq. (3) (params.refine False) the two oracle inputs reach Eq. (4) equal: one solve.
+    same = np.array_equal(refined, oracle, equal_nan=True)
+    return {"refined": refined, "dense_refined": dense_refined,
+            "dense_oracle": dense_refined if same else propagate_stage(oracle, rgb, params=params, sparse_sigma=oracle)}
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class _OracleInput:
+    """What the oracle runs read: the oracle map, the guide and the parameters (:data:`ORACLE`'s config)."""
+
+    oracle: np.ndarray
+    rgb: np.ndarray
+    params: object
+
+
+def _digest(*arrays) -> str:
+    """SHA-256 (hex) of the arrays' dtypes, shapes and bytes."""
+    h = hashlib.sha256()
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def _oracle_key(config: _OracleInput, case) -> dict:
+    from .cache_keys import to_jsonable
+
+    return {"params": to_jsonable(config.params)}
+
+
+def _oracle_case(config: _OracleInput, case, inputs) -> dict:
+    return {"arrays": oracle_runs(config.oracle, config.rgb, config.params)}
+
+
+#: The oracle runs as a case unit of the case store: one case per (oracle map, guide), keyed by their content
+#: digest (which identifies the render or mosaic, its input choices and the detected edges) and the
+#: parameters, besides the code fingerprint and library versions of every stored case.
+ORACLE = CaseUnit("oracle", lambda config: (), _oracle_case, renders=False, cached=True, key_config=_oracle_key)
+
+
+def stored_oracle_runs(oracle, rgb, params, *, cache_dir=None) -> dict:
+    """:func:`oracle_runs` through the case store (:func:`experiments.cases.run_case` of :data:`ORACLE`):
+    computed once per (oracle map, guide, parameters), read back bit for bit by the stages figure and the
+    evaluate cases alike.
+
+    Parameters
+    ----------
+    oracle, rgb, params
+        As :func:`oracle_runs`.
+    cache_dir : path, optional, keyword-only
+        The case store (default ``<cache>/figures``).
+
+    Returns
+    -------
+    dict of ndarray
+        As :func:`oracle_runs`.
+    """
+    from .cases import Case, run_case
+
+    oracle = np.asarray(oracle, dtype=np.float64)
+    rgb = np.asarray(rgb)
+    case = Case("oracle", variant=_digest(oracle, rgb))
+    return run_case(ORACLE, _OracleInput(oracle=oracle, rgb=rgb, params=params), case, cache_dir=cache_dir).arrays()
 
 
 def stage_rows(errors: dict, **ids) -> list[dict]:

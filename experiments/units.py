@@ -22,36 +22,11 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
-from collections.abc import Callable
+
+from .case_unit import CaseUnit
 
 __all__ = ["EVALUATE", "EVAL_VERSION", "PROCEDURAL", "UNIT_MODULES", "CaseUnit", "EvaluateConfig", "EvaluationCase",
            "case_task", "evaluate_case", "unit"]
-
-
-@dataclasses.dataclass(frozen=True)
-class CaseUnit:
-    """A named set of cases the runner runs like a figure's (see the module docstring).
-
-    ``key_config(config, case)``, when given, is the part of ``config`` (plus anything else that shapes the
-    case's numbers) that enters the case's cache key instead of the whole config: a case of a bigger grid
-    is then the same stored case as in a smaller one.
-    """
-
-    name: str
-    cases_fn: Callable
-    case_fn: Callable
-    version: int = 1
-    renders: bool = True
-    cached: bool = False
-    key_config: Callable | None = None
-
-    def cases(self, config) -> tuple:
-        """The cases of ``config``."""
-        return tuple(self.cases_fn(config))
-
-    def compute_case(self, config, case, inputs) -> dict:
-        """One case's ``{"arrays", "metrics", "groups", "info"}``."""
-        return self.case_fn(config, case, inputs)
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -153,7 +128,7 @@ def _evaluate_case(config: EvaluateConfig, case, inputs) -> dict:
     result, gt = score.result, ground_truth_sigma(render)
     nested = {**score.metrics,
               "stages": stage_errors(image, gt, params=params, valid=~np.asarray(render.occlusion_boundary, dtype=bool),
-                                     result=result, encoding=case.encoding),
+                                     result=result, encoding=case.encoding, store=True),
               "timings": {"render_load_s": t_render, **{f"{k}_s": v for k, v in result.timings.items()}}}
     key = {"estimator": params.estimator, "method_preset": case.preset, "scene": case.scene,
            "f_number": float(case.aperture), "preset": case.scene_size, "encoding": case.encoding, "quantize_bits": 8,

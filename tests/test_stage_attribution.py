@@ -303,3 +303,104 @@ def test_unrefined_oracles_share_one_propagation(monkeypatch):
     unrefined = stage_errors(img.image, img.sigma, params=PAPER.replace(refine=False), valid=~img.boundary)
     assert unrefined["oracle_refine"]["dense_all"] == unrefined["oracle_propagate"]["dense_all"]
     assert errs["oracle_refine"]["dense_all"] != errs["oracle_propagate"]["dense_all"]
+
+
+# --- the oracle runs in the case store ---------------------------------------------------------------
+
+@pytest.fixture
+def oracle_store(tmp_path, monkeypatch):
+    """The oracle runs stored under ``tmp_path`` (a cold store); returns a switch that makes computing them
+    fail, so that a later call can only succeed by reading the store."""
+    import functools
+
+    import experiments.stage_attribution as sa
+
+    monkeypatch.setattr(sa, "stored_oracle_runs", functools.partial(sa.stored_oracle_runs, cache_dir=tmp_path))
+
+    def forbid_computing():
+        def fail(*args, **kwargs):
+            raise AssertionError("oracle runs recomputed instead of read from the store")
+
+        monkeypatch.setattr(sa, "oracle_runs", fail)
+
+    return forbid_computing
+
+
+@pytest.mark.parametrize("params", [PAPER, PAPER.replace(refine=False)], ids=["refine", "no-refine"])
+def test_stored_oracle_runs_give_the_same_numbers(oracle_store, params):
+    """Computed in memory, stored (cold) and read back (warm): the stage errors are equal bit for bit."""
+    img = texture_mosaic(texture="dead_leaves", sigmas=(1.0, 3.0), tile=32, noise_std=0.0, rng=0)
+    result = estimate_defocus_map(img.image, params)
+    kw = dict(params=params, valid=~img.boundary, result=result)
+    plain = stage_errors(img.image, img.sigma, **kw)
+    cold = stage_errors(img.image, img.sigma, store=True, **kw)
+    oracle_store()
+    warm = stage_errors(img.image, img.sigma, store=True, **kw)
+    assert plain["oracle_refine"] and plain["oracle_propagate"]
+    np.testing.assert_equal(cold, plain)
+    np.testing.assert_equal(warm, plain)
+
+
+def test_oracle_store_is_keyed_by_inputs_and_params(oracle_store):
+    """The same oracle map, guide and parameters are read back; other parameters or another image are not."""
+    from experiments.cache_keys import code_fingerprint, to_jsonable
+    from experiments.cases import Case, case_key
+    from experiments.stage_attribution import ORACLE, _OracleInput
+
+    img = texture_mosaic(texture="dead_leaves", sigmas=(1.0, 3.0), tile=32, noise_std=0.0, rng=0)
+    result = estimate_defocus_map(img.image, PAPER)
+    kw = dict(valid=~img.boundary, result=result, store=True)
+    stage_errors(img.image, img.sigma, params=PAPER, **kw)
+    oracle_store()
+    stage_errors(img.image, img.sigma, params=PAPER, **kw)  # stored: read back
+    with pytest.raises(AssertionError, match="recomputed"):
+        stage_errors(img.image, img.sigma, params=PAPER.replace(bilateral_sigma_range=0.2), **kw)
+    with pytest.raises(AssertionError, match="recomputed"):  # another guide image, same edges
+        stage_errors(np.clip(img.image + 1 / 255, 0, 1), img.sigma, params=PAPER, **kw)
+    key = case_key(ORACLE, _OracleInput(oracle=img.sigma, rgb=img.image, params=PAPER), Case("oracle", variant="d"))
+    assert key["config"] == {"params": to_jsonable(PAPER)} and key["case"] == {"figure": "oracle", "variant": "d"}
+    assert key["code"] == code_fingerprint() and key["libraries"]
+
+
+def _without_cold_warm(compute, forbid_computing):
+    """``compute()`` with the oracle runs computed in place, then stored (cold store), then read back."""
+    import experiments.stage_attribution as sa
+
+    stored = sa.stored_oracle_runs
+    sa.stored_oracle_runs = lambda oracle, rgb, params: sa.oracle_runs(oracle, rgb, params)
+    try:
+        plain = compute()
+    finally:
+        sa.stored_oracle_runs = stored
+    cold = compute()
+    forbid_computing()
+    return plain, cold, compute()
+
+
+def test_stages_figure_case_is_the_same_with_the_stored_oracle(oracle_store):
+    """A stages figure case (quick mosaic, paper preset): the same metrics without, with a cold and with a
+    warm oracle store."""
+    from experiments.cases import Case
+    from experiments.figS1_stages import QUICK, compute_case
+
+    case = Case("stages", scene="dead_leaves", preset="paper", variant="mosaic")
+    plain, cold, warm = _without_cold_warm(lambda: compute_case(QUICK, case, {}), oracle_store)
+    assert plain["metrics"]["oracle_propagate"]["dense_textured"]["n"] > 0
+    np.testing.assert_equal(cold, plain)
+    np.testing.assert_equal(warm, plain)
+
+
+@pytest.mark.render
+def test_evaluate_case_is_the_same_with_the_stored_oracle(oracle_store):
+    """An evaluate case (planes, small render, f/8, paper): the same metrics and stage attribution without,
+    with a cold and with a warm oracle store (timings aside)."""
+    from experiments.cases import Case
+    from experiments.units import EvaluateConfig, _evaluate_case
+
+    case = Case("evaluate", scene="planes", preset="paper", aperture=8.0, encoding="srgb", noise="none",
+                scene_size="small")
+    outs = _without_cold_warm(lambda: _evaluate_case(EvaluateConfig(), case, {}), oracle_store)
+    plain, cold, warm = ({"metrics": o["metrics"], "stages": o["info"]["metrics"]["stages"]} for o in outs)
+    assert plain["stages"]["oracle_refine"]["dense_textured"]["n"] > 0
+    np.testing.assert_equal(cold, plain)
+    np.testing.assert_equal(warm, plain)

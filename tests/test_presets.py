@@ -260,7 +260,7 @@ DENSE_HELPS_EDGE_ONLY = ("relaxed_fit_weight",)
 REGION_CUE = ("region_estimator", "fusion_edge_error_rel", "fusion_island_weight", "fusion_straddle_weight")
 #: * neutral on this σ ≤ 4 mosaic, helps blurry texture (σ 5–8): fit_residual_noise (k = 2),
 #:   dense −0.004, sparse −0.044 px (it adds measures, ~25 % more here, of poorer fits); its gain is
-#:   on σ ≥ 5 tiles (tests/test_relaxed_fit_confidence.py: σ 6 tile 1.40 → 1.09 px) with the
+#:   on σ ≥ 5 tiles (tests/test_relaxed_fit_confidence.py: σ 6 tile 1.40 → 1.09 px; 1.53 → 1.45 px with the noise model and the plateau gate) with the
 #:   relaxed measures at relaxed_fit_weight;
 DENSE_NEUTRAL_BLURRY_HELPS = ("fit_residual_noise",)
 #: * no effect on the dense map but helps the sparse stage: fit_below_scale, dense +0.001, sparse

@@ -222,6 +222,16 @@ def _speed_bench(args) -> None:
     print(md)
 
 
+def _write_report(out: Path, stem: str, json_text: str, markdown: str) -> None:
+    """Write ``<stem>.json`` and ``<stem>.md`` into ``out`` (atomically) and print the Markdown."""
+    from defocus_cache import atomic_write_text
+
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out / f"{stem}.json", json_text)
+    atomic_write_text(out / f"{stem}.md", markdown)
+    print(markdown, end="" if markdown.endswith("\n") else "\n")
+
+
 def _parser():
     from experiments.bench import BENCH_PRESETS, LENS_CONFIG
     from experiments.bench.speed import MAGNIFY_BENCH_RENDERERS
@@ -326,38 +336,28 @@ def main(argv=None) -> int:
         return 0
     if args.ablation:
         require_extras("render", command="repro.bench --ablation")
-        from defocus_cache import atomic_write_text
         from experiments.bench import ablation_markdown, ablation_report
 
         report = ablation_report(progress=not args.quiet)
-        args.out.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(args.out / "ablation.json", json.dumps(report, indent=1, allow_nan=False, default=str))
-        atomic_write_text(args.out / "ablation.md", ablation_markdown(report) + "\n")
-        print((args.out / "ablation.md").read_text(encoding="utf-8"))
+        _write_report(args.out, "ablation", json.dumps(report, indent=1, allow_nan=False, default=str),
+                      ablation_markdown(report) + "\n")
         return 0
     if args.magnify:
         require_extras("render", command="repro.bench --magnify")
-        from defocus_cache import atomic_write_text
         from experiments.bench.magnify_targets import magnify_markdown, magnify_report
         from method import DefocusParams
 
         report = magnify_report("robust", speed_row=_run_magnify(DefocusParams.preset("robust").magnify_renderer))
-        args.out.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(args.out / "magnify.json", json.dumps(report, indent=1, default=str))
-        atomic_write_text(args.out / "magnify.md", magnify_markdown(report) + "\n")
-        print((args.out / "magnify.md").read_text(encoding="utf-8"))
+        _write_report(args.out, "magnify", json.dumps(report, indent=1, default=str), magnify_markdown(report) + "\n")
         return 0
     if args.doubling:
         require_extras("render", command="repro.bench --doubling")
-        from defocus_cache import atomic_write_text
         from experiments.cache_keys import to_jsonable
         from experiments.doubling_sizes import doubling_markdown, doubling_report
 
         report = doubling_report(progress=not args.quiet)
-        args.out.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(args.out / "doubling.json", json.dumps(to_jsonable(report), indent=1, allow_nan=False))
-        atomic_write_text(args.out / "doubling.md", doubling_markdown(report))
-        print((args.out / "doubling.md").read_text(encoding="utf-8"))
+        _write_report(args.out, "doubling", json.dumps(to_jsonable(report), indent=1, allow_nan=False),
+                      doubling_markdown(report))
         return 0
     if args.figures:
         require_extras("sweep", "render", command="repro.bench --figures")

@@ -36,12 +36,12 @@ __all__ = ["FloorEstimate", "MAP_FLOOR_MODES", "estimate_floor", "floor_at_point
 #: The density of log σ the floor is read from (:func:`estimate_floor`): bins, smoothing (bins), the
 #: height of the in-focus mode relative to the highest one, the largest threshold relative to the floor.
 DENSITY_BINS = 64
-#: Values at or below this σ are left out of the density, px: below the pixel filter's own σ (1/√12 px) no
-#: lens image reads, so they are the estimate's undershoots, not a mode of the scene.
-MIN_DENSITY_SIGMA_PX = 0.25
 DENSITY_SMOOTHING_BINS = 3.0
 MODE_MIN_HEIGHT = 0.25
 MAX_THRESHOLD_RATIO = 3.0
+#: Values at or below this σ are left out of the density, px: below the pixel filter's own σ (1/√12 px) no
+#: lens image reads, so they are the estimate's undershoots, not a mode of the scene.
+MIN_DENSITY_SIGMA_PX = 0.25
 #: Smallest uncertainty of an estimated floor, as a fraction of the floor (and at least MIN_UNCERTAINTY_PX).
 MIN_UNCERTAINTY_REL = 0.15
 MIN_UNCERTAINTY_PX = 0.05

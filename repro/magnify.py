@@ -43,7 +43,8 @@ blurrier pixel lies behind the subject (said on stderr); ``--depth DEPTH`` (a de
 defocus map, ``.npy``/``.npz``/``.exr``) marks as ``in_front`` the pixels nearer than the focus depth (read
 at ``--focus-point``, else where the defocus map is lowest; :func:`repro._magnify_inputs.front_back`).
 Highlights: an EXR's linear light is magnified and written unclipped; ``--highlights [GAIN]`` (scatter,
-display-encoded photos) expands clipped highlights to GAIN × white in linear light before the blur and
+display-encoded photos) decodes the photo with its tone curve (``--encoding``; ``auto``: the curve the
+estimate chose) and expands clipped highlights to GAIN × white in linear light before the blur, and
 inverts that curve after it (:mod:`repro.photo_io.highlights`). ``--html PAGE.html`` also writes a
 self-contained before/after page (:mod:`repro._magnify_page`; its path is printed after the photo's).
 Every input is checked before anything is written; every output is written atomically after the
@@ -161,10 +162,11 @@ def _parser() -> ArgumentParser:
                         "nearer than the focus depth (read at --focus-point, else where the map is sharpest) are "
                         "in front. Without it a blurrier pixel is taken to be behind the subject")
     p.add_argument("--highlights", nargs="?", const=str(DEFAULT_HIGHLIGHT_GAIN), default=None, metavar="GAIN",
-                   help="scatter only, JPEG/PNG/TIFF photos: recover clipped highlights before the blur, with "
-                        "an inverse tone curve whose near-white values rise smoothly to GAIN x white in linear "
-                        f"light (default {DEFAULT_HIGHLIGHT_GAIN:g}), so bright points bloom into aperture "
-                        "shapes. An EXR keeps its highlights without it")
+                   help="scatter only, JPEG/PNG/TIFF photos: recover clipped highlights before the blur: the "
+                        "photo's tone curve (--encoding; with auto the curve the estimate chose) decoded, its "
+                        "near-white values rising smoothly to GAIN x white in linear light (default "
+                        f"{DEFAULT_HIGHLIGHT_GAIN:g}, >= 1), so bright points bloom into aperture shapes; the "
+                        "result is re-encoded with the same curve. An EXR keeps its highlights without it")
     p.add_argument("--html", default=None, metavar="PAGE",
                    help="also write one self-contained .html page: before/after sliders on the whole photo, "
                         "zoomed on the subject and on the background, the defocus map as an overlay")
@@ -385,13 +387,13 @@ def _render(args, photo, sigma, params, *, factor, renderer, kernel, aperture, f
     with user_input():  # --factor too large for this photo: before any big allocation
         check_extra_blur(factor, processed, photo.image.shape, name="--factor")
     in_front = _front_back(args, renderer, depth, point, sigma, prog=PROG)
-    image, encoding = (photo.image, photo.encoding) if gain is None else (expand_highlights(photo.image, gain=gain),
-                                                                         "linear")
+    image, encoding = ((photo.image, photo.encoding) if gain is None
+                       else (expand_highlights(photo.image, gain=gain, encoding=photo.encoding), "linear"))
     result = magnify_defocus_tiled(image, processed, factor=factor, kernel=kernel, preprocess=False, renderer=renderer,
                                    aperture=aperture, tile_pixels=args.tile_pixels, progress=progress,
                                    encoding=encoding, in_front=in_front)
-    display = (to_light(result, "display", encoding=encoding) if gain is None
-               else compress_highlights(result, gain=gain))
+    display = (to_light(result, "display", encoding=encoding) if gain is None  # in the photo's curve
+               else compress_highlights(result, gain=gain, encoding=photo.encoding))
     return result, encoding, display
 
 
@@ -417,9 +419,10 @@ def main(argv=None) -> int:
         probe_photo(photo_path)  # a missing/bad photo is reported before anything about the output
     out, map_path, page_path = _output_paths(args, photo_path, factor)
     photo = load_photo(args, prog=PROG)
-    if gain is not None and photo.encoding != "srgb":
-        raise CLIError(f"--highlights applies to display-encoded photos (JPEG, PNG, TIFF), not to {photo_path.name} "
-                       f"({photo.encoding} light, whose highlights are kept as stored); allowed: drop --highlights")
+    if gain is not None and photo.encoding == "linear":
+        raise CLIError(f"--highlights applies to display-encoded photos (JPEG, PNG, TIFF under a tone curve), not to "
+                       f"{photo_path.name} (linear light, whose highlights are kept as stored); allowed: drop "
+                       "--highlights, or --encoding with a tone curve")
     subject = _subject(args, photo, prog=PROG)  # read and checked before any output is written
     given = None
     if args.map is not None:
@@ -445,7 +448,7 @@ def main(argv=None) -> int:
         shape = f"{aperture or 'disk'} aperture" if renderer == "scatter" else f"{kernel or 'gaussian'} kernel"
         summary = (f"defocus map {map_summary(sigma)}{' (--map)' if given is not None else ''}; factor {factor:g}, "
                    f"{renderer} renderer, {shape}, {floor} floor"
-                   + (f", highlights x{gain:g}" if gain is not None else ""))
+                   + (f", highlights x{gain:g} ({photo.encoding} curve)" if gain is not None else ""))
         page = None
         if page_path is not None:
             progress("page")
@@ -455,8 +458,9 @@ def main(argv=None) -> int:
         progress("write")
         if out.suffix.lower() == ".exr" or gain is None:
             write_photo(out, result, bit_depth=bits, exif=photo.exif, icc_profile=photo.icc_profile, encoding=encoding)
-        else:  # recovered highlights go back through the inverse of their curve
-            write_photo(out, display, bit_depth=bits, exif=photo.exif, icc_profile=photo.icc_profile)
+        else:  # recovered highlights go back through the inverse of their curve, in the photo's tone curve
+            write_photo(out, display, bit_depth=bits, exif=photo.exif, icc_profile=photo.icc_profile,
+                        encoding=photo.encoding)
         if map_path is not None:
             write_map(map_path, sigma)
         if page is not None:

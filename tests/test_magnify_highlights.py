@@ -11,10 +11,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from method.luma import ENCODINGS
 from repro.magnify import PROG, main
 from repro.photo_io import read_photo, write_photo
 from repro.photo_io.highlights import DEFAULT_HIGHLIGHT_GAIN, HIGHLIGHT_KNEE, compress_highlights, expand_highlights
 from tests.photo_cli import cli_runner, textured_photo
+from tests.tolerances import HIGHLIGHT_ENERGY_RTOL, HIGHLIGHT_ROUNDTRIP_ATOL, HIGHLIGHT_VARIANCE_RTOL
 
 N = 65                     # the point photo's side, px
 SIGMA = 3.0                # its defocus map, px
@@ -161,3 +163,121 @@ def test_estimation_sees_linear_highlights_as_white(tmp_path, capsys):
         assert status == 0, err
     assert read_photo(tmp_path / "hot.exr").image.max() == 40.0
     np.testing.assert_array_equal(np.load(tmp_path / "hot.npy"), np.load(tmp_path / "clipped.npy"))
+
+
+# --- the photo's own tone curve (method.luma.ENCODINGS) ------------------------------------------------------------
+
+#: The display curves --highlights takes on the command line (a linear photo is refused: its highlights are kept).
+CLI_CURVES = [name for name in ENCODINGS if name != "linear"]
+
+
+def _wrong_curve(curve):
+    """A registered curve other than ``curve`` (sRGB's nearest neighbour is gamma 2.2)."""
+    return "gamma2.2" if curve == "srgb" else "srgb"
+
+
+@pytest.mark.parametrize("curve", list(ENCODINGS))
+def test_each_curve_is_decoded_below_the_knee_and_inverted_exactly(curve):
+    from method.luma import decode
+
+    v = np.concatenate([np.linspace(0.0, 1.0, 200_001), np.arange(65536) / 65535])
+    below = v <= HIGHLIGHT_KNEE
+    worst = 0.0
+    for gain in (1.0, DEFAULT_HIGHLIGHT_GAIN, 32.0, 1000.0):
+        L = expand_highlights(v, gain=gain, encoding=curve)
+        np.testing.assert_allclose(L[below], decode(v[below], curve), rtol=1e-12, atol=0)
+        assert L.max() == pytest.approx(gain) and L.min() == 0.0
+        assert np.all(np.diff(expand_highlights(np.linspace(0, 1, 100_001), gain=gain, encoding=curve)) > 0)
+        worst = max(worst, float(np.abs(compress_highlights(L, gain=gain, encoding=curve) - v).max()))
+        lin = np.linspace(0.0, gain, 100_001)      # and the other way: display values → the same light
+        np.testing.assert_allclose(expand_highlights(compress_highlights(lin, gain=gain, encoding=curve), gain=gain,
+                                                     encoding=curve), lin, rtol=0, atol=HIGHLIGHT_ROUNDTRIP_ATOL * gain)
+    assert worst <= HIGHLIGHT_ROUNDTRIP_ATOL
+    np.testing.assert_allclose(expand_highlights(v, gain=1.0, encoding=curve), decode(v, curve), rtol=1e-12, atol=0)
+    assert compress_highlights(np.array([-1.0, 2 * DEFAULT_HIGHLIGHT_GAIN]), encoding=curve).tolist() == [0.0, 1.0]
+
+
+def test_the_curve_is_really_used_and_bad_curves_are_refused():
+    from method.luma import decode
+
+    v = np.array([0.2, 0.5, 0.95])
+    for curve in ENCODINGS:     # each curve's expansion differs from its neighbour's by > 5 % where the photo is dim
+        other = expand_highlights(v, encoding=_wrong_curve(curve))
+        assert np.abs(expand_highlights(v, encoding=curve)[0] / other[0] - 1) > 0.05, curve
+    # a gamma-2.2 photo decoded as sRGB: the light at display 0.2 is off by 14 %, and re-encoding with sRGB what
+    # was expanded with gamma 2.2 moves the display value
+    assert expand_highlights(v, encoding="srgb")[0] == pytest.approx(1.14 * decode(0.2, "gamma2.2"), rel=0.01)
+    assert abs(compress_highlights(expand_highlights(v, encoding="gamma2.2"), encoding="srgb")[0] - 0.2) > 0.01
+    for fn in (expand_highlights, compress_highlights):
+        for bad in ("gamma9", "auto", "sRGB"):
+            with pytest.raises(ValueError, match=rf"encoding='{bad}' is invalid.*allowed: .*'gamma2.2'"):
+                fn(v, encoding=bad)
+        with pytest.raises(ValueError, match="gain=0.5 is invalid; allowed: a finite number >= 1"):
+            fn(v, gain=0.5, encoding="gamma2.2")
+
+
+def _point16(tmp_path, value=1.0):
+    """The point photo as a 16-bit PNG (display values, so the output is 16-bit too)."""
+    return write_photo(tmp_path / "point.png", _point(value), bit_depth=16)
+
+
+@pytest.mark.parametrize("curve", CLI_CURVES)
+def test_a_specular_point_blooms_with_its_energy_under_each_curve(tmp_path, flat_map, curve, capsys):
+    """--encoding CURVE --highlights: the point's light is GAIN × white in linear light (EXR output), and the
+    16-bit output, expanded again with the same curve, holds that light: it was re-encoded with CURVE."""
+    src = _point16(tmp_path)
+    for out in ("out.exr", "out.png"):
+        status, _, err = run([src, "--map", flat_map, "--floor", "clamp", "--encoding", curve, "--highlights",
+                              "-o", tmp_path / out], capsys)
+        assert status == 0, err
+        assert any(f"highlights x{DEFAULT_HIGHLIGHT_GAIN:g} ({curve} curve)" in line for line in err), err
+    exr = read_photo(tmp_path / "out.exr").image
+    png = read_photo(tmp_path / "out.png")
+    assert png.bit_depth == 16
+    for lin in (exr, expand_highlights(png.image, encoding=curve)):
+        energy, variance, _ = _moments(lin)
+        assert energy == pytest.approx(DEFAULT_HIGHLIGHT_GAIN, rel=HIGHLIGHT_ENERGY_RTOL)
+        assert variance == pytest.approx(SIGMA_E**2, rel=HIGHLIGHT_VARIANCE_RTOL)
+    wrong, _, _ = _moments(expand_highlights(png.image, encoding=_wrong_curve(curve)))
+    assert abs(wrong / DEFAULT_HIGHLIGHT_GAIN - 1) > 5 * HIGHLIGHT_ENERGY_RTOL
+
+
+def _dim_point_run(tmp_path, flat_map, capsys, encoding, name):
+    """Energy of the magnified linear light (EXR) of a gamma-2.2 photo of a dim point (linear 0.005)."""
+    from method.luma import encode
+
+    src = write_photo(tmp_path / "dim.png", _point(float(encode(0.005, "gamma2.2"))), bit_depth=16)
+    status, _, err = run([src, "--map", flat_map, "--floor", "clamp", "--encoding", encoding, "--highlights",
+                          "-o", tmp_path / f"{name}.exr"], capsys)
+    assert status == 0, err
+    return _moments(read_photo(tmp_path / f"{name}.exr").image)[0], err
+
+
+def test_a_gamma22_photo_decoded_as_srgb_gives_another_light(tmp_path, flat_map, capsys):
+    right, _ = _dim_point_run(tmp_path, flat_map, capsys, "gamma2.2", "right")
+    wrong, _ = _dim_point_run(tmp_path, flat_map, capsys, "srgb", "wrong")
+    assert right == pytest.approx(0.005, rel=HIGHLIGHT_ENERGY_RTOL)
+    assert wrong / 0.005 - 1 > 0.5      # sRGB decodes display 0.0898 to 0.0085: 70 % more light
+
+
+def test_auto_takes_the_curve_the_estimate_chose(tmp_path, flat_map, capsys, monkeypatch):
+    """--encoding auto: the highlights use the curve resolved for the photo (here made to be gamma 2.2)."""
+    import method.edges.tone_curve as tone_curve
+
+    monkeypatch.setattr(tone_curve, "resolve_encoding", lambda image, encoding: "gamma2.2")
+    energy, err = _dim_point_run(tmp_path, flat_map, capsys, "auto", "auto")
+    assert energy == pytest.approx(0.005, rel=HIGHLIGHT_ENERGY_RTOL)
+    assert any("(gamma2.2 curve)" in line for line in err), err
+
+
+@pytest.mark.parametrize("args,needles", [
+    (["--encoding", "gamma9", "--highlights"], ["--encoding", "gamma9", "gamma2.2"]),
+    (["--encoding", "linear", "--highlights"], ["--highlights applies to display-encoded photos", "point.png", "linear light",
+                                "allowed: drop --highlights, or --encoding with a tone curve"]),
+    (["--encoding", "gamma2.2", "--highlights", "0.9"], ["--highlights 0.9 is invalid", "allowed: a finite gain >= 1"]),
+])
+def test_highlights_bad_curve_or_gain(tmp_path, flat_map, args, needles, capsys):
+    src = _point16(tmp_path)
+    status, _, err = run([src, "--map", flat_map, *args, "-o", tmp_path / "out.png"], capsys)
+    assert_one_line_error(status, err, *needles)
+    assert not (tmp_path / "out.png").exists()

@@ -91,6 +91,16 @@ TILED_MAGNIFY_ATOL = 1e-9
 MAGNIFY_LOCAL_RANGE_ATOL = 1e-12
 #: Factor-1 magnification and a zero map return the input bit for bit.
 MAGNIFY_IDENTITY_ATOL = 0.0
+#: --highlights' curve (repro/photo_io/highlights.py), every registered tone curve, gains 1-1000:
+#: |compress(expand(v)) − v| over 2·10⁵ display values and every 16-bit code, measured ≤ 1.0e-9
+#: (gain 1000, linear; ≤ 6.3e-11 at the default gain 8): the inverse interpolates the curve tabulated at
+#: 2¹⁸ display values above the knee, below the knee the curve's own encode (float64 round-off).
+HIGHLIGHT_ROUNDTRIP_ATOL = 2e-9
+#: The synthetic point magnified with --highlights: energy of its linear light vs GAIN (or vs the
+#: decoded point), relative, and its per-axis variance vs σ_e² (the disk's sampled second moment).
+#: Measured on every display curve, EXR and 16-bit PNG output: energy ≤ 0.01 %, variance −0.1 %.
+HIGHLIGHT_ENERGY_RTOL = 0.01
+HIGHLIGHT_VARIANCE_RTOL = 0.03
 #: A piecewise-constant map upsampled by the guided filter must jump within this many full-res px
 #: of the guide's edge (the filter's window is 2 working px; the jump should sit at the full-res edge).
 GUIDED_EDGE_POSITION_PX = 1

@@ -10,6 +10,10 @@
 - every ``python -m repro.X --flag`` in README.md and docs/*.md names a flag that the parser of
   ``repro.X`` accepts (the parser is captured from the tool's own ``main``), and every documented
   ``--flag a|b`` value is one of its choices (or a name its help lists);
+- every README command line ``python -m repro.X ...`` (fenced or inline) is accepted as written by the
+  parser of ``repro.X`` (parsed only, nothing run): a removed flag, a refused value or a missing argument fails;
+- every ``--flag`` that a tool's ``--help`` names is a flag of some repro tool, and the synopses in each
+  tool's module docstring name only flags (and values) of the tool they show;
 - no session or issue numbers in README.md, docs/ or the code's comments and docstrings.
 """
 
@@ -18,6 +22,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import re
+import shlex
 from pathlib import Path
 
 import pytest
@@ -324,6 +329,119 @@ def test_docs_use_the_current_flag_names(md, tools, flag):
 def test_the_old_name_check_catches_one():
     assert _hidden("render", "--preset") and _hidden("sweep", "--scene-preset") and _hidden("sweep", "--no-progress")
     assert not _hidden("render", "--scene-size") and not _hidden("estimate", "--preset")
+
+
+#: ``python -m repro.<tool> ARGS``: the tool (lower case: ``repro.X`` is a placeholder) and its arguments.
+COMMAND = re.compile(r"python -m repro\.([a-z_]+)\b(.*)")
+#: Where a shell command line ends before its comment: a pipe, a redirection, ``&&``, ``||`` or ``;``.
+SHELL_END = re.compile(r"\s(?:&&|\|\|?|;|>)\s")
+
+
+def _readme_commands():
+    """(command, tool, argv) of every ``python -m repro.<tool> ...`` of README.md: the lines of its fenced
+    blocks and its inline code spans (the arguments split as a shell would, the ``#`` comment dropped)."""
+    text = README.read_text(encoding="utf-8")
+    lines = [ln for block in FENCE.findall(text) for ln in block.replace("\\\n", " ").splitlines()]
+    lines += [span.replace("\n", " ") for span in INLINE_CODE.findall(FENCE.sub("", text))]
+    out = []
+    for line in lines:
+        if m := COMMAND.search(line):
+            out.append((" ".join(line.split()), m.group(1), shlex.split(SHELL_END.split(m.group(2))[0], comments=True)))
+    return out
+
+
+def _parse_error(tool: str, argv: list[str]) -> str | None:
+    """None if the parser of ``repro.<tool>`` accepts ``argv`` (parsed only, nothing run); else its message."""
+    from repro._cli import CLIError
+
+    try:
+        _parser_of(tool).parse_args(argv)
+    except (CLIError, SystemExit) as exc:  # the tools' parsers raise CLIError; --help and a plain parser exit
+        return f"{type(exc).__name__}: {exc}"
+    return None
+
+
+def test_the_readme_command_check_finds_commands_and_refuses_bad_ones():
+    found = _readme_commands()
+    tools = {tool for _, tool, _ in found}
+    assert {"estimate", "magnify", "render", "evaluate", "compare", "bench", "sweep", "dataset", "warmup"} <= tools
+    assert any(tool == "magnify" and "--highlights" in argv for _, tool, argv in found)
+    assert all("#" not in " ".join(argv) for _, _, argv in found)  # comments dropped
+    assert _parse_error("magnify", ["photo.jpg", "--factor", "2", "--highlights"]) is None
+    assert "--no-such-flag" in _parse_error("magnify", ["photo.jpg", "--no-such-flag"])  # a removed flag
+    assert _parse_error("render", ["portrait_garden", "--scene-size", "huge"])          # a value not allowed
+    assert _parse_error("estimate", ["-o", "map.exr"])                                 # the photo missing
+    assert _parse_error("estimate", ["photo.jpg", "--encoding", "gamma9"])
+
+
+@pytest.mark.parametrize("command,tool,argv", _readme_commands(), ids=lambda v: v if isinstance(v, str) else None)
+def test_every_readme_command_parses(command, tool, argv):
+    """Each README command line, as written, is accepted by its tool's parser (a removed or renamed flag, a
+    value its choices refuse, a missing argument fail here)."""
+    error = _parse_error(tool, argv)
+    assert error is None, f"README.md: `{command}`: repro.{tool}'s parser refuses it: {error}"
+
+
+def _tools() -> list[str]:
+    from repro._cli import COMMANDS
+
+    return sorted(COMMANDS)
+
+
+def _parsers_with_subcommands(tool: str) -> list[argparse.ArgumentParser]:
+    parser = _parser_of(tool)
+    return [parser, *(sub for a in parser._actions if isinstance(a, argparse._SubParsersAction)
+                      for sub in a.choices.values())]
+
+
+def _help_text(tool: str) -> str:
+    """What ``repro.<tool> --help`` prints (its sub-commands' too): description, epilog and every shown option's
+    help, unwrapped (the printed page breaks a long flag at its hyphen)."""
+    texts = [t for p in _parsers_with_subcommands(tool)
+             for t in (p.description, p.epilog, *(a.help for a in p._actions)) if t and t != argparse.SUPPRESS]
+    return "\n".join(texts)
+
+
+def _accepted_with_subcommands(tool: str) -> set[str]:
+    return {s for p in _parsers_with_subcommands(tool) for a in p._actions for s in a.option_strings}
+
+
+def _usage_lines(tool: str) -> list[tuple[str, str]]:
+    """(tool named, its arguments) of each ``python -m repro.<tool> ...`` synopsis in ``repro/<tool>.py``'s
+    docstring (a span in double backquotes, or a line of a literal block)."""
+    doc = importlib.import_module(f"repro.{tool}").__doc__ or ""
+    spans = [" ".join(m.split()) for m in re.findall(r"``(python -m repro\.[a-z_]+[^`]*)``", doc)]
+    spans += [ln.strip() for ln in doc.splitlines() if ln.strip().startswith("python -m repro.")]
+    return [(m.group(1), m.group(2)) for span in spans for m in [COMMAND.match(span)] if m]
+
+
+def _flags_no_tool_accepts(text: str) -> list[str]:
+    anyone = set().union(*(_accepted_with_subcommands(t) for t in _tools()))
+    return sorted({f for f in FLAG.findall(text) if f.startswith("--")} - anyone)
+
+
+@pytest.mark.parametrize("tool", _tools())
+def test_every_flag_a_tools_help_names_exists(tool):
+    """``repro.<tool> --help`` names only flags of that tool or of another repro tool (it may point at one),
+    and the synopses of its module docstring only flags of the tool they name, with allowed values."""
+    ours = _accepted_with_subcommands(tool)
+    unknown = _flags_no_tool_accepts(_help_text(tool))
+    assert not unknown, f"repro.{tool} --help names {', '.join(unknown)}, which no repro tool accepts"
+    for named, rest in _usage_lines(tool):
+        flags = _flags_after(rest) | {f"{f} {v}" for f, v in _alternatives_after(rest)}
+        bad = sorted(f for f in flags if not (_ok(named, f) or (named == tool and f.partition(" ")[0] in ours
+                                                               and " " not in f)))
+        assert not bad, f"repro/{tool}.py's docstring shows python -m repro.{named} {' / '.join(bad)}: not accepted"
+
+
+def test_the_help_check_finds_synopses_and_flags():
+    assert "--highlights" in _flags_after(next(rest for t, rest in _usage_lines("magnify") if t == "magnify"))
+    assert any(t == "render" and "--list" in rest for t, rest in _usage_lines("render"))  # a literal-block line
+    assert "--scenes" in _accepted_with_subcommands("dataset")                            # a sub-command's flag
+    assert "--map" in _help_text("magnify") and "--encoding" in _help_text("magnify")
+    assert _flags_no_tool_accepts("as repro.evaluate --maps reads it, or --factor 2") == []
+    assert _flags_no_tool_accepts("with --highlight-gain G") == ["--highlight-gain"]       # a removed flag
+    assert not _ok("magnify", "--floor median") and _ok("magnify", "--floor auto")
 
 
 # --------------------------------------------------------------------------------------------

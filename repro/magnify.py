@@ -421,7 +421,7 @@ def main(argv=None) -> int:
     photo = load_photo(args, prog=PROG)
     if gain is not None and photo.encoding == "linear":
         raise CLIError(f"--highlights applies to display-encoded photos (JPEG, PNG, TIFF under a tone curve), not to "
-                       f"{photo_path.name} (linear light, whose highlights are kept as stored); allowed: drop "
+                       f"{photo_path.name} (read as linear light: an EXR keeps its highlights as stored); allowed: drop "
                        "--highlights, or --encoding with a tone curve")
     subject = _subject(args, photo, prog=PROG)  # read and checked before any output is written
     given = None

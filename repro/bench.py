@@ -259,7 +259,7 @@ def _parser():
                              "robust in both lights and with its curve fitted)")
     parser.add_argument("--grid", default=None, metavar="NAME",
                         help="with --accuracy: the lens grid by name (default, full, tones, large: σ 8–16 px on 224-px "
-                             "tiles, the fit's scale following off and on)")
+                             "tiles, the fit's scale following off, on and guarded)")
     parser.add_argument("--doubling", action="store_true",
                         help="run the doubling claim (Fig. 7) at both render sizes of the same scenes with the f/4 "
                              "stage attribution instead (doubling.md / doubling.json)")

@@ -15,7 +15,10 @@ ROBUST = DefocusParams.preset("robust")
 #: the robust preset's fit without the re-fit, and with it (the detector's σ2 reaching 16 px so that
 #: steps of σ 12–16 px are detected at all)
 WITHOUT = ROBUST.replace(fit_follow_scale=None)
-FOLLOW = ROBUST.replace(sigma2_scales=(0.5, 1.0, 2.0, 4.0, 8.0, 16.0), fit_follow_scale=0.5)
+FOLLOW = ROBUST.replace(sigma2_scales=(0.5, 1.0, 2.0, 4.0, 8.0, 16.0), fit_follow_scale=0.5,
+                        fit_follow_max_residual=1.0)
+#: the same with the residual guard: only coarse fits and re-fits with ρ ≤ 0.02 count
+GUARDED = FOLLOW.replace(fit_follow_max_residual=0.02)
 
 
 def _step_measures(sigma, params, *, seed=0, angle=0.4):
@@ -29,9 +32,11 @@ def _step_measures(sigma, params, *, seed=0, angle=0.4):
     return blur_stage(gray, edges, params=params)[0][near & edges.edges]
 
 
+@pytest.mark.parametrize("guard", [1.0, 0.02])
 @pytest.mark.parametrize("sigma", [12.0, 16.0])
-def test_follow_scale_recovers_large_disk_blur(sigma):
-    sparse = _step_measures(sigma, FOLLOW)
+def test_follow_scale_recovers_large_disk_blur(sigma, guard):
+    """With and without the residual guard: a blurred step's coarse fit and re-fit have ρ ≤ 0.005."""
+    sparse = _step_measures(sigma, FOLLOW.replace(fit_follow_max_residual=guard))
     ok = np.isfinite(sparse)
     assert sparse.size > 100 and ok.mean() >= tol.LARGE_BLUR_MIN_COVERAGE, ok.mean()
     assert abs(np.median(sparse[ok]) - sigma) <= tol.LARGE_BLUR_MAX_REL_MEDIAN * sigma, np.median(sparse[ok])
@@ -42,9 +47,10 @@ def test_follow_scale_recovers_large_disk_blur(sigma):
     assert good.mean() < 0.5 or np.median(before[good]) < 0.5 * sigma
 
 
-def test_follow_scale_fixes_sigma_8_without_the_coarser_detector_scale():
+@pytest.mark.parametrize("guard", [1.0, 0.02])
+def test_follow_scale_fixes_sigma_8_without_the_coarser_detector_scale(guard):
     """σ 8 is detected at σ2 ≤ 8 already: the re-fit alone lifts coverage and removes the bias."""
-    sparse = _step_measures(8.0, WITHOUT.replace(fit_follow_scale=0.5))
+    sparse = _step_measures(8.0, WITHOUT.replace(fit_follow_scale=0.5, fit_follow_max_residual=guard))
     ok = np.isfinite(sparse)
     assert ok.mean() >= tol.LARGE_BLUR_MIN_COVERAGE and abs(np.median(sparse[ok]) - 8.0) <= 0.4
     before = _step_measures(8.0, WITHOUT)
@@ -56,11 +62,28 @@ def test_follow_scale_fixes_sigma_8_without_the_coarser_detector_scale():
 def test_small_blur_measures_unchanged(sigma):
     """Steps the first fit resolves keep their measure bit for bit (today's errors: |median| ≤ 0.03 px)."""
     for seed, angle in ((0, 0.4), (1, 1.1)):
-        follow, without = _step_measures(sigma, FOLLOW, seed=seed, angle=angle), _step_measures(
-            sigma, WITHOUT, seed=seed, angle=angle)
-        assert np.array_equal(follow, without, equal_nan=True)
+        without = _step_measures(sigma, WITHOUT, seed=seed, angle=angle)
+        for follow in (_step_measures(sigma, FOLLOW, seed=seed, angle=angle),
+                       _step_measures(sigma, GUARDED, seed=seed, angle=angle)):
+            assert np.array_equal(follow, without, equal_nan=True)
         ok = np.isfinite(follow)
         assert ok.mean() >= 0.95 and abs(np.median(follow[ok]) - sigma) <= 0.05
+
+
+def test_guard_keeps_in_focus_texture_measures():
+    """On in-focus texture (a σ ≤ 4 dead-leaves mosaic, display light) the coarse fit at σ2(p) = 4–8 px is
+    widened by neighbouring edges (ρ 0.03–0.24): unguarded, the re-fit replaces some first-fit measures;
+    guarded (ρ ≤ 0.02), the sparse map is the one without the re-fit, bit for bit."""
+    from method import estimate_defocus_map
+    from scenes.analytic import texture_mosaic
+
+    m = texture_mosaic(tile=48, sigmas=(0.5, 1.0, 2.0, 4.0), cols=4, noise_std=1.0 / 255, quantize_bits=8, rng=1)
+    base = WITHOUT.replace(measure_light="display")
+    sparse = {g: estimate_defocus_map(m.image, base.replace(fit_follow_scale=0.5, fit_follow_max_residual=g)).sparse_sigma
+              for g in (1.0, 0.02)}
+    off = estimate_defocus_map(m.image, base).sparse_sigma
+    assert not np.array_equal(sparse[1.0], off, equal_nan=True)  # the unguarded re-fit acts here (seed 1)
+    assert np.array_equal(sparse[0.02], off, equal_nan=True)
 
 
 def test_follow_window_max():
@@ -75,8 +98,22 @@ def test_fit_follow_scale_validated(bad):
         DefocusParams(fit_follow_scale=bad)
 
 
+@pytest.mark.parametrize("bad", [-0.01, 1.5, float("nan")])
+def test_fit_follow_max_residual_validated(bad):
+    with pytest.raises(ValueError, match="fit_follow_max_residual"):
+        DefocusParams(fit_follow_max_residual=bad)
+    assert DefocusParams(fit_follow_max_residual=0.0).fit_follow_max_residual == 0.0
+
+
+def test_guard_of_zero_keeps_no_refit():
+    """ρf = 0 admits no fit (every noisy fit has ρ > 0): the σ 8 step keeps the first fit's measures exactly."""
+    zero = _step_measures(8.0, WITHOUT.replace(fit_follow_scale=0.5, fit_follow_max_residual=0.0))
+    assert np.array_equal(zero, _step_measures(8.0, WITHOUT), equal_nan=True)
+
+
 def test_paper_has_it_off():
     assert DefocusParams().fit_follow_scale is None
+    assert DefocusParams().fit_follow_max_residual == 1.0
 
 
 def test_large_lens_grid_and_its_flags():

@@ -30,6 +30,7 @@ PAPER_BEFORE_THE_SPLIT = {
     # blur at edges (Sec. 3.2)
     "estimator": "model_fit", "fit_window_min": 3, "fit_window_max": 71, "max_sigma": 64.0, "fit_max_residual": 0.05,
     "fit_residual_noise": 0.0, "relaxed_fit_weight": 1.0, "fit_scale_ratio": 1.0, "fit_max_scale": None, "fit_follow_scale": None,
+    "fit_follow_max_residual": 1.0,
     "fit_min_samples": 3, "fit_max_width_ratio": float("inf"), "fit_below_scale": "zero", "fit_psf": "gaussian",
     "fit_step_gate": "none", "fit_plateau_reach": 0.5,
     "ratio_gradient_sigma": 0.5, "ratio_reblur_sigma": 1.0, "ratio_max_sigma": None, "ratio_zero_is_measure": True,
@@ -170,7 +171,7 @@ def test_every_flat_field_reads_its_stage(name):
 
 def test_field_names_are_one_namespace():
     names = [f.name for cls in STAGE_CLASSES.values() for f in dataclasses.fields(cls)]
-    assert len(names) == len(set(names)) == len(DefocusParams.field_types()) == 78
+    assert len(names) == len(set(names)) == len(DefocusParams.field_types()) == 79
     assert not set(names) & set(STAGE_CLASSES)
     assert DefocusParams.stage_classes() == STAGE_CLASSES
     with pytest.raises(ValueError, match="'nope' is invalid"):

@@ -78,13 +78,17 @@ LENS_TONE_CONFIG = {**LENS_CONFIG, "noises": ("iso100",), "tones": LENS_TONES,
                     "regions": {"disk + adequacy gate": LENS_CONFIG["regions"]["disk + adequacy gate"]}}
 #: The large-blur grid (``python -m repro.bench --accuracy --grid large``): σ 8, 12 and 16 px on tiles of
 #: 224 px (a disk of σ 16 is 64 px wide and its edge response spans ±64 px), ISO 100, the robust preset
-#: with and without the fit's scale following a coarse estimate (``fit_follow_scale``); no region cue.
+#: with and without the fit's scale following a coarse estimate (``fit_follow_scale``), unguarded and
+#: with its residual guard (``fit_follow_max_residual``), the guarded one also with σ2 16; no region cue.
 #: Timed in docs/performance.md ("The large-blur lens grid").
+_GUARDED = {"fit_follow_scale": 0.5, "fit_follow_max_residual": 0.02}
 LENS_LARGE_CONFIG = {**LENS_CONFIG, "noises": ("iso100",), "sigmas": (8.0, 12.0, 16.0), "tile": 224,
                      "variants": {"paper": ("paper", {}), "robust": ("robust", {}),
-                                  "robust + scale following": ("robust", {"fit_follow_scale": 0.5}),
-                                  "robust + scale following + σ2 16": ("robust", {
-                                      "fit_follow_scale": 0.5, "sigma2_scales": (0.5, 1.0, 2.0, 4.0, 8.0, 16.0)})},
+                                  "robust + scale following": ("robust", {"fit_follow_scale": 0.5,
+                                                                          "fit_follow_max_residual": 1.0}),
+                                  "robust + guarded scale following": ("robust", _GUARDED),
+                                  "robust + guarded scale following + σ2 16": ("robust", {
+                                      **_GUARDED, "sigma2_scales": (0.5, 1.0, 2.0, 4.0, 8.0, 16.0)})},
                      "regions": {}}
 #: The lens grids by name (``--grid``).
 LENS_GRIDS = {"default": LENS_CONFIG, "full": LENS_FULL_CONFIG, "tones": LENS_TONE_CONFIG, "large": LENS_LARGE_CONFIG}

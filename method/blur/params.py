@@ -69,6 +69,12 @@ class BlurParams:
     # detector's σ2(p) exceeds the capped fit scale, a coarse fit at σ2(p) gives σ̂c and the edge is
     # re-fitted at the sigma2_scales value nearest r·σ̂c (in log), its window grown to hold the response
     # (method.blur.scale_follow): large blur is fitted at a scale that sees it. None: off.
+    fit_follow_max_residual: float = 1.0
+    # beyond the paper (with fit_follow_scale): largest normalised residual ρ (dimensionless, in [0, 1];
+    # as fit_max_residual, no noise allowance) of the coarse fit for an edge to be re-fitted, and of the
+    # re-fit for its measure to replace the first fit's: a blurred step fits both almost exactly
+    # (ρ ≤ 0.005 at σ 8–16 px), in-focus texture widened by its neighbours at coarse σ2 does not
+    # (ρ ≈ 0.03–0.26). 1: no test.
     fit_min_samples: int = 3
     # beyond the paper: fewest response samples in the fit window for a measure (NaN below); 3 (the
     # smallest window, paper) fits (s, t0) exactly and lets noise choose any width.
@@ -124,6 +130,8 @@ class BlurParams:
             raise invalid_field("fit_max_scale", self.fit_max_scale, "None or > 0 (px)")
         if self.fit_follow_scale is not None and not 0 < self.fit_follow_scale <= 1:
             raise invalid_field("fit_follow_scale", self.fit_follow_scale, "None or 0 < r <= 1 (dimensionless)")
+        require_field(self, "fit_follow_max_residual", 0 <= self.fit_follow_max_residual <= 1,
+                      "0 <= ρ <= 1 (dimensionless normalised residual; 1: no test)")
         require_field(self, "fit_min_samples", is_integer(self.fit_min_samples, 3), "integer >= 3")
         require_field(self, "fit_max_width_ratio", self.fit_max_width_ratio > 0, "> 0 (inf: no limit)")
         check_field_choice(self, "fit_below_scale", BELOW_SCALE_RULES)

@@ -183,6 +183,9 @@ def _check_across_stages(p: DefocusParams) -> None:
     if p.edge_detector == "canny" and p.estimator != "gradient_ratio":
         raise invalid_field("edge_detector", p.edge_detector, "'canny' only with estimator='gradient_ratio' (the "
                             "other estimators read the Elder–Zucker σ2 scales); else 'elder_zucker'")
+    if p.bias_weighting == "uncertainty" and p.measure_weighting != "uncertainty":
+        raise invalid_field("bias_weighting", p.bias_weighting, "'uniform' unless measure_weighting='uncertainty' "
+                            "(the bias follows each measure's own uncertainty)")
     if p.region_estimator is not None and p.propagation != "colorization":
         raise invalid_field("propagation", p.propagation, "'colorization' when region_estimator is set (the fusion "
                             "needs per-pixel data weights in Eq. 4)")

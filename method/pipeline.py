@@ -64,7 +64,8 @@ class DefocusResult:
     # (time.process_time); with ``timings`` it shows the algorithmic cost on a shared machine.
     measure_confidence: np.ndarray | None = None
     # float64 HxW per-measure confidence c_q in (0, 1] (params.relaxed_fit_weight for measures admitted
-    # by the fit's noise allowance only, 1 otherwise; NaN off measures), or None when every c_q = 1.
+    # by the fit's noise allowance only, 1 otherwise; with params.measure_weighting="uncertainty" ∝ 1/Var(σb):
+    # method.blur.measure_uncertainty; NaN off measures), or None when every c_q = 1.
     psf_disk: np.ndarray | None = None
     # bool HxW: True at the measures whose edge response was fitted with the disk PSF model of a thin
     # lens (params.fit_psf "disk", "best", or "auto" when it chose the disk), False at the other
@@ -359,10 +360,12 @@ def refine_stage(sparse_sigma, rgb, *, params, confidence=None) -> np.ndarray:
         Guide image.
     params : RefineParams or DefocusParams, keyword-only
         ``refine`` (False: the measures pass unchanged), ``bilateral_*``, ``sharpness_bias``,
-        ``bias_scale`` with ``bias_reference`` (px, or a fraction of max(H, W)), ``refinement_robust_*``.
+        ``bias_scale`` with ``bias_reference`` (px, or a fraction of max(H, W)), ``refinement_robust_*``,
+        ``bias_weighting`` (``"uncertainty"``: the bias of each measure raised to 1 − c_q).
     confidence : ndarray, HxW, float in (0, 1], or None, keyword-only
         Beyond the paper: per-measure confidence c_q multiplying its Eq. (3) weight (the
-        estimator's ``measure_confidence``); None: all 1 (paper; oracle inputs).
+        estimator's ``measure_confidence``); None: all 1 (paper; oracle inputs; with
+        ``bias_weighting="uncertainty"`` then no measure is biased).
 
     Returns
     -------
@@ -385,7 +388,17 @@ def refine_stage(sparse_sigma, rgb, *, params, confidence=None) -> np.ndarray:
         robust_iterations=params.refinement_robust_iterations,
         robust_scale=params.refinement_robust_scale,
         weights=confidence,
+        bias_strength=_bias_strength(sparse_sigma, confidence, params),
     )
+
+
+def _bias_strength(sparse_sigma, confidence, params):
+    """Exponent 1 − c_q of each measure's sharpness bias (``bias_weighting="uncertainty"``), else None."""
+    if params.bias_weighting != "uncertainty" or not params.sharpness_bias:
+        return None
+    if confidence is None:
+        return np.zeros(np.shape(sparse_sigma))
+    return np.where(np.isfinite(confidence), 1.0 - np.asarray(confidence, dtype=np.float64), 0.0)
 
 
 def edge_psf_family(sparse_sigma, psf_disk) -> str | None:

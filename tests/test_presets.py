@@ -177,6 +177,8 @@ def test_propagation_registry_calls_the_method(rng):
     ("fit_residual_noise", [-1.0, math.inf]),
     ("fit_scale_ratio", [0.0, 1.5]),
     ("relaxed_fit_weight", [0.0, 1.5]),
+    ("measure_weighting", ["Uncertainty", "", None]),
+    ("bias_weighting", ["uncertain", "", None]),
     ("fit_psf", ["Disk", "", "pillbox", None]),
 ])
 def test_new_fields_reject_bad_values(field, values):
@@ -192,7 +194,7 @@ def test_new_fields_reject_bad_values(field, values):
     ("fit_below_scale", "nan"), ("bilateral_range_kernel", "product"), ("bias_reference", "image_fraction"),
     ("refinement_robust_iterations", 0), ("refinement_robust_scale", 2.0), ("alpha_confidence", "agreement"),
     ("matting_lambda", 0.1), ("matting_epsilon", 1e-3), ("fit_residual_noise", 2.0), ("fit_scale_ratio", 0.5),
-    ("relaxed_fit_weight", 0.1), ("fit_psf", "disk"), ("fit_psf", "best"), ("fit_psf", "gaussian")])
+    ("relaxed_fit_weight", 0.1), ("measure_weighting", "hand"), ("bias_weighting", "uniform"), ("fit_psf", "disk"), ("fit_psf", "best"), ("fit_psf", "gaussian")])
 def test_new_fields_accept_good_values(field, value):
     p = DefocusParams(**{field: value})
     assert getattr(p, field) == value

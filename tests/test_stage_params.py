@@ -29,7 +29,7 @@ PAPER_BEFORE_THE_SPLIT = {
     "isolation_radius": 3.0, "isolation_floor": 0.1,
     # blur at edges (Sec. 3.2)
     "estimator": "model_fit", "fit_window_min": 3, "fit_window_max": 71, "max_sigma": 64.0, "fit_max_residual": 0.05,
-    "fit_residual_noise": 0.0, "relaxed_fit_weight": 1.0, "fit_scale_ratio": 1.0, "fit_max_scale": None, "fit_follow_scale": None,
+    "fit_residual_noise": 0.0, "relaxed_fit_weight": 1.0, "measure_weighting": "hand", "fit_scale_ratio": 1.0, "fit_max_scale": None, "fit_follow_scale": None,
     "fit_follow_max_residual": 1.0,
     "fit_min_samples": 3, "fit_max_width_ratio": float("inf"), "fit_below_scale": "zero", "fit_psf": "gaussian",
     "fit_step_gate": "none", "fit_plateau_reach": 0.5,
@@ -41,7 +41,7 @@ PAPER_BEFORE_THE_SPLIT = {
     # Eq. (3)
     "refine": True, "bilateral_sigma_spatial": 0.1, "bilateral_sigma_range": 0.1, "sharpness_bias": True,
     "bias_scale": 2.0, "bilateral_method": "grid", "bilateral_range_kernel": "sum", "bias_reference": "px",
-    "refinement_robust_iterations": 0, "refinement_robust_scale": 0.5,
+    "bias_weighting": "uniform", "refinement_robust_iterations": 0, "refinement_robust_scale": 0.5,
     # fusion
     "fusion_edge_error_rel": 0.5, "fusion_region_error_rel": 0.3, "fusion_region_weight": 1.0,
     "fusion_region_placement": "centres", "fusion_island_weight": 1.0, "fusion_island_radius": 24.0,
@@ -97,6 +97,7 @@ def test_each_stage_refuses_a_bad_value_naming_the_allowed_range(cls, field, val
     (BlurParams, "fit_step_gate", ("none", "plateau", "plateau_flat")),
     (RegionParams, "region_gate", ("adequacy", "none")),
     (RefineParams, "bias_reference", ("image_fraction", "px")),
+    (BlurParams, "measure_weighting", ("hand",)),
     (FusionParams, "fusion_region_placement", ("blocks", "centres")),
     (PropagationParams, "alpha_confidence", ("agreement", "none")),
     (MagnifyParams, "map_floor", ("clamp", "shift", "subtract")),
@@ -171,7 +172,7 @@ def test_every_flat_field_reads_its_stage(name):
 
 def test_field_names_are_one_namespace():
     names = [f.name for cls in STAGE_CLASSES.values() for f in dataclasses.fields(cls)]
-    assert len(names) == len(set(names)) == len(DefocusParams.field_types()) == 79
+    assert len(names) == len(set(names)) == len(DefocusParams.field_types()) == 81
     assert not set(names) & set(STAGE_CLASSES)
     assert DefocusParams.stage_classes() == STAGE_CLASSES
     with pytest.raises(ValueError, match="'nope' is invalid"):

@@ -108,8 +108,8 @@ def uses_measure_confidence(params) -> bool:
     """Whether ``params`` ask for a per-measure confidence (beyond the paper; docs/presets.md).
 
     True when the entry of ``params.estimator`` has the ``"confidence"`` capability and its
-    ``"confidence_used"`` hook is true for ``params`` (``model_fit_checked``: ``fit_residual_noise`` > 0
-    and ``relaxed_fit_weight`` < 1).
+    ``"confidence_used"`` hook is true for ``params`` (``model_fit_checked``: ``measure_weighting``
+    "uncertainty", or ``fit_residual_noise`` > 0 and ``relaxed_fit_weight`` < 1).
     """
     hooks = BLUR_ESTIMATORS.entry(params.estimator).hooks
     return "confidence" in hooks and bool(hooks["confidence_used"](params))
@@ -134,7 +134,7 @@ def estimate_blur_with_confidence(gray, edge_map, *, params):
         None unless :func:`uses_measure_confidence`; then the registered estimator's confidence
         (its ``"confidence"`` hook; ``model_fit_checked``: 1 for the measures passing the strict
         residual test, ``params.relaxed_fit_weight`` for those admitted by the noise allowance
-        only), NaN where ``sigma`` is NaN. σ and the confidence come from one call.
+        only; with ``measure_weighting="uncertainty"`` ∝ 1/Var(σb)), NaN where ``sigma`` is NaN. σ and the confidence come from one call.
     """
     if not uses_measure_confidence(params):
         return estimate_blur(gray, edge_map, params=params), None

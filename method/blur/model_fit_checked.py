@@ -15,14 +15,15 @@ import functools
 
 import numpy as np
 
+from .measure_uncertainty import measure_sd, uncertainty_confidence
 from .model_fit import paper_rules, apply_fit_rules
 from .noise_model import noise_variance_map
 from .scale_follow import follow_scale_diagnostics
 from .step_plateau import gate_step_measures
 
 __all__ = ["estimate_blur_model_fit_checked", "estimate_blur_model_fit_checked_confidence",
-           "estimate_blur_model_fit_checked_psf", "noise_residual_share", "relaxed_confidence_used",
-           "steered_second_noise_variance"]
+           "estimate_blur_model_fit_checked_psf", "estimate_blur_model_fit_checked_sd", "fit_measure_sd",
+           "noise_residual_share", "relaxed_confidence_used", "steered_second_noise_variance"]
 
 
 @functools.lru_cache(maxsize=32)
@@ -96,9 +97,65 @@ def noise_residual_share(diagnostics, *, noise_std, noise_variance=None):
 
 
 def relaxed_confidence_used(params) -> bool:
-    """Whether ``params`` give relaxed measures a confidence below 1: ``fit_residual_noise`` > 0 and
-    ``relaxed_fit_weight`` < 1 (else every measure of this estimator weighs 1)."""
+    """Whether ``params`` give the measures a confidence other than 1: ``measure_weighting="uncertainty"``,
+    or (``"hand"``) ``fit_residual_noise`` > 0 and ``relaxed_fit_weight`` < 1 (else every measure weighs 1)."""
+    if params.measure_weighting == "uncertainty":
+        return True
     return float(params.fit_residual_noise) > 0 and float(params.relaxed_fit_weight) < 1.0
+
+
+def fit_measure_sd(diagnostics, edge_map, *, params, noise_variance=None):
+    """sd(σb), px, of every fitted edge pixel (:func:`method.blur.measure_uncertainty.measure_sd`).
+
+    Parameters
+    ----------
+    diagnostics : dict of ndarray, (H, W)
+        :func:`method.blur.model_fit.model_fit_diagnostics` (after the PSF choice).
+    edge_map : EdgeMap
+        The detector's output (θ gives the sampling axis).
+    params : DefocusParams, keyword-only
+        ``noise_std`` (image units) where ``noise_variance`` is None.
+    noise_variance : ndarray, (H, W), float, or None, keyword-only
+        Per-pixel noise variance, image units² (``noise_model="signal_dependent"``).
+
+    Returns
+    -------
+    ndarray, (H, W), float64
+        sd(σb), px; NaN where not fitted.
+    """
+    v_pixel = float(params.noise_std) ** 2 if noise_variance is None else np.asarray(noise_variance)
+    with np.errstate(invalid="ignore"):
+        v_sample = steered_second_noise_variance(diagnostics["sigma2"], 1.0) * v_pixel
+    theta = np.asarray(edge_map.theta, dtype=np.float64)
+    proj = np.maximum(np.abs(np.cos(theta)), np.abs(np.sin(theta)))
+    return measure_sd(diagnostics, sample_noise_variance=v_sample, proj=proj)
+
+
+def estimate_blur_model_fit_checked_sd(gray, edge_map, *, params):
+    """:func:`estimate_blur_model_fit_checked` and each measure's standard deviation, from the same fit.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (H, W), float
+        Luminance in [0, 1].
+    edge_map : EdgeMap
+        Edges, θ and minimum reliable σ2 from ``detect_edges(gray, ...)``.
+    params : DefocusParams, keyword-only
+        As :func:`estimate_blur_model_fit_checked`.
+
+    Returns
+    -------
+    sigma_b : ndarray, shape (H, W), float64
+        Identical to :func:`estimate_blur_model_fit_checked` (px).
+    sd : ndarray, shape (H, W), float64
+        sd(σb), px, from the fit's residual and its curvature in s under the pixel's noise variance
+        (:func:`fit_measure_sd`); NaN where ``sigma_b`` is NaN.
+    """
+    diagnostics = follow_scale_diagnostics(gray, edge_map, params=params)
+    noise_variance = _noise_variance(gray, edge_map, params)
+    sigma_b, _ = _checked(diagnostics, params, gray, edge_map, noise_variance)
+    sd = fit_measure_sd(diagnostics, edge_map, params=params, noise_variance=noise_variance)
+    return sigma_b, np.where(np.isfinite(sigma_b), sd, np.nan)
 
 
 def estimate_blur_model_fit_checked(gray, edge_map, *, params):
@@ -180,7 +237,9 @@ def estimate_blur_model_fit_checked_confidence(gray, edge_map, *, params):
         1 where the measure passes the strict test ρ ≤ ``fit_max_residual``;
         ``relaxed_fit_weight`` where it passes only thanks to the noise allowance
         (``fit_residual_noise`` > 0, Notes 4 of :func:`estimate_blur_model_fit_checked`);
-        NaN where ``sigma_b`` is NaN.
+        NaN where ``sigma_b`` is NaN. With ``params.measure_weighting="uncertainty"`` instead
+        c_q ∝ 1 / Var(σb) in (0, 1] (:func:`method.blur.measure_uncertainty.uncertainty_confidence`
+        of :func:`fit_measure_sd`; ``relaxed_fit_weight`` is not used).
 
     Notes
     -----
@@ -232,6 +291,9 @@ def _checked(diagnostics, params, gray, edge_map, noise_variance=None):
         good = residual <= limit  # False where residual is NaN
         strict = residual <= strict_limit
     sigma_b = gate_step_measures(gray, edge_map, np.where(good, sigma_b, np.nan), params=params)
+    if params.measure_weighting == "uncertainty":  # c_q ∝ 1 / Var(σb) (method.blur.measure_uncertainty)
+        sd = fit_measure_sd(diagnostics, edge_map, params=params, noise_variance=noise_variance)
+        return sigma_b, uncertainty_confidence(sd, np.isfinite(sigma_b))
     c_relaxed = float(params.relaxed_fit_weight)
     confidence = np.where(strict, 1.0, c_relaxed)
     confidence[~np.isfinite(sigma_b)] = np.nan

@@ -13,6 +13,7 @@ from ..registry import Registry
 from ..validation import check_field_choice, invalid_field, is_integer, require_field
 from .estimators import BLUR_ESTIMATORS
 from .local_spectrum import REGION_GATES
+from .measure_uncertainty import MEASURE_WEIGHTINGS
 from .model_fit import FIT_PSF_MODELS
 from .region_estimators import REGION_ESTIMATORS, REGION_NOISE_MODELS, REGION_PSFS
 from .step_plateau import GAUSSIAN_STEP_REACH, STEP_GATES
@@ -57,6 +58,12 @@ class BlurParams:
     # dimensionless in (0, 1], of the measures that pass the residual test only thanks to the noise
     # allowance; the others have c_q = 1. c_q multiplies the measure's weight in Eq. (3) and its α_p in
     # Eq. (4), so relaxed measures decide the map only where no strict measure is near. 1: off.
+    measure_weighting: str = "hand"
+    # beyond the paper (estimator "model_fit_checked"): what gives each measure its confidence c_q in
+    # Eq. (3) and in α_p of Eq. (4) (key of method.blur.measure_uncertainty.MEASURE_WEIGHTINGS): "hand"
+    # (1, or relaxed_fit_weight as above; the paper: every c_q = 1) or "uncertainty" (c_q ∝ 1/Var(σb), the
+    # Cramér–Rao variance of the fit's width from its residual and curvature under the pixel's noise,
+    # normalised to the image's median measure; relaxed_fit_weight unused).
     fit_scale_ratio: float = 1.0
     # beyond the paper: the Eq. (2c) fit samples the responses at min(σ2(p), max(fit_scale_ratio·σ2(p),
     # min(sigma2_scales))) px (then capped by fit_max_scale), dimensionless; 1: the detector's minimum
@@ -125,6 +132,10 @@ class BlurParams:
                       "finite and >= 0 (dimensionless)")
         require_field(self, "relaxed_fit_weight", 0 < self.relaxed_fit_weight <= 1,
                       "0 < c <= 1 (dimensionless confidence)")
+        check_field_choice(self, "measure_weighting", MEASURE_WEIGHTINGS)
+        if self.measure_weighting != "hand" and self.estimator != "model_fit_checked":
+            raise invalid_field("measure_weighting", self.measure_weighting,
+                                "'hand' unless estimator='model_fit_checked' (the fit whose uncertainty it reads)")
         require_field(self, "fit_scale_ratio", 0 < self.fit_scale_ratio <= 1, "0 < ratio <= 1 (dimensionless)")
         if self.fit_max_scale is not None and not self.fit_max_scale > 0:
             raise invalid_field("fit_max_scale", self.fit_max_scale, "None or > 0 (px)")

@@ -351,7 +351,7 @@ RANGE_KERNELS = Registry("range kernel", {"sum": "Σ over channels of the colour
 
 def biased_cross_bilateral(sparse_sigma, reference, *, sigma_spatial=0.10, sigma_range=0.10,
                            sharpness_bias=True, bias_scale=2.0, method="grid", range_kernel="sum",
-                           robust_iterations=0, robust_scale=0.5, weights=None) -> np.ndarray:
+                           robust_iterations=0, robust_scale=0.5, weights=None, bias_strength=None) -> np.ndarray:
     """Biased cross-bilateral filter of the sparse blur measure, Eq. (3).
 
     Parameters
@@ -384,6 +384,9 @@ def biased_cross_bilateral(sparse_sigma, reference, *, sigma_spatial=0.10, sigma
         Beyond the paper: per-measure confidence c_q in (0, 1] at the finite pixels of
         ``sparse_sigma`` (ignored elsewhere), multiplying b(BM_q) in the numerator and in k.
         None: every c_q = 1 (the paper; bit-identical).
+    bias_strength : ndarray, HxW, float, or None, keyword-only
+        Beyond the paper (with ``sharpness_bias``): per-measure exponent u_q in [0, 1] of the bias,
+        b_q = exp(−u_q·BM_q / bias_scale): 0 no bias, 1 the paper's. None: every u_q = 1 (bit-identical).
 
     Returns
     -------
@@ -428,8 +431,17 @@ def biased_cross_bilateral(sparse_sigma, reference, *, sigma_spatial=0.10, sigma
     values = sparse_sigma[edge]
     ys, xs = np.nonzero(edge)
     colors = ref[edge]
-    bias = (np.exp(-(values - values.min()) / float(bias_scale)) if sharpness_bias
-            else np.ones_like(values))
+    if sharpness_bias and bias_strength is not None:
+        u = np.asarray(bias_strength, dtype=np.float64)
+        if u.shape != (h, w):
+            raise ValueError(f"bias_strength has shape {u.shape}; expected {(h, w)}")
+        u = u[edge]
+        if not np.all(np.isfinite(u) & (u >= 0) & (u <= 1)):
+            raise ValueError("bias_strength must be finite and in [0, 1] at the finite measures")
+        bias = np.exp(-u * values / float(bias_scale))  # BM ≤ max_sigma: no underflow to guard
+    else:
+        bias = (np.exp(-(values - values.min()) / float(bias_scale)) if sharpness_bias
+                else np.ones_like(values))
     if weights is not None:
         wq = np.asarray(weights, dtype=np.float64)
         if wq.shape != (h, w):

@@ -9,15 +9,21 @@ from __future__ import annotations
 import dataclasses
 
 from ..registry import Registry
-from ..validation import check_field_choice, is_integer, require_field
+from ..validation import check_field_choice, invalid_field, is_integer, require_field
 from .cross_bilateral import BILATERAL_METHODS, RANGE_KERNELS
 
-__all__ = ["BIAS_REFERENCES", "RefineParams"]
+__all__ = ["BIAS_REFERENCES", "BIAS_WEIGHTINGS", "RefineParams"]
 
 _INF = float("inf")
 
 #: ``RefineParams.bias_reference``: the unit of ``bias_scale`` (Eq. 3's sharpness bias).
 BIAS_REFERENCES = Registry("bias reference", {"px": "σ in px", "image_fraction": "a fraction of max(H, W)"})
+
+#: ``RefineParams.bias_weighting``: where Eq. (3)'s sharpness bias acts.
+BIAS_WEIGHTINGS = Registry("bias weighting", {
+    "uniform": "b(BM) on every measure (the paper)",
+    "uncertainty": "b(BM)^(1 − c_q): only as far as the measure is uncertain (c_q its confidence)",
+})
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -49,6 +55,11 @@ class RefineParams:
     bias_reference: str = "px"
     # key of BIAS_REFERENCES, the unit of bias_scale: "px" (paper: BM in px, so the bias depends on the
     # image resolution) or "image_fraction" (beyond the paper: a fraction of max(H, W)).
+    bias_weighting: str = "uniform"
+    # key of BIAS_WEIGHTINGS, where the sharpness bias acts (sharpness_bias True): "uniform" (paper: every
+    # measure's weight times b(BM)) or "uncertainty" (beyond the paper: times b(BM)^(1 − c_q), c_q the
+    # measure's confidence in (0, 1] (measure_weighting="uncertainty"), so a measure the noise pins
+    # down keeps its value and an uncertain one is pulled toward sharp as the paper does).
     refinement_robust_iterations: int = 0
     # beyond the paper: re-weighted iterations of Eq. (3) (an M-estimator): after each pass every measure
     # q is down-weighted by the Cauchy weight 1/(1 + (r_q / c)²) of its residual r_q from its refined
@@ -64,6 +75,10 @@ class RefineParams:
         check_field_choice(self, "bilateral_method", BILATERAL_METHODS)
         check_field_choice(self, "bilateral_range_kernel", RANGE_KERNELS)
         check_field_choice(self, "bias_reference", BIAS_REFERENCES)
+        check_field_choice(self, "bias_weighting", BIAS_WEIGHTINGS)
+        if self.bias_weighting != "uniform" and not self.sharpness_bias:
+            raise invalid_field("bias_weighting", self.bias_weighting,
+                                "'uniform' unless sharpness_bias=True (there is no bias to weigh)")
         require_field(self, "refinement_robust_iterations", is_integer(self.refinement_robust_iterations, 0),
                       "integer >= 0")
         require_field(self, "refinement_robust_scale", 0 < self.refinement_robust_scale < _INF, "finite and > 0")

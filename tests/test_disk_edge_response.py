@@ -201,37 +201,6 @@ def test_fit_kernel_disk_score_matches_the_public_response(s_prime, sig_p, t0):
     assert (got_neg == 0.0) == (dot > 0)
 
 
-def test_memoised_template_search_is_the_plain_search_bit_for_bit():
-    """The fit's (s', t0) search with its per-pixel score memo gives the bytes of the search that
-    computes every score (key < 0), for both template families, many windows, and a memo that
-    still holds another pixel's scores (a stale key must not be read)."""
-    from method.blur.disk_edge_response import response_table
-    from method.blur.fit_templates import COARSE_STRIDE, _best_template, template_table
-
-    s_grid, t0_grid, table, cum = template_table(20, 40.0)
-    K = 20
-    dtab = response_table()
-    memo = np.empty((s_grid.size, t0_grid.size))
-    stamp = np.full((s_grid.size, t0_grid.size), -1, dtype=np.int64)
-    rng = np.random.default_rng(5)
-    key = 0
-    revisited = 0
-    for s_true in (0.8, 1.7, 3.0, 6.5, 12.0):
-        for t0 in (-0.4, 0.0, 0.27):
-            k = np.arange(-K, K + 1, dtype=np.float64)
-            r = response_model(k - t0, s=s_true) + 0.002 * rng.standard_normal(k.size)
-            for a, b in ((-4, 4), (-12, 15), (-20, 20)):
-                for disk, sig_p, lo, hi in ((False, 0.0, 0, s_grid.size), (True, 0.7, 0, s_grid.size // 2)):
-                    args = (r, a, b, K, t0, float(np.sum(r[a + K:b + K + 1] ** 2)), s_grid, t0_grid, table, cum,
-                            COARSE_STRIDE, disk, sig_p, *dtab, lo, hi)
-                    want = _best_template(*args, memo, stamp, -1)
-                    got = _best_template(*args, memo, stamp, key)
-                    assert np.array(got).tobytes() == np.array(want).tobytes(), (s_true, t0, a, b, disk)
-                    revisited += int(np.sum(stamp == key))
-                    key += 1
-    assert revisited > 0  # the memo was filled (and then reused under a fresh key each time)
-
-
 # --- which model measured the edges: estimate_blur_measures and DefocusResult.psf_model ------------
 
 @pytest.mark.parametrize("fit_psf", sorted(FIT_PSF_MODELS))

@@ -174,34 +174,12 @@ def _score_family(r, a, b, K, table, cum, i, j, disk, sig_p, s_grid, t0_grid, dv
     return _score(r, a, b, K, table, cum, i, j)
 
 
-@numba.njit(cache=True, nogil=True, inline="always")
-def _memo_score(memo, stamp, key, r, a, b, K, table, cum, i, j, disk, sig_p,
-                         s_grid, t0_grid, dvalues, doffsets, dlengths, dsteps):
-    """:func:`_score_family` of template (i, j), computed once per ``key`` (one fit of one pixel).
-
-    ``memo[i, j]`` holds the score computed when ``stamp[i, j] == key``; the search's passes revisit
-    templates (the coarse optimum, the fine pass's centre, the parabola's neighbours), which then cost
-    a lookup. The score is a pure function of its arguments, so the results are the same bytes.
-    ``key`` < 0 computes every score (no memo).
-    """
-    if key >= 0 and stamp[i, j] == key:
-        return memo[i, j]
-    sc = _score_family(r, a, b, K, table, cum, i, j, disk, sig_p, s_grid, t0_grid, dvalues, doffsets,
-                       dlengths, dsteps)
-    if key >= 0:
-        memo[i, j] = sc
-        stamp[i, j] = key
-    return sc
-
-
 @numba.njit(cache=True, nogil=True)
 def _best_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, coarse_stride, disk, sig_p,
-                   dvalues, doffsets, dlengths, dsteps, i_lo, i_hi, memo, stamp, key):
+                   dvalues, doffsets, dlengths, dsteps, i_lo, i_hi):
     """Steps 4–5 of the fit: brute-force (s', t0) search and parabolic refinement; (s', best score) or (NaN, 0).
 
-    The coarse pass scans s' indices i_lo, i_lo + stride, … < i_hi (the whole grid for Eq. 2c).
-    ``memo``, ``stamp`` (n_s, n_t) and ``key`` (unique per pixel and template family, < 0 for none):
-    :func:`_memo_score`."""
+    The coarse pass scans s' indices i_lo, i_lo + stride, … < i_hi (the whole grid for Eq. 2c)."""
     n_s = s_grid.shape[0]
     n_t = t0_grid.shape[0]
     t0_min = t0_grid[0]
@@ -210,8 +188,8 @@ def _best_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, coarse
     jc = max(0, min(n_t - 1, jc))
     best_i, best = -1, 0.0
     for i in range(i_lo, min(n_s, i_hi), coarse_stride):
-        sc = _memo_score(memo, stamp, key, r, a, b, K, table, cum, i, jc, disk, sig_p,
-                         s_grid, t0_grid, dvalues, doffsets, dlengths, dsteps)
+        sc = _score_family(r, a, b, K, table, cum, i, jc, disk, sig_p, s_grid, t0_grid, dvalues, doffsets,
+                           dlengths, dsteps)
         if sc > best:
             best, best_i = sc, i
     if best_i < 0:
@@ -219,30 +197,30 @@ def _best_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, coarse
     # fine pass by coordinate descent: s' around the coarse optimum, then t0, then s' again
     bi, bj = best_i, jc
     for i in range(max(0, best_i - coarse_stride), min(n_s, best_i + coarse_stride + 1)):
-        sc = _memo_score(memo, stamp, key, r, a, b, K, table, cum, i, jc, disk, sig_p,
-                         s_grid, t0_grid, dvalues, doffsets, dlengths, dsteps)
+        sc = _score_family(r, a, b, K, table, cum, i, jc, disk, sig_p, s_grid, t0_grid, dvalues, doffsets,
+                           dlengths, dsteps)
         if sc > best:
             best, bi = sc, i
     i_mid = bi
     for j in range(max(0, jc - 4), min(n_t, jc + 5)):
-        sc = _memo_score(memo, stamp, key, r, a, b, K, table, cum, i_mid, j, disk, sig_p,
-                         s_grid, t0_grid, dvalues, doffsets, dlengths, dsteps)
+        sc = _score_family(r, a, b, K, table, cum, i_mid, j, disk, sig_p, s_grid, t0_grid, dvalues, doffsets,
+                           dlengths, dsteps)
         if sc > best:
             best, bj = sc, j
     j_mid = bj
     for i in range(max(0, i_mid - 3), min(n_s, i_mid + 4)):
-        sc = _memo_score(memo, stamp, key, r, a, b, K, table, cum, i, j_mid, disk, sig_p,
-                         s_grid, t0_grid, dvalues, doffsets, dlengths, dsteps)
+        sc = _score_family(r, a, b, K, table, cum, i, j_mid, disk, sig_p, s_grid, t0_grid, dvalues, doffsets,
+                           dlengths, dsteps)
         if sc > best:
             best, bi = sc, i
     # 5. parabolic refinement of the squared error on the log-s' grid
     pos = float(bi)
     if 0 < bi < n_s - 1:
-        e_m = energy_r - _memo_score(memo, stamp, key, r, a, b, K, table, cum, bi - 1, bj, disk,
-                                     sig_p, s_grid, t0_grid, dvalues, doffsets, dlengths, dsteps)
+        e_m = energy_r - _score_family(r, a, b, K, table, cum, bi - 1, bj, disk, sig_p, s_grid, t0_grid, dvalues,
+                                       doffsets, dlengths, dsteps)
         e_0 = energy_r - best
-        e_p = energy_r - _memo_score(memo, stamp, key, r, a, b, K, table, cum, bi + 1, bj, disk,
-                                     sig_p, s_grid, t0_grid, dvalues, doffsets, dlengths, dsteps)
+        e_p = energy_r - _score_family(r, a, b, K, table, cum, bi + 1, bj, disk, sig_p, s_grid, t0_grid, dvalues,
+                                       doffsets, dlengths, dsteps)
         den = e_m - 2.0 * e_0 + e_p
         if den > 0.0:
             delta = 0.5 * (e_m - e_p) / den
@@ -277,11 +255,8 @@ def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
     log_ratio = math.log(s_grid[1] / s_grid[0])
     bracket_lo = math.log(2.0) / log_ratio
     bracket_hi = math.log(1.25) / log_ratio
-    n_t = t0_grid.shape[0]
     for chunk in numba.prange((nrows + _FIT_CHUNK - 1) // _FIT_CHUNK):
         r = np.zeros(2 * K + 1)
-        memo = np.empty((n_s, n_t))  # scores of this chunk's current fit (_memo_score), keyed 2n + disk
-        stamp = np.full((n_s, n_t), -1, dtype=np.int64)
         for n in range(chunk * _FIT_CHUNK, min(nrows, (chunk + 1) * _FIT_CHUNK)):
             out_s[n] = np.nan
             out_res[n] = np.nan
@@ -347,8 +322,7 @@ def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
                 energy_r += r[k + K] * r[k + K]
             # 4.–5. brute-force search over (s', t0) and parabolic refinement (_best_template)
             s_prime, best = _best_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, coarse_stride,
-                                           False, 0.0, dvalues, doffsets, dlengths, dsteps, 0, n_s,
-                                           memo, stamp, 2 * n)
+                                           False, 0.0, dvalues, doffsets, dlengths, dsteps, 0, n_s)
             if not (s_prime == s_prime):  # no positive-amplitude template
                 continue
             out_s[n] = s_prime * proj
@@ -363,8 +337,7 @@ def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
                 i_g = math.log(s_prime / s_grid[0]) / log_ratio
                 sd, bestd = _best_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, coarse_stride,
                                            True, sigma2 / proj, dvalues, doffsets, dlengths, dsteps,
-                                           max(0, int(i_g - bracket_lo)), int(i_g + bracket_hi) + 1,
-                                           memo, stamp, 2 * n + 1)
+                                           max(0, int(i_g - bracket_lo)), int(i_g + bracket_hi) + 1)
                 if sd == sd and energy_r > 0.0:
                     out_sd[n] = sd * proj
                     out_resd[n] = max(0.0, energy_r - bestd) / energy_r

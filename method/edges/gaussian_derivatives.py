@@ -249,8 +249,11 @@ def _cropped_irfft2(spectrum, hx, hy, fft_shape, pad, shape, workers):
     spec = np.empty((ny, k), dtype=spectrum.dtype)
     _apply_transfer(spectrum, hx, hy, spec)
     cols = scipy.fft.ifft(spec, axis=0, norm="forward", workers=workers, overwrite_x=True)
-    half = np.zeros((h, spectrum.shape[1]), dtype=spectrum.dtype)
-    half[:, :k] = cols[pad:pad + h]
+    if k == spectrum.shape[1]:
+        half = cols[pad:pad + h]  # a C-contiguous block of rows: no copy
+    else:
+        half = np.zeros((h, spectrum.shape[1]), dtype=spectrum.dtype)
+        half[:, :k] = cols[pad:pad + h]
     rows = scipy.fft.irfft(half, n=nx, axis=1, norm="forward", workers=workers, overwrite_x=True)
     real = rows.dtype.type
     # pocketfft's scale: 1 / (ny · nx) in long double, rounded once to the transform's precision

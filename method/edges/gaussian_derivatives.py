@@ -104,7 +104,10 @@ class GaussianDerivativeBank:
        to 0 (the mean) — so the FFT's periodic wrap is continuous — then zeros up to a fast FFT
        length. Small scales use small FFTs.
     3. ``rfft2`` once per level. Per request: multiply by (iω_x)^a (iω_y)^b exp(−σ²|ω|²/2) (the
-       Nyquist bin of an odd order is set to 0), ``irfft2``, crop the padding.
+       Nyquist bin of an odd order is set to 0), ``irfft2``, crop the padding. The inverse is
+       computed as ``irfft2`` computes it (see :func:`_cropped_irfft2`) but skips the frequency
+       columns where the Gaussian has underflowed to 0 and the rows the crop discards: the same
+       bytes for 29–66 % less transform work at σ ≥ 8 px.
     """
 
     def __init__(self, image, max_sigma, *, pad_sigmas=PAD_SIGMAS, precision="double", workers=2):
@@ -190,11 +193,7 @@ class GaussianDerivativeBank:
         _, (p, fft_shape, spectrum, wy, wx, nyq_y, nyq_x) = self._level(sigma)
         hy = self._axis_transfer(wy, sigma, b, nyq_y)
         hx = self._axis_transfer(wx, sigma, a, nyq_x)
-        spec = np.empty_like(spectrum)
-        _apply_transfer(spectrum, hx, hy, spec)
-        out = scipy.fft.irfft2(spec, s=fft_shape, workers=self.workers, overwrite_x=True)
-        h, w = self.shape
-        out = np.ascontiguousarray(out[p:p + h, p:p + w])
+        out = _cropped_irfft2(spectrum, hx, hy, fft_shape, p, self.shape, self.workers)
         if a == 0 and b == 0:
             out += self._rdtype(self.mean)
         return out
@@ -213,9 +212,57 @@ class GaussianDerivativeBank:
                 self.response(sigma, 1, 2), self.response(sigma, 0, 3))
 
 
+def _cropped_irfft2(spectrum, hx, hy, fft_shape, pad, shape, workers):
+    """``irfft2(spectrum · hx[None, :] · hy[:, None], s=fft_shape)[pad:pad + H, pad:pad + W]``, byte for byte.
+
+    pocketfft's ``irfft2`` is an unscaled complex inverse along the rows' axis (0), then a real
+    inverse along axis 1 whose output it multiplies by ``1 / (ny · nx)`` (rounded to the FFT's
+    precision). This runs the same two 1-D transforms, but the first only on the leading columns
+    where ``hx`` is not 0 (beyond them the Gaussian has underflowed: the columns are 0, and so is
+    their transform) and the second only on the H rows the crop keeps, then applies the same scale
+    factor as the same rounded product. The values are ``irfft2``'s (only the sign of an exact 0
+    may differ); tested against ``irfft2`` on every order, precision and padding level.
+
+    Parameters
+    ----------
+    spectrum : ndarray, shape (ny, nx // 2 + 1), complex
+        ``rfft2`` of the padded image.
+    hx, hy : ndarray, shapes (nx // 2 + 1,) and (ny,), the spectrum's dtype
+        Transfer function along x (columns) and y (rows); ``hx`` must be 0 beyond its last non-zero.
+    fft_shape : (int, int)
+        (ny, nx), the real FFT's shape.
+    pad : int
+        Padding on every side, px.
+    shape : (int, int)
+        (H, W) kept after the crop.
+    workers : int
+        FFT threads.
+
+    Returns
+    -------
+    ndarray, shape (H, W), float (the spectrum's real precision), C-contiguous
+    """
+    ny, nx = fft_shape
+    h, w = shape
+    nz = np.flatnonzero(hx)
+    k = int(nz[-1]) + 1 if nz.size else 1
+    spec = np.empty((ny, k), dtype=spectrum.dtype)
+    _apply_transfer(spectrum, hx, hy, spec)
+    cols = scipy.fft.ifft(spec, axis=0, norm="forward", workers=workers, overwrite_x=True)
+    if k == spectrum.shape[1]:
+        half = cols[pad:pad + h]  # a C-contiguous block of rows: no copy
+    else:
+        half = np.zeros((h, spectrum.shape[1]), dtype=spectrum.dtype)
+        half[:, :k] = cols[pad:pad + h]
+    rows = scipy.fft.irfft(half, n=nx, axis=1, norm="forward", workers=workers, overwrite_x=True)
+    real = rows.dtype.type
+    # pocketfft's scale: 1 / (ny · nx) in long double, rounded once to the transform's precision
+    return np.multiply(rows[:, pad:pad + w], real(1 / np.longdouble(ny * nx)))
+
+
 @numba.njit(cache=True, parallel=True)
 def _apply_transfer(spectrum, hx, hy, out):
-    """out = (spectrum · hx[None, :]) · hy[:, None], rows in parallel; bit-identical to NumPy's.
+    """out = (spectrum · hx[None, :]) · hy[:, None] on out's leading columns, rows in parallel; NumPy's values.
 
     The same two complex products per bin, in the same order, as the NumPy expression
     ``spectrum * hx[None, :]`` then ``*= hy[:, None]``: one pass over the spectrum instead of two,
@@ -224,7 +271,7 @@ def _apply_transfer(spectrum, hx, hy, out):
     its multiply: the values are NumPy's (only the sign of a zero may differ, where the Gaussian has
     underflowed to 0), and the inverse FFTs are byte-identical (tested on every order and precision).
     """
-    ny, nx = spectrum.shape
+    ny, nx = out.shape  # the leading nx columns of the spectrum (all of them when out has its shape)
     for y in numba.prange(ny):
         br = hy[y].real
         bi = hy[y].imag

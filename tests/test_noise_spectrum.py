@@ -1,0 +1,139 @@
+"""The noise's spectrum per octave band: correlated noise (blur, resizing, JPEG) read at the filter scales
+Eq. (9) thresholds, white noise left as it is."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from method import DefocusParams
+from method.blur.image_noise import estimate_noise_variance
+from method.blur.model_fit_checked import steered_second_noise_variance
+from method.blur.noise_spectrum import estimate_noise_spectrum, white_noise_spectrum
+from method.edges.elder_zucker import detect_edges
+from method.edges.gaussian_derivatives import GaussianDerivativeBank
+from method.edges.noise_thresholds import NoiseSpectrum
+
+#: σ (px) of the detector's gradient (σ1) and 2nd-derivative (σ2) filters checked.
+SIGMA1 = (0.5, 1.0, 2.0, 4.0, 8.0)
+SIGMA2 = (0.5, 1.0, 2.0, 4.0)
+#: Predicted over measured response variance, correlated noise: allowed range at σ ≥ 1 px (the spectrum is
+#: measured down to ≈ 1.2 rad/px: 0.53× at σ1 8 on the 2× upsampling), and at σ 0.5
+#: (the finest band is the least resolved: up to 2.7× high on the 2× upsampling, 0.58× on JPEG 90).
+RATIO_RANGE = (0.5, 1.6)
+RATIO_RANGE_FINEST = (0.5, 3.0)
+#: White noise: every factor within this of 1.
+WHITE_RTOL = 0.1
+
+
+def _jpeg(img, quality):
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(np.clip(np.rint(img * 255), 0, 255).astype(np.uint8)).save(buf, format="JPEG", quality=quality)
+    buf.seek(0)
+    return np.asarray(Image.open(buf), dtype=np.float64) / 255
+
+
+def _noise(kind, n=512, seed=0):
+    from skimage import transform
+
+    rng = np.random.default_rng(seed)
+    if kind == "white":
+        return 0.5 + rng.normal(0, 0.02, (n, n))
+    if kind == "blur0.5":
+        return 0.5 + ndimage.gaussian_filter(rng.normal(0, 0.02, (n, n)), 0.5, mode="wrap")
+    if kind == "upsample2":  # bilinear 2× upsampling (the speed bench's resize)
+        return 0.5 + transform.resize(rng.normal(0, 0.02, (n // 2, n // 2)), (n, n), order=1, anti_aliasing=True)
+    if kind == "area_down2":  # white again
+        return 0.5 + transform.downscale_local_mean(rng.normal(0, 0.02, (2 * n, 2 * n)), (2, 2))
+    if kind == "rescale0.5":  # Gaussian anti-aliasing then bilinear sampling
+        return 0.5 + transform.rescale(rng.normal(0, 0.02, (2 * n, 2 * n)), 0.5, order=1, anti_aliasing=True)
+    assert kind == "jpeg90"
+    return _jpeg(0.5 + rng.normal(0, 0.02, (n, n)), 90)
+
+
+def _measured_factors(img):
+    """Variance of the detector's responses to the image's noise over their white-noise value at the
+    pixel-scale variance: gradient x-component per σ1, I_xx per σ2."""
+    unit = GaussianDerivativeBank(np.random.default_rng(99).standard_normal(img.shape), 16, precision="double")
+    bank = GaussianDerivativeBank(img - img.mean(), 16, precision="double")
+    v = estimate_noise_variance(img, bits=None)
+    crop = (slice(64, -64), slice(64, -64))
+
+    def ratio(a, b):
+        return a[crop].var() / b[crop].var() / v
+
+    grad = [ratio(bank.gradient(s)[0], unit.gradient(s)[0]) for s in SIGMA1]
+    hess = [ratio(bank.hessian(s)[0], unit.hessian(s)[0]) for s in SIGMA2]
+    return np.array(grad), np.array(hess)
+
+
+@pytest.mark.parametrize("kind", ["blur0.5", "upsample2", "rescale0.5", "jpeg90"])
+def test_correlated_noise_is_read_at_each_filter_scale(kind):
+    """Predicted factor × pixel-scale variance = the variance the detector's filters see, within range."""
+    img = _noise(kind)
+    spectrum = estimate_noise_spectrum(img)
+    grad, hess = _measured_factors(img)
+    predicted = np.array([spectrum.factor(1, s) for s in SIGMA1]) / grad
+    predicted2 = np.array([spectrum.factor(2, s) for s in SIGMA2]) / hess
+    for ratios in (predicted, predicted2):
+        assert RATIO_RANGE_FINEST[0] < ratios[0] < RATIO_RANGE_FINEST[1], (kind, ratios)
+        assert np.all((ratios[1:] > RATIO_RANGE[0]) & (ratios[1:] < RATIO_RANGE[1])), (kind, ratios)
+    assert grad[-1] > 1.8  # the noise is correlated: the white model would be ≥ 1.8× too low at σ 8
+
+
+def test_bilinear_upsampling_is_three_orders_of_magnitude():
+    """The pixel-scale estimate of 2× bilinearly upsampled noise is ~1/1000 of what σ ≥ 2 px filters see."""
+    spectrum = estimate_noise_spectrum(_noise("upsample2"))
+    assert spectrum.factor(1, 8.0) > 500 and spectrum.factor(2, 0.5) < spectrum.factor(2, 2.0) / 5
+
+
+@pytest.mark.parametrize("kind", ["white", "area_down2"])
+def test_white_noise_keeps_its_variance(kind):
+    spectrum = estimate_noise_spectrum(_noise(kind))
+    factors = [spectrum.factor(1, s) for s in SIGMA1] + [spectrum.factor(2, s) for s in SIGMA2]
+    np.testing.assert_allclose(factors, 1.0, rtol=WHITE_RTOL)
+
+
+def test_small_or_noise_free_images_are_white():
+    assert estimate_noise_spectrum(np.full((64, 64), 0.5)) == white_noise_spectrum()
+    assert estimate_noise_spectrum(np.full((8, 8), 0.5)) == white_noise_spectrum()
+    assert white_noise_spectrum().factor(1, 0.5) == pytest.approx(1.0)
+
+
+def test_thresholds_follow_the_spectrum_and_white_changes_nothing():
+    """Upsampled noise: the white model calls thousands of noise pixels edges, the spectrum none;
+    the white spectrum gives the white model's edges bit for bit."""
+    img = _noise("upsample2", n=256, seed=3)
+    var = np.full(img.shape, estimate_noise_variance(img, bits=None))
+    white = detect_edges(img, noise_variance=var)
+    same = detect_edges(img, noise_variance=var, noise_spectrum=white_noise_spectrum())
+    fixed = detect_edges(img, noise_variance=var, noise_spectrum=estimate_noise_spectrum(img))
+    np.testing.assert_array_equal(white.edges, same.edges)
+    assert np.count_nonzero(white.edges) > 1000
+    assert np.count_nonzero(fixed.edges) < 0.01 * np.count_nonzero(white.edges)
+    assert fixed.noise_spectrum is not None and white.noise_spectrum is None
+
+
+def test_residual_variance_follows_the_spectrum():
+    s = NoiseSpectrum(band_edges=(2.0,), levels=(1.0, 9.0))
+    sig = np.array([0.5, 4.0, np.nan])
+    plain = steered_second_noise_variance(sig, 0.01)
+    corr = steered_second_noise_variance(sig, 0.01, s)
+    assert corr[0] / plain[0] == pytest.approx(s.factor(2, 0.5))
+    assert corr[1] / plain[1] == pytest.approx(9.0, rel=0.01) and np.isnan(corr[2])
+
+
+def test_noise_spectrum_field():
+    assert DefocusParams().noise_spectrum == "white" and DefocusParams.preset("paper").noise_spectrum == "white"
+    assert DefocusParams.preset("robust").noise_spectrum == "estimated"
+    with pytest.raises(ValueError, match="noise_spectrum='pink' is invalid.*allowed: 'estimated', 'white'"):
+        DefocusParams(noise_spectrum="pink")
+    with pytest.raises(ValueError, match="NoiseSpectrum"):
+        NoiseSpectrum(band_edges=(1.0,), levels=(1.0,))
+    with pytest.raises(ValueError, match="NoiseSpectrum"):
+        NoiseSpectrum(band_edges=(1.0, 2.0), levels=(1.0, 1.0, 1.0))

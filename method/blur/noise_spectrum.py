@@ -23,7 +23,7 @@ from .image_noise import block_energies, noise_quantile_bias
 __all__ = ["SPECTRUM_LEVELS", "estimate_noise_spectrum", "noise_spectrum_of", "white_noise_spectrum"]
 
 #: Pyramid levels measured beyond the full resolution (level L: 2^L × 2^L area means, an octave per level).
-SPECTRUM_LEVELS = 2
+SPECTRUM_LEVELS = 1
 #: Intensity bins (equal width) and fewest 8×8 blocks per bin of a level's quantile.
 _BINS = 8
 _MIN_BLOCKS = 8

@@ -147,3 +147,36 @@ def test_noise_spectrum_field():
         NoiseSpectrum(band_edges=(1.0,), levels=(1.0,))
     with pytest.raises(ValueError, match="NoiseSpectrum"):
         NoiseSpectrum(band_edges=(1.0, 2.0), levels=(1.0, 1.0, 1.0))
+
+
+#: White-noise lens mosaics (disk PSF, 8 bits, σ 1–8 px tiles): every factor within this range (measured
+#: 0.86–1.25 over dead leaves, shading and photo crops at iso100 / 800 / 3200, linear and display light).
+WHITE_MOSAIC_RANGE = (0.8, 1.35)
+
+
+@pytest.mark.parametrize("family, level", [("dead_leaves", "iso100"), ("shading", "iso800"), ("photo", "iso3200")])
+def test_white_noise_mosaics_stay_white(family, level):
+    from method.luma import to_light
+    from scenes.analytic.lens import lens_mosaic
+
+    g = lens_mosaic(family=family, sigmas=(1.0, 2.0, 4.0, 8.0) * 2, tile=128, cols=4, supersample=2, noise=level,
+                    rng=1).image[..., 1]
+    spectrum = estimate_noise_spectrum(to_light(g, "linear"))
+    factors = [spectrum.factor(1, s) for s in SIGMA1] + [spectrum.factor(2, s) for s in SIGMA2]
+    assert WHITE_MOSAIC_RANGE[0] < min(factors) and max(factors) < WHITE_MOSAIC_RANGE[1], factors
+
+
+def test_resized_photo_edges_no_longer_explode():
+    """The speed bench's 1-MP image (astronaut upsampled 2×, bilinear): robust's edge pixels with the white
+    noise model are 4.5× the constant model's; with the spectrum they fall to within 1.6× of it."""
+    from experiments.bench.speed import bench_image
+    from method.pipeline import edges_stage, measure_input
+
+    img = bench_image(1024)
+    counts = {}
+    for name, fields in {"white": {"noise_spectrum": "white"}, "estimated": {},
+                         "constant": {"noise_model": "constant"}}.items():
+        p = DefocusParams.preset("robust").replace(**fields)
+        counts[name] = int(np.count_nonzero(edges_stage(measure_input(img, p, encoding="srgb").seen, params=p).edges))
+    assert counts["white"] > 4 * counts["constant"]
+    assert 0.8 * counts["constant"] < counts["estimated"] < 1.6 * counts["constant"], counts

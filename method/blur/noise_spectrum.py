@@ -26,7 +26,10 @@ __all__ = ["SPECTRUM_LEVELS", "estimate_noise_spectrum", "noise_spectrum_of", "w
 SPECTRUM_LEVELS = 1
 #: Intensity bins (equal width) and fewest 8×8 blocks per bin of a level's quantile.
 _BINS = 8
-_MIN_BLOCKS = 8
+_MIN_BLOCKS = 16
+#: Fewest blocks of a coarse level, over the bins with a ratio (a 160×120 image has 63 at level 1: too few to
+#: tell its texture from its noise; white is assumed then).
+_MIN_LEVEL_BLOCKS = 128
 #: Quantile over the intensity bins of a level's ratio (texture only raises some bins' ratios).
 _BIN_QUANTILE = 0.0
 #: 10 % quantile of the block energies, as the pixel-scale estimate.
@@ -64,41 +67,45 @@ def white_noise_spectrum() -> NoiseSpectrum:
 
 
 def _quiet_energy_by_bin(g):
-    """10 % block-energy quantile per intensity bin (NaN where a bin has too few blocks or may clip)."""
+    """10 % block-energy quantile per intensity bin (NaN where a bin has too few blocks or may clip), and
+    each bin's number of blocks."""
     energy, level = block_energies(g)
     idx = np.minimum((np.clip(level, 0.0, 1.0) * _BINS).astype(int), _BINS - 1)
     out = np.full(_BINS, np.nan)
+    counts = np.bincount(idx, minlength=_BINS)
     for k in range(_BINS):
         sel = idx == k
-        if np.count_nonzero(sel) >= _MIN_BLOCKS:
+        if counts[k] >= _MIN_BLOCKS:
             q = float(np.quantile(energy[sel], _QUANTILE))
             sd = np.sqrt(q / (36.0 * noise_quantile_bias()))
             quiet = level[sel & (energy <= q)]
             if q > 0 and quiet.min() - 3 * sd > 0 and quiet.max() + 3 * sd < 1:  # clipping truncates the noise
                 out[k] = q
-    return out
+    return out, counts
 
 
 def _level_ratios(gray):
     """Each pyramid level's reading over the full resolution's (white noise: 1), level 0 first.
 
     Per intensity bin (the noise depends on the level) the ratio of the levels' quiet-block
-    energies × 4^L; the median over the bins both levels measure. Stops at the first level with no
-    such bin or with fewer than 8 px of image.
+    energies × 4^L; the lowest over the bins both levels measure. Stops at the first level whose
+    bins with a ratio hold fewer than :data:`_MIN_LEVEL_BLOCKS` blocks, or with under 10 px of image.
     """
     g = np.asarray(gray, dtype=np.float64)
     if min(g.shape) < 10:
         return np.ones(0)
-    base = _quiet_energy_by_bin(g)
+    base, _ = _quiet_energy_by_bin(g)
     out = [1.0]
     for level in range(1, SPECTRUM_LEVELS + 1):
         g = _area_half(g)
         if min(g.shape) < 10:
             break
-        ratio = 4.0 ** level * _quiet_energy_by_bin(g) / base
-        ratio = ratio[np.isfinite(ratio)]
-        if ratio.size == 0:
+        energy, counts = _quiet_energy_by_bin(g)
+        ratio = 4.0 ** level * energy / base
+        ok = np.isfinite(ratio)
+        if counts[ok].sum() < _MIN_LEVEL_BLOCKS:
             break
+        ratio = ratio[ok]
         out.append(float(np.quantile(ratio, _BIN_QUANTILE)))
     return np.array(out) if np.isfinite(base).any() else np.ones(0)
 
@@ -114,25 +121,26 @@ def estimate_noise_spectrum(gray) -> NoiseSpectrum:
     Returns
     -------
     NoiseSpectrum
-        One band per pyramid level measured (up to 1 + :data:`SPECTRUM_LEVELS`; levels with fewer than
-        32 blocks of 8×8 are not measured), levels relative to the full-resolution reading (white
-        noise: ≈ 1 in every band). The white spectrum when fewer than two levels can be measured or
-        the image has no noise at full resolution.
+        One band per pyramid level measured (1 + :data:`SPECTRUM_LEVELS` at most), levels relative to
+        the full-resolution reading (white noise: ≈ 1 in every band). White when no coarse level can be
+        measured (fewer than 128 blocks of 8×8 in its usable intensity bins: images under ≈ 180² px) or
+        the image reads no noise at full resolution.
 
     Notes
     -----
-    1. Level L (0 … :data:`SPECTRUM_LEVELS`): the image averaged over 2^L × 2^L blocks; the 10 %
-       quantile of the 8×8-block energies of its 3×3 second difference, × 4^L, over that of unit
-       white noise: the variance white noise would need to give the same reading. Each level's
-       filter (box of 2^L, then the mask at stride 2^L) passes an octave band, centred at 3.4, 2.0,
-       1.2, 0.67, 0.36 rad/px.
-    2. Bands: split at the geometric means of consecutive levels' centre frequencies (power-weighted
-       mean log |ω|); each level's reading is the band levels weighted by its filter's power in
-       each band, a linear system solved for non-negative band levels (NNLS).
-    3. Levels divided by the level-0 reading, the variance that
-       :func:`method.blur.noise_model.estimate_noise_levels` fits per intensity.
-    Texture that survives in every quiet block of a level reads as noise there; the quantile keeps
-    it small where enough blocks are flat (docs/noise.md states the effect on white-noise mosaics).
+    1. Level L (0 … :data:`SPECTRUM_LEVELS`): the image averaged over 2^L × 2^L blocks; per
+       intensity bin (8 equal bins, ≥ 16 blocks, bins whose quiet blocks' level ± 3 noise std leaves
+       [0, 1] dropped) the 10 % quantile of the 8×8-block energies of its 3×3 second difference.
+       Each level's filter (box of 2^L, then the mask at stride 2^L) passes an octave band, centred
+       at 3.4 and 2.0 rad/px for L = 0, 1.
+    2. Level L's reading: its quantile × 4^L over level 0's, per bin (white noise: 1, an area mean of
+       white noise being white), the lowest over the bins (texture only raises a bin's ratio).
+    3. Bands: split at the geometric means of consecutive levels' centre frequencies (power-weighted
+       mean log |ω|), the last band held down to ω = 0; each level's reading is the band levels
+       weighted by its filter's power in each band, a linear system solved for non-negative band
+       levels (NNLS).
+    Texture that survives in every bin's quiet blocks of a level reads as noise there: one coarse
+    level only (a second one read the photos' texture as noise; docs/noise.md).
     """
     v = _level_ratios(gray)
     if v.size < 2:

@@ -26,6 +26,7 @@ import numpy as np
 
 from .blur.estimators import BLUR_ESTIMATORS, estimate_blur_measures
 from .blur.noise_model import noise_variance_map
+from .blur.noise_spectrum import noise_spectrum_of
 from .edges.canny import detect_edges_canny
 from .refine.cross_bilateral import biased_cross_bilateral
 from .propagation.cue_fusion import fuse_cues
@@ -249,7 +250,10 @@ def edges_stage(gray, *, params, encoding: str = "srgb"):
         (:func:`method.edges.canny.detect_edges_canny`). With ``noise_model="signal_dependent"``
         (beyond the paper) the thresholds of Eq. (9) read the per-pixel noise variance of
         :func:`method.blur.noise_model.noise_variance_map` (from ``noise_a``, ``noise_b`` or
-        estimated from ``gray``), kept on the EdgeMap for the checked fit's residual test.
+        estimated from ``gray``), kept on the EdgeMap for the checked fit's residual test; with
+        ``noise_spectrum="estimated"`` also the noise's spectrum
+        (:func:`method.blur.noise_spectrum.noise_spectrum_of`), so each filter scale's threshold
+        follows the correlated noise that filter sees.
     encoding : str, keyword-only
         The input's encoding (key of :data:`method.luma.ENCODINGS`): its tone curve carries the noise
         into display light (``noise_model="signal_dependent"`` only).
@@ -264,6 +268,7 @@ def edges_stage(gray, *, params, encoding: str = "srgb"):
     return detect_edges(gray, sigma1_scales=params.sigma1_scales, sigma2_scales=params.sigma2_scales,
                         noise_std=params.noise_std, false_positive_rate=params.false_positive_rate,
                         noise_variance=noise_variance_map(gray, params, encoding=encoding),
+                        noise_spectrum=noise_spectrum_of(gray, params),
                         keep_hessians="detector_hessians" in BLUR_ESTIMATORS.entry(params.estimator).capabilities)
 
 

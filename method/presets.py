@@ -47,6 +47,9 @@ ROBUST_CHANGES: dict = {
     # the noise of Eq. (9) and of the fit's residual test per pixel: a·x + b in linear light, estimated
     # from the image per intensity level and carried through the tone curve (docs/presets.md, docs/noise.md).
     "noise_model": "signal_dependent",
+    # that noise's spectrum estimated per octave band (resizing, demosaicking and JPEG correlate it): Eq. (9)
+    # reads the variance each filter scale sees (docs/noise.md)
+    "noise_spectrum": "estimated",
 }
 
 #: The region (spectral) cue as the robust preset fused it before it was judged on lens blur (Gaussian

@@ -288,6 +288,10 @@ GAUSSIAN_IDENTICAL = ("fit_psf",)
 #:   (no 64-px FFT padding level): the coarse-scale caps sigma1_scales ≤ 16, sigma2_scales ≤ 8
 #:   (their accuracy on σ 5–8 tiles and renders: docs/presets.md, the accuracy bench).
 SCALE_CAPS_IDENTICAL = ("sigma1_scales", "sigma2_scales")
+#: * identical on this 48×192 mosaic (too few blocks to measure the noise's spectrum: white is assumed):
+#:   noise_spectrum; judged on correlated noise, the resized 1-MP image and the photos
+#:   (tests/test_noise_spectrum.py, docs/noise.md).
+NOISE_SPECTRUM_IDENTICAL = ("noise_spectrum",)
 #: * the light of the edge stage: linear (a lens blurs linear radiance): judged on steps blurred in each
 #:   light (below) and on the lens bench, the renders and the photos (docs/presets.md).
 LIGHT = ("measure_light",)
@@ -296,7 +300,8 @@ LIGHT = ("measure_light",)
 def test_every_robust_switch_has_a_measured_claim():
     """A switch added to ROBUST_CHANGES must be measured and put in one of the groups above."""
     groups = (DENSE_HELPS + DENSE_NEUTRAL_SPARSE_HELPS + DENSE_NEUTRAL_BLURRY_HELPS + DENSE_HURTS + GAUSSIAN_IDENTICAL
-              + SCALE_CAPS_IDENTICAL + DENSE_HELPS_EDGE_ONLY + REGION_CUE + LIGHT + MAGNIFICATION + DENSE_NEUTRAL)
+              + SCALE_CAPS_IDENTICAL + DENSE_HELPS_EDGE_ONLY + REGION_CUE + LIGHT + MAGNIFICATION + DENSE_NEUTRAL
+              + NOISE_SPECTRUM_IDENTICAL)
     assert len(set(groups)) == len(groups)
     assert set(ROBUST_CHANGES) <= set(groups), sorted(set(ROBUST_CHANGES) - set(groups))
 
@@ -345,10 +350,11 @@ def test_robust_beats_paper_on_mosaic(mosaic_ablation):
     assert np.mean(ab["all"]["sparse"]) < np.mean(ab["paper"]["sparse"])
 
 
-@pytest.mark.parametrize("field", GAUSSIAN_IDENTICAL + SCALE_CAPS_IDENTICAL)
+@pytest.mark.parametrize("field", GAUSSIAN_IDENTICAL + SCALE_CAPS_IDENTICAL + NOISE_SPECTRUM_IDENTICAL)
 def test_switch_identical_on_the_gaussian_mosaic(mosaic_ablation, field):
-    """The PSF model selection keeps Eq. (2c) on Gaussian-blurred texture, and the coarse-scale caps
-    remove no edge of this σ ≤ 4 mosaic: the same maps on every seed."""
+    """The PSF model selection keeps Eq. (2c) on Gaussian-blurred texture, the coarse-scale caps
+    remove no edge of this σ ≤ 4 mosaic, and its noise spectrum cannot be measured (white): the same
+    maps on every seed."""
     _in_preset(field)
     ab = mosaic_ablation
     assert ab[f"no {field}"] == ab["all"]

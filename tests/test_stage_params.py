@@ -23,7 +23,7 @@ from method.refine import RefineParams
 PAPER_BEFORE_THE_SPLIT = {
     # edges (Sec. 3.1)
     "sigma1_scales": (0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0), "sigma2_scales": (0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0),
-    "noise_std": 2.5 / 255.0, "noise_model": "constant", "noise_a": None, "noise_b": None,
+    "noise_std": 2.5 / 255.0, "noise_model": "constant", "noise_spectrum": "white", "noise_a": None, "noise_b": None,
     "measure_light": "display", "false_positive_rate": 1e-06, "edge_detector": "elder_zucker",
     "canny_sigma": 1.0, "canny_low_threshold": 0.1, "canny_high_threshold": 0.2, "edge_isolation": None,
     "isolation_radius": 3.0, "isolation_floor": 0.1,
@@ -172,7 +172,7 @@ def test_every_flat_field_reads_its_stage(name):
 
 def test_field_names_are_one_namespace():
     names = [f.name for cls in STAGE_CLASSES.values() for f in dataclasses.fields(cls)]
-    assert len(names) == len(set(names)) == len(DefocusParams.field_types()) == 81
+    assert len(names) == len(set(names)) == len(DefocusParams.field_types()) == 82
     assert not set(names) & set(STAGE_CLASSES)
     assert DefocusParams.stage_classes() == STAGE_CLASSES
     with pytest.raises(ValueError, match="'nope' is invalid"):

@@ -7,7 +7,9 @@ search in :mod:`.fit_templates`, the PSF-model choice in :mod:`.psf_selection`),
 :mod:`.disk_edge_response` (the disk PSF's step response); :mod:`.step_plateau` (the checked fit's
 plateau gate, :data:`STEP_GATES`). Region estimators
 (:data:`REGION_ESTIMATORS`, :mod:`.region_estimators`): :mod:`.local_spectrum` (its model spectra in
-:mod:`.spectrum_model`, the noise estimate in :mod:`.image_noise`), :mod:`.gsm`. The stages' parameters: :class:`.params.BlurParams`, :class:`.params.RegionParams`.
+:mod:`.spectrum_model`, the noise estimate in :mod:`.image_noise`), :mod:`.gsm`. The sensor noise of Eq. (9)
+and the fit's residual test: :mod:`.noise_model` (a·x + b per intensity level), :mod:`.noise_spectrum` (its
+spread over frequency). The stages' parameters: :class:`.params.BlurParams`, :class:`.params.RegionParams`.
 """
 
 from .estimators import BLUR_ESTIMATORS, estimate_blur, estimate_blur_measures, estimate_blur_with_confidence

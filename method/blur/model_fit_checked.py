@@ -18,6 +18,7 @@ import numpy as np
 from .measure_uncertainty import measure_sd, uncertainty_confidence
 from .model_fit import paper_rules, apply_fit_rules
 from .noise_model import noise_variance_map
+from .noise_spectrum import noise_spectrum_of
 from .scale_follow import follow_scale_diagnostics
 from .step_plateau import gate_step_measures
 
@@ -34,7 +35,7 @@ def _unit_noise_variance(sigma2: float) -> float:
     return float(np.mean(0.375 * w2 ** 2 * np.exp(-(sigma2 ** 2) * w2)))
 
 
-def steered_second_noise_variance(sigma2, noise_std):
+def steered_second_noise_variance(sigma2, noise_std, noise_spectrum=None):
     """Variance of the steered 2nd-derivative response ∂²_θ(n ∗ g_σ2) to white noise n, averaged over θ.
 
     Parameters
@@ -43,6 +44,10 @@ def steered_second_noise_variance(sigma2, noise_std):
         Filter scale σ2, px (NaN or ≤ 0 gives NaN).
     noise_std : float
         Standard deviation of the white noise, image units.
+    noise_spectrum : NoiseSpectrum or None
+        The noise's spectrum relative to white noise of that std
+        (:class:`method.edges.noise_thresholds.NoiseSpectrum`): each scale's variance times
+        ``noise_spectrum.factor(2, σ2)``. None: white.
 
     Returns
     -------
@@ -61,11 +66,14 @@ def steered_second_noise_variance(sigma2, noise_std):
     ok = np.isfinite(s2) & (s2 > 0)
     if ok.any():  # the distinct scales of the valid entries only (edge pixels: a few % of an image)
         values, inverse = np.unique(s2[ok], return_inverse=True)
-        out[ok] = np.array([_unit_noise_variance(float(v)) for v in values])[inverse.ravel()]
+        unit = np.array([_unit_noise_variance(float(v)) for v in values])
+        if noise_spectrum is not None:
+            unit = unit * np.array([noise_spectrum.factor(2, float(v)) for v in values])
+        out[ok] = unit[inverse.ravel()]
     return out * float(noise_std) ** 2
 
 
-def noise_residual_share(diagnostics, *, noise_std, noise_variance=None):
+def noise_residual_share(diagnostics, *, noise_std, noise_variance=None, noise_spectrum=None):
     """Expected share of the fit residual ρ that white sensor noise alone leaves: N · v_n(σ2) / ‖r‖².
 
     Parameters
@@ -78,6 +86,9 @@ def noise_residual_share(diagnostics, *, noise_std, noise_variance=None):
     noise_variance : ndarray, (H, W), float, or None, keyword-only
         Per-pixel noise variance, image units² (``noise_model="signal_dependent"``:
         :func:`method.blur.noise_model.noise_variance_map`); replaces ``noise_std``² where given.
+    noise_spectrum : NoiseSpectrum or None, keyword-only
+        The noise's spectrum (:func:`method.blur.noise_spectrum.estimate_noise_spectrum`): v_n(σ2) is
+        that of the correlated noise (:func:`steered_second_noise_variance`). None: white.
 
     Returns
     -------
@@ -89,9 +100,9 @@ def noise_residual_share(diagnostics, *, noise_std, noise_variance=None):
     """
     with np.errstate(invalid="ignore", divide="ignore"):
         if noise_variance is None:
-            v_n = steered_second_noise_variance(diagnostics["sigma2"], noise_std)
+            v_n = steered_second_noise_variance(diagnostics["sigma2"], noise_std, noise_spectrum)
         else:
-            v_n = steered_second_noise_variance(diagnostics["sigma2"], 1.0) * noise_variance
+            v_n = steered_second_noise_variance(diagnostics["sigma2"], 1.0, noise_spectrum) * noise_variance
         share = diagnostics["window"] * v_n / diagnostics["energy"]
     return np.where(np.isfinite(share), share, 0.0)
 
@@ -275,6 +286,13 @@ def _noise_variance(gray, edge_map, params):
     return edge_map.noise_variance if edge_map.noise_variance is not None else noise_variance_map(gray, params)
 
 
+def _noise_spectrum(gray, edge_map, params):
+    """The noise spectrum of the residual test: the detector's, else from ``gray``; None if white."""
+    if params.noise_model == "constant" or params.noise_spectrum == "white":
+        return None
+    return edge_map.noise_spectrum if edge_map.noise_spectrum is not None else noise_spectrum_of(gray, params)
+
+
 def _checked(diagnostics, params, gray, edge_map, noise_variance=None):
     """(σb, confidence) of the checked fit from the model fit's diagnostics (Notes of the estimator),
     then ``params.fit_step_gate`` (:func:`method.blur.step_plateau.gate_step_measures`)."""
@@ -286,7 +304,8 @@ def _checked(diagnostics, params, gray, edge_map, noise_variance=None):
     k = float(params.fit_residual_noise)
     if k > 0:  # beyond the paper: allow the residual that the sensor noise alone leaves (Notes, 4)
         limit = limit + k * noise_residual_share(diagnostics, noise_std=params.noise_std,
-                                                 noise_variance=noise_variance)
+                                                 noise_variance=noise_variance,
+                                                 noise_spectrum=_noise_spectrum(gray, edge_map, params))
     with np.errstate(invalid="ignore"):
         good = residual <= limit  # False where residual is NaN
         strict = residual <= strict_limit

@@ -18,6 +18,7 @@ import numpy as np
 
 from .gaussian_derivatives import GaussianDerivativeBank, check_gray_image, nearest_axis_step, second_steering_weights
 from .noise_thresholds import (
+    NoiseSpectrum,
     first_derivative_threshold,
     per_pixel_false_positive_rate,
     second_derivative_threshold,
@@ -65,6 +66,9 @@ class EdgeMap:
         The per-pixel noise variance the thresholds used, (H, W) float64, image units²
         (``detect_edges(noise_variance=...)``), read again by the checked fit's residual test; None:
         the constant ``noise_std``. Not compared.
+    noise_spectrum : NoiseSpectrum or None
+        The noise's spectrum the thresholds used (``detect_edges(noise_spectrum=...)``), read again by
+        the checked fit's residual test; None: white. Not compared.
     """
 
     edges: np.ndarray
@@ -74,6 +78,7 @@ class EdgeMap:
     sigma2: np.ndarray
     hessians: dict | None = dataclasses.field(default=None, repr=False, compare=False)
     noise_variance: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)
+    noise_spectrum: NoiseSpectrum | None = dataclasses.field(default=None, repr=False, compare=False)
 
 
 @numba.njit(cache=True, nogil=True, parallel=True)
@@ -167,7 +172,8 @@ def _scales(scales, name):
 
 
 def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_SIGMA2,
-                 noise_std=2.5 / 255, false_positive_rate=1e-6, keep_hessians=False, noise_variance=None):
+                 noise_std=2.5 / 255, false_positive_rate=1e-6, keep_hessians=False, noise_variance=None,
+                 noise_spectrum=None):
     """Elder–Zucker multiscale edges with minimum reliable scale (Sec. 3.1, Eq. 7–9).
 
     Parameters
@@ -190,6 +196,11 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
         Beyond the paper: the per-pixel noise variance, image units² (> 0; e.g.
         :func:`method.blur.noise_model.noise_variance_map`); the thresholds of Eq. (9) then use the
         pixel's own s_n = √variance instead of ``noise_std``. None (default): ``noise_std`` everywhere.
+    noise_spectrum : NoiseSpectrum or None, keyword-only
+        Beyond the paper: the noise's power spectrum relative to white noise of that variance
+        (:func:`method.blur.noise_spectrum.estimate_noise_spectrum`); each threshold of scale σ is then
+        multiplied by √``noise_spectrum.factor(k, σ)`` (k = 1 for c1, 2 for c2): the std of that
+        filter's response to the correlated noise. None (default): white noise.
 
     Returns
     -------
@@ -203,7 +214,9 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
     Notes
     -----
     1. α_p from α_I and n = H·W; thresholds c1(σ1), c2(σ2) (Eq. 9). With ``noise_variance`` the
-       thresholds are those of unit noise times the pixel's √variance (c2: at each of p ± e).
+       thresholds are those of unit noise times the pixel's √variance (c2: at each of p ± e); with
+       ``noise_spectrum`` each scale's threshold also times √factor (the filter's share of the
+       correlated noise's power).
     2. Gradient, smallest σ1 first (Eq. 7, FFT bank in single precision — its round-off is
        < 1e−3 of the thresholds): the first σ1 with |∇| > c1(σ1) is the pixel's
        minimum reliable σ1; θ = atan2(I_y, I_x) and |∇| are taken at that scale.
@@ -247,6 +260,8 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
     gmag = np.zeros((h, w))
     for s in s1:
         c1 = first_derivative_threshold(s, noise_std=s_n, alpha_p=alpha_p)
+        if noise_spectrum is not None:
+            c1 = c1 * np.sqrt(noise_spectrum.factor(1, s))
         ix, iy = bank.gradient(s)
         if _gradient_pass(ix, iy, float(c1), noise, float(s), sigma1, theta, gmag) == 0:
             break
@@ -258,6 +273,8 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
         cos_t, sin_t = np.cos(theta), np.sin(theta)
         for level, s in enumerate(s2, start=1):
             c2 = second_derivative_threshold(s, noise_std=s_n, alpha_p=alpha_p)
+            if noise_spectrum is not None:
+                c2 = c2 * np.sqrt(noise_spectrum.factor(2, s))
             ixx, ixy, iyy = bank.hessian(s)
             left, new = _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, float(c2), noise, float(s), level,
                                             sigma1, sigma2, edge_level)
@@ -267,7 +284,7 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
                 break
     edges = edge_level > 0
     return EdgeMap(edges=edges, theta=theta, gradient_magnitude=gmag, sigma1=sigma1, sigma2=sigma2,
-                   hessians=hessians if keep_hessians else None, noise_variance=var)
+                   hessians=hessians if keep_hessians else None, noise_variance=var, noise_spectrum=noise_spectrum)
 
 
 def check_edge_inputs(gray, edge_map):

@@ -6,6 +6,8 @@ produce anywhere in the image with probability above the image-wide tolerance α
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 
 import numpy as np
@@ -14,6 +16,10 @@ from scipy.special import erfcinv
 from ..registry import Registry
 
 __all__ = [
+    "NOISE_SPECTRA",
+    "band_shares",
+    "radial_frequency",
+    "NoiseSpectrum",
     "SENSOR_NOISE_MODELS",
     "first_derivative_threshold",
     "per_pixel_false_positive_rate",
@@ -26,6 +32,108 @@ SENSOR_NOISE_MODELS = Registry("noise model", {
     "signal_dependent": "variance a·x + b in linear light carried through the tone curve, per pixel "
                         "(Foi et al. 2008; method.blur.noise_model)",
 })
+
+
+#: ``EdgeParams.noise_spectrum``: how the noise of ``noise_model="signal_dependent"`` is spread over frequency.
+NOISE_SPECTRA = Registry("noise spectrum", {
+    "white": "white noise: every filter scale sees the variance the pixel-scale estimate reads",
+    "estimated": "the noise's power spectrum estimated per octave band from the image "
+                 "(resizing, demosaicking, JPEG correlate neighbouring pixels; method.blur.noise_spectrum): "
+                 "Eq. (9) and the fit's residual test use the variance each filter scale sees",
+})
+
+#: Side of the DFT grid on which the filters' power is summed per band.
+_SPECTRUM_GRID = 256
+
+
+@functools.lru_cache(maxsize=1)
+def _radial_frequency():
+    w = 2.0 * np.pi * np.fft.fftfreq(_SPECTRUM_GRID)
+    return np.hypot(w[:, None], w[None, :])
+
+
+def band_shares(power, band_edges):
+    """Share of a filter's power in each frequency band: (n_bands,) summing to 1.
+
+    Parameters
+    ----------
+    power : ndarray, (256, 256), float
+        The filter's squared transfer function on the DFT grid ω ∈ [−π, π)² (:func:`radial_frequency`).
+    band_edges : tuple of float
+        Band boundaries in |ω|, rad/px, decreasing; band 0 lies above the first, the last band below the last.
+
+    Returns
+    -------
+    ndarray, (len(band_edges) + 1,), float64
+    """
+    idx = np.searchsorted(-np.asarray(band_edges, dtype=np.float64), -_radial_frequency())
+    shares = np.bincount(idx.ravel(), weights=np.asarray(power, dtype=np.float64).ravel(),
+                         minlength=len(band_edges) + 1)
+    return shares / shares.sum()
+
+
+def radial_frequency():
+    """|ω| (rad/px) on the 256² DFT grid of :func:`band_shares`."""
+    return _radial_frequency()
+
+
+@functools.lru_cache(maxsize=256)
+def _derivative_shares(order, sigma, band_edges):
+    r2 = _radial_frequency() ** 2
+    return band_shares(r2 ** order * np.exp(-(sigma ** 2) * r2), band_edges)
+
+
+@dataclasses.dataclass(frozen=True)
+class NoiseSpectrum:
+    """Power spectrum of the image noise per frequency band, relative to white noise of the pixel-scale variance.
+
+    Attributes
+    ----------
+    band_edges : tuple of float
+        Band boundaries in |ω|, rad/px, decreasing (band 0: the highest frequencies, up to the
+        grid's corner π√2; the last band: down to 0).
+    levels : tuple of float
+        Power spectral density in each band (len(band_edges) + 1 values, ≥ 0), in units of the
+        variance the pixel-scale estimate reads (:func:`method.blur.image_noise.block_energies`):
+        all 1 for white noise.
+
+    Notes
+    -----
+    A Gaussian-derivative filter of order k at scale σ has squared transfer function
+    |ω|^{2k} exp(−σ²|ω|²) (θ-averaged up to a constant; :mod:`method.edges.gaussian_derivatives`).
+    Its response to noise of this spectrum has the variance of its response to white noise
+    times :meth:`factor`, the filter's power-weighted mean of ``levels``.
+    """
+
+    band_edges: tuple
+    levels: tuple
+
+    def __post_init__(self):
+        edges = tuple(float(e) for e in self.band_edges)
+        levels = tuple(float(v) for v in self.levels)
+        if (len(levels) != len(edges) + 1 or any(not (math.isfinite(v) and v >= 0) for v in levels)
+                or any(not (e > 0) for e in edges) or any(a <= b for a, b in zip(edges, edges[1:]))):
+            raise ValueError(f"NoiseSpectrum(band_edges={self.band_edges!r}, levels={self.levels!r}) is invalid; "
+                             "allowed: decreasing edges > 0 rad/px and one finite level >= 0 more than edges")
+        object.__setattr__(self, "band_edges", edges)
+        object.__setattr__(self, "levels", levels)
+
+    def factor(self, order, sigma):
+        """Variance of the order-``order`` Gaussian derivative at ``sigma`` (px) over its white-noise value.
+
+        Parameters
+        ----------
+        order : int
+            1 (gradient, Eq. 7) or 2 (second derivative, Eq. 8).
+        sigma : float
+            Filter scale, px (> 0).
+
+        Returns
+        -------
+        float
+            Σ_b share_b · level_b, dimensionless (1 for white noise).
+        """
+        return float(_derivative_shares(int(order), float(sigma), self.band_edges) @ np.asarray(self.levels))
 
 
 def _positive(value, name):

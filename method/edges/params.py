@@ -13,7 +13,7 @@ from ..luma import MEASURE_LIGHTS
 from ..registry import Registry
 from ..validation import check_field_choice, invalid_field, require_field
 from .isolation import EDGE_ISOLATION_METHODS
-from .noise_thresholds import SENSOR_NOISE_MODELS
+from .noise_thresholds import NOISE_SPECTRA, SENSOR_NOISE_MODELS
 
 __all__ = ["EDGE_DETECTORS", "EdgeParams"]
 
@@ -46,6 +46,12 @@ class EdgeParams:
     # method.edges.noise_thresholds.SENSOR_NOISE_MODELS): "constant" (noise_std everywhere, paper) or
     # "signal_dependent" (per pixel, variance a·x + b of the linear signal x carried through the tone
     # curve into measure_light; method.blur.noise_model).
+    noise_spectrum: str = "white"
+    # beyond the paper, read with noise_model "signal_dependent" only: how that noise spreads over frequency (key of
+    # method.edges.noise_thresholds.NOISE_SPECTRA): "white" (each filter scale sees the pixel-scale
+    # variance) or "estimated" (the spectrum per octave band from the image, method.blur.noise_spectrum:
+    # Eq. (9)'s thresholds and the fit's residual test use the variance of each filter's response to
+    # the correlated noise that resizing, demosaicking or JPEG leave; docs/noise.md).
     noise_a: float | None = None
     noise_b: float | None = None
     # noise_model "signal_dependent": shot-noise gain a (linear units) and read-noise variance b (linear
@@ -93,6 +99,7 @@ class EdgeParams:
         require_field(self, "noise_std", self.noise_std > 0, "> 0")
         check_field_choice(self, "measure_light", MEASURE_LIGHTS)
         check_field_choice(self, "noise_model", SENSOR_NOISE_MODELS)
+        check_field_choice(self, "noise_spectrum", NOISE_SPECTRA)
         for name in ("noise_a", "noise_b"):
             value = getattr(self, name)
             require_field(self, name, value is None or (isinstance(value, (int, float)) and not isinstance(value, bool)

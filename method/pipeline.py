@@ -29,6 +29,7 @@ from .blur.noise_model import noise_variance_map
 from .blur.noise_spectrum import noise_spectrum_of
 from .edges.canny import detect_edges_canny
 from .refine.cross_bilateral import biased_cross_bilateral
+from .refine.params import bias_strength
 from .propagation.cue_fusion import fuse_cues
 from .propagation.data_weights import edge_confidence, propagation_confidence
 from .edges.isolation import isolation_weights
@@ -393,17 +394,8 @@ def refine_stage(sparse_sigma, rgb, *, params, confidence=None) -> np.ndarray:
         robust_iterations=params.refinement_robust_iterations,
         robust_scale=params.refinement_robust_scale,
         weights=confidence,
-        bias_strength=_bias_strength(sparse_sigma, confidence, params),
+        bias_strength=bias_strength(sparse_sigma, confidence, params),
     )
-
-
-def _bias_strength(sparse_sigma, confidence, params):
-    """Exponent 1 − c_q of each measure's sharpness bias (``bias_weighting="uncertainty"``), else None."""
-    if params.bias_weighting != "uncertainty" or not params.sharpness_bias:
-        return None
-    if confidence is None:
-        return np.zeros(np.shape(sparse_sigma))
-    return np.where(np.isfinite(confidence), 1.0 - np.asarray(confidence, dtype=np.float64), 0.0)
 
 
 def edge_psf_family(sparse_sigma, psf_disk) -> str | None:

@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
+
 from ..registry import Registry
 from ..validation import check_field_choice, invalid_field, is_integer, require_field
 from .cross_bilateral import BILATERAL_METHODS, RANGE_KERNELS
 
-__all__ = ["BIAS_REFERENCES", "BIAS_WEIGHTINGS", "RefineParams"]
+__all__ = ["BIAS_REFERENCES", "BIAS_WEIGHTINGS", "RefineParams", "bias_strength"]
 
 _INF = float("inf")
 
@@ -82,3 +84,28 @@ class RefineParams:
         require_field(self, "refinement_robust_iterations", is_integer(self.refinement_robust_iterations, 0),
                       "integer >= 0")
         require_field(self, "refinement_robust_scale", 0 < self.refinement_robust_scale < _INF, "finite and > 0")
+
+
+def bias_strength(sparse_sigma, confidence, params):
+    """Per-measure exponent 1 − c_q of Eq. (3)'s sharpness bias, or None for the paper's uniform bias.
+
+    Parameters
+    ----------
+    sparse_sigma : ndarray, HxW, float
+        Blur σ, px, at the measures; NaN elsewhere (gives the shape when ``confidence`` is None).
+    confidence : ndarray, HxW, float in (0, 1], or None
+        Per-measure confidence c_q (NaN off measures); None: every measure certain.
+    params : RefineParams or DefocusParams
+        ``bias_weighting`` and ``sharpness_bias``.
+
+    Returns
+    -------
+    ndarray, HxW, float64, or None
+        1 − c_q at the measures, 0 elsewhere, with ``bias_weighting="uncertainty"`` and the bias on;
+        None otherwise (the bias of Eq. (3) acts on every measure alike).
+    """
+    if params.bias_weighting != "uncertainty" or not params.sharpness_bias:
+        return None
+    if confidence is None:
+        return np.zeros(np.shape(sparse_sigma))
+    return np.where(np.isfinite(confidence), 1.0 - np.asarray(confidence, dtype=np.float64), 0.0)

@@ -275,8 +275,8 @@ def test_fig7_each_preset_scores_its_own_magnification(fig7):
 def test_fig7_scatter_closer_to_the_lens_with_the_oracle_map(fig7):
     """Measured finding: with the true map on the 8-bit sRGB f/8 input, the scatter renderer (linear light,
     disks, occlusion layers) is closer to the real f/4 render than the gather, overall and in the
-    occlusion band, on every quick hand-built scene (e.g. heron_at_the_lake 36.5 → 39.2 dB, band 34.0 →
-    36.6 dB)."""
+    occlusion band, on every quick hand-built scene (e.g. portrait_garden 40.2 → 44.0 dB, band 35.3 →
+    39.7 dB)."""
     for stage in fig7.find(variant="stage", scene_set=("paper_cameras", "tabletop_stress")):
         q = stage.nested()["image_vs_large"]
         g, s = q["magnified_oracle_srgb"], q["magnified_oracle_srgb_scatter"]

@@ -275,8 +275,8 @@ def test_fig7_each_preset_scores_its_own_magnification(fig7):
 def test_fig7_scatter_closer_to_the_lens_with_the_oracle_map(fig7):
     """Measured finding: with the true map on the 8-bit sRGB f/8 input, the scatter renderer (linear light,
     disks, occlusion layers) is closer to the real f/4 render than the gather, overall and in the
-    occlusion band, on every quick hand-built scene (e.g. heron_at_the_lake 36.5 → 39.2 dB, band 34.0 →
-    36.6 dB)."""
+    occlusion band, on every quick hand-built scene (e.g. portrait_garden 40.2 → 44.0 dB, band 35.3 →
+    39.7 dB)."""
     for stage in fig7.find(variant="stage", scene_set=("paper_cameras", "tabletop_stress")):
         q = stage.nested()["image_vs_large"]
         g, s = q["magnified_oracle_srgb"], q["magnified_oracle_srgb_scatter"]
@@ -447,29 +447,52 @@ def test_fig11_golden(fig11, goldens):
 
 
 # --- plots through the CLI ----------------------------------------------------------------------
-def test_cli_plots_fig6_fig7_fig11(tmp_path, fig6, fig7, fig11):
-    """``repro.figures fig6 fig7 fig11 --quick --preset robust`` writes PNG + PDF + metrics and the table.
+def test_cli_plots_fig11_from_the_cache(tmp_path, fig11):
+    """``repro.figures fig11 --quick --preset robust`` writes PNG + PDF + metrics per scene set and the table.
 
-    ``--preset robust`` gives ("paper", "robust"), the quick configs' own presets, so every case comes from
-    the cache (the fixtures computed them).
+    ``--preset robust`` gives ("paper", "robust"), the quick config's own presets, so every case comes from
+    the cache (the fixture computed them). One figure: running several figures in one call is tested on
+    fig2 + fig10 (tests/test_figures.py); fig6's and fig7's plots are drawn in process below.
     """
     import json
 
     from experiments.results_query import read_table
 
     env = os.environ.copy()
-    proc = subprocess.run([sys.executable, "-m", "repro.figures", "fig6", "fig7", "fig11", "--quick", "--preset",
-                           "robust", "--workers", "1", "--out", str(tmp_path)], cwd=ROOT, env=env,
+    proc = subprocess.run([sys.executable, "-m", "repro.figures", "fig11", "--quick", "--preset", "robust",
+                           "--workers", "1", "--out", str(tmp_path)], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    table = read_table(tmp_path)
-    for name, fd in (("fig6", fig6), ("fig7", fig7), ("fig11", fig11)):
-        for ext in (".png", ".pdf", ".metrics.json"):
-            path = tmp_path / f"{name}{ext}"
+    for stem in ("fig11", "fig11_tabletop_stress", "fig11_procedural_test"):
+        for ext in (".png", ".pdf"):
+            path = tmp_path / f"{stem}{ext}"
             assert path.is_file() and path.stat().st_size > 1000, path
-        info = json.loads((tmp_path / f"{name}.metrics.json").read_text())
-        assert info["config"]["presets"] == ["paper", "robust"] and info["cache"]["hit"] is True, name
-        assert info["cases"] == [c.label for c in fd.outputs] and info["evaluation_id"] == fd.evaluation_id
-        assert len(table.where(figure=name)) == len(fd.rows())
-        assert (tmp_path / f"{name}_procedural_test.png").is_file()
-    assert proc.stdout.count(": cached") == 3
+    info = json.loads((tmp_path / "fig11.metrics.json").read_text())
+    assert info["config"]["presets"] == ["paper", "robust"] and info["cache"]["hit"] is True
+    assert info["cases"] == [c.label for c in fig11.outputs] and info["evaluation_id"] == fig11.evaluation_id
+    assert len(read_table(tmp_path).where(figure="fig11")) == len(fig11.rows())
+    assert proc.stdout.count(": cached") == 1
+
+
+@pytest.mark.parametrize("name", ["fig6", "fig7"])
+def test_plot_of_one_scene_set(tmp_path, quick_figure, name):
+    """``repro.figures.write_figure`` draws fig6 / fig7 (PNG + PDF + metrics) from the quick cases of one scene
+    set, the procedural test split, drawn as the default set (every set is drawn by the same
+    ``plot_one_set``; :func:`experiments.plotting.style.plot_scene_sets`, which names the further sets' files,
+    is exercised by the CLI test above)."""
+    import json
+
+    from experiments.figure_data import FigureData
+    from repro.figures import write_figure
+
+    fd = quick_figure(name)
+    one = FigureData(fd.figure, fd.config, {c: o for c, o in fd.outputs.items() if c.scene_set == "procedural_test"},
+                     fd.mode)
+    assert 0 < len(one.outputs) < len(fd.outputs)
+    got = write_figure(one, tmp_path)
+    assert [Path(f).name for f in got["files"]] == [f"{name}.png", f"{name}.pdf", f"{name}.metrics.json"]
+    assert (tmp_path / f"{name}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (tmp_path / f"{name}.pdf").read_bytes()[:5] == b"%PDF-"
+    assert all((tmp_path / f"{name}{ext}").stat().st_size > 10_000 for ext in (".png", ".pdf"))
+    info = json.loads((tmp_path / f"{name}.metrics.json").read_text())
+    assert info["cases"] == [c.label for c in one.outputs] and info["cache"]["cases"] == len(one.outputs)

@@ -29,7 +29,13 @@ ROBUST_CHANGES: dict = {
     "fit_below_scale": "nan",
     "fit_psf": "auto",
     "fit_residual_noise": 2.0,
-    "relaxed_fit_weight": 0.1,
+    # each measure weighed in Eq. (3) and Eq. (4) by its own precision (1 / Var(σb) from the fit's
+    # curvature under the pixel's noise; method.blur.measure_uncertainty) rather than a hand-set weight
+    "measure_weighting": "uncertainty",
+    # blurry edges re-fitted at a scale that follows a coarse estimate, only where the coarse fit and the
+    # re-fit both explain the response as a blurred step (ρ ≤ 0.01; method.blur.scale_follow)
+    "fit_follow_scale": 0.5,
+    "fit_follow_max_residual": 0.01,
     "bilateral_range_kernel": "product",
     "bilateral_sigma_spatial": 0.05,
     "sharpness_bias": False,

@@ -158,4 +158,5 @@ def test_fields_in_the_presets():
         p = DefocusParams.preset(name)
         assert p.fit_residual_noise == 0.0 and p.fit_scale_ratio == 1.0 and p.relaxed_fit_weight == 1.0
     r = DefocusParams.preset("robust")
-    assert r.fit_residual_noise == 2.0 and r.relaxed_fit_weight == 0.1 and r.fit_scale_ratio == 1.0
+    assert r.fit_residual_noise == 2.0 and r.fit_scale_ratio == 1.0
+    assert r.measure_weighting == "uncertainty" and r.relaxed_fit_weight == 1.0  # the hand weight unused

@@ -18,7 +18,8 @@ from method.blur.model_fit_checked import estimate_blur_model_fit_checked, estim
 from method.pipeline import edges_stage, refine_stage
 from method.refine.cross_bilateral import biased_cross_bilateral
 
-ROBUST = DefocusParams.preset("robust")
+#: robust with the hand-set confidence (relaxed_fit_weight) it had before weighing by uncertainty
+ROBUST = DefocusParams.preset("robust").replace(measure_weighting="hand", relaxed_fit_weight=0.1)
 UNC = ROBUST.replace(measure_weighting="uncertainty")
 
 #: Measured on straight Gaussian-blurred steps, σb 1–4 px, contrast 0.2–0.5, noise 0.005–0.02 (noise-free
@@ -214,15 +215,22 @@ def test_the_bias_acts_only_as_far_as_the_measure_is_uncertain():
                                rtol=1e-12, equal_nan=True)
 
 
-def test_paper_and_robust_are_unchanged_by_default():
+def test_paper_weighs_every_measure_alike_and_robust_by_uncertainty():
     assert DefocusParams().measure_weighting == "hand" and DefocusParams().bias_weighting == "uniform"
+    assert DefocusParams.preset("robust").measure_weighting == "uncertainty"
     assert ROBUST.measure_weighting in MEASURE_WEIGHTINGS
+
+
+def test_uncertainty_weighting_needs_the_checked_fit():
+    """With an estimator that reports no fit (the paper's model fit) the field has nothing to weigh."""
+    img = _two_steps()
+    p = DefocusParams(measure_weighting="uncertainty")
+    assert estimate_defocus_map(img, p, encoding="linear").measure_confidence is None
 
 
 @pytest.mark.parametrize("changes, field", [
     ({"measure_weighting": "inverse_variance"}, "measure_weighting"),
     ({"measure_weighting": 1}, "measure_weighting"),
-    ({"measure_weighting": "uncertainty", "estimator": "model_fit"}, "measure_weighting"),
     ({"bias_weighting": "sometimes"}, "bias_weighting"),
     ({"bias_weighting": "uncertainty", "sharpness_bias": False}, "bias_weighting"),
     ({"bias_weighting": "uncertainty", "sharpness_bias": True, "measure_weighting": "hand"}, "bias_weighting"),

@@ -231,28 +231,20 @@ REFINEMENT_FIELDS = ("bilateral_sigma_spatial", "bilateral_sigma_range", "bilate
                      "refinement_robust_scale")
 
 #: What each robust switch was measured to do on the mosaic (seed-mean dense textured MAE over seeds
-#: 0–2; gain = MAE with the switch off − MAE with all on, px; robust 0.311, 0.281 with the plateau gate of 2026-12-06; paper 0.526):
+#: 0–2; gain = MAE with the switch off − MAE with all on, px; 2026-12-06 with the uncertainty weights and the
+#: guarded scale following: robust 0.160, paper 0.526; printed by the ``mosaic_ablation`` fixture with -s):
 #:
-#: * helps the dense map: estimator="model_fit_checked" +0.260, fit_max_residual +0.028,
-#:   fit_max_width_ratio +0.082 (+0.013 / +0.234 / 0.000 per seed); with the per-pixel noise model
-#:   (2026-12-06: robust 0.229 px) estimator +0.160, fit_max_residual +0.034, fit_max_width_ratio
-#:   +0.151 and noise_model="signal_dependent" +0.089 (sparse +0.128);
-#: * relaxed_fit_weight (0.1; at 0.02 +0.021, +0.039 / +0.020 / +0.007 per seed; at 0.1 +0.017): with it off the
-#:   measures the noise allowance adds count fully and the in-focus tiles get their too-wide fits;
-#: * fit_step_gate ("plateau", reach 0.5; 2026-12-06): +0.037 px (0.281 with, 0.318 without; per seed
-#:   +0.083 / +0.003 / +0.027), sparse +0.056 px: the mosaic's blurred texture bands that turn back
-#:   before their plateaus were read as edges of the wrong width;
-DENSE_HELPS = ("estimator", "fit_max_width_ratio", "noise_model", "fit_step_gate")
-#: * fit_max_scale: +0.039 with the constant noise; with the per-pixel noise model neutral here
-#:   (dense −0.001, sparse +0.005 px): the thresholds that follow the noise no longer hand the fit the
-#:   coarse-σ2 texture edges the cap removed; with the plateau gate too it HURTS here (−0.024 px, below);
-#: * sharpness_bias=False: −0.038 before the per-pixel noise model and the plateau gate, −0.017 with both
-#:   (2026-12-06): within the margin;
-DENSE_NEUTRAL = ("sharpness_bias",)
-#: * relaxed_fit_weight: with the region cue fused into Eq. (4) its gain here fell to +0.013 px (below
-#:   the helps-limit; edge-only robust +0.017): the region measures now cover much of what the
-#:   relaxed measures decided;
-DENSE_HELPS_EDGE_ONLY = ("relaxed_fit_weight",)
+#: * helps the dense map: estimator="model_fit_checked" +0.229, noise_model="signal_dependent" +0.103
+#:   (sparse +0.115), measure_weighting="uncertainty" +0.048 (sparse unchanged: it only weighs the
+#:   measures, in Eq. (3) and Eq. (4); the hand-set relaxed_fit_weight it replaced gave +0.017);
+DENSE_HELPS = ("estimator", "noise_model", "measure_weighting")
+#: * neutral on this σ ≤ 4 mosaic: sharpness_bias=False +0.003; fit_max_scale −0.008 (kept for its gain
+#:   on the lens bench's blurry tiles and the renders, docs/presets.md); bilateral_sigma_spatial (5 %)
+#:   +0.005; fit_psf +0.001 (its "auto" selection picks Eq. (2c) on this Gaussian-blurred mosaic; the
+#:   disk fit's accuracy on disk blur: tests/test_disk_edge_response.py); fit_follow_max_residual
+#:   −0.001 (with the guard off the unguarded re-fit; its cost on dead leaves σ 3–4 and its guard:
+#:   tests/test_blur_scale_follow.py, docs/presets.md);
+DENSE_NEUTRAL = ("sharpness_bias", "fit_max_scale", "bilateral_sigma_spatial", "fit_psf", "fit_follow_max_residual")
 #: * the region (spectral) cue and its fusion, measured on the accuracy bench's 96-px mosaics and the
 #:   photos (docs/cue-fusion.md): region_estimator +0.012 px here (σ ≤ 4; its gain is on σ 5–8 tiles
 #:   and real photos: coffee AUC 0.653 → 0.825), fusion_edge_error_rel −0.001, fusion_island_weight
@@ -265,25 +257,22 @@ REGION_CUE = ("region_estimator", "fusion_edge_error_rel", "fusion_island_weight
 #:   on σ ≥ 5 tiles (tests/test_relaxed_fit_confidence.py: σ 6 tile 1.40 → 1.09 px; 1.53 → 1.45 px with the noise model and the plateau gate) with the
 #:   relaxed measures at relaxed_fit_weight;
 DENSE_NEUTRAL_BLURRY_HELPS = ("fit_residual_noise",)
-#: * no effect on the dense map but helps the sparse stage: fit_below_scale, dense +0.001, sparse
-#:   +0.032 (0.348 → 0.379 px with the paper's σb = 0);
-#: * fit_max_residual (0.03 instead of 0.05): with the plateau gate on (2026-12-06) its dense gain fell
-#:   from +0.028 to +0.010 px (the gate rejects many of the same poor fits); it still rejects measures;
-DENSE_NEUTRAL_SPARSE_HELPS = ("fit_below_scale", "fit_max_residual")
-#: * HURTS the dense map on the mosaic: bilateral_range_kernel −0.053 (0.311 → 0.258 px with the sum
-#:   kernel), bilateral_sigma_spatial (5 %) −0.042, sharpness_bias=False −0.038. With the estimated
-#:   (noisy, sparse) measures a wider, colour-blind average and the sharpness bias's pull toward the
-#:   sharp measures win on this mosaic, whose tiles share one colour distribution. Each of them does
-#:   lower the error the refinement adds to *perfect* measures (oracle_refine; asserted in
+#: * no effect on the dense map but helps the sparse stage (fewer, better measures): fit_below_scale
+#:   dense +0.019, sparse +0.024 (with the paper's σb = 0); fit_max_residual (0.03 instead of 0.05) dense
+#:   +0.010, sparse +0.037; fit_max_width_ratio dense +0.000, sparse +0.223 (its dense gain, +0.151 with the
+#:   hand-set weights, is now taken by the uncertainty weights, which give its too-wide fits little
+#:   weight); fit_step_gate ("plateau", reach 0.5) dense +0.015, sparse +0.045 (the mosaic's blurred texture
+#:   bands that turn back before their plateaus were read as edges of the wrong width);
+DENSE_NEUTRAL_SPARSE_HELPS = ("fit_below_scale", "fit_max_residual", "fit_max_width_ratio", "fit_step_gate")
+#: * HURTS the dense map on the mosaic: bilateral_range_kernel −0.032 (0.160 → 0.128 px with the sum
+#:   kernel): with the estimated (noisy, sparse) measures a colour-blind average wins on this mosaic,
+#:   whose tiles share one colour distribution. It does lower the error the refinement adds to *perfect*
+#:   measures (oracle_refine; asserted in
 #:   tests/test_stage_attribution.py::test_oracle_refine_credits_the_refinement_switches).
-#: * fit_max_scale (2 px) with the per-pixel noise model and the plateau gate (2026-12-06): −0.024 px on
-#:   this mosaic (the cap drops coarse-scale measures the gate now vets); kept for its gain on the lens
-#:   bench's blurry tiles and the renders (docs/presets.md).
-DENSE_HURTS = ("bilateral_range_kernel", "bilateral_sigma_spatial", "fit_max_scale")
-#: * identical on this Gaussian-blurred mosaic (its "auto" model selection picks Eq. 2c there) and
-#:   better on disk-blurred images, the thin lens's defocus: fit_psf (
-#:   tests/test_disk_edge_response.py shows both sides of the selection and the disk fit's accuracy).
-GAUSSIAN_IDENTICAL = ("fit_psf",)
+DENSE_HURTS = ("bilateral_range_kernel",)
+#: * identical on this σ ≤ 4 mosaic: fit_follow_scale (the guard, fit_follow_max_residual 0.01, re-fits no
+#:   edge of it); its gain is on σ ≥ 8 (isolated steps and the lens bench's large grid, docs/presets.md).
+FOLLOW_IDENTICAL = ("fit_follow_scale",)
 #: * identical on this σ ≤ 4 mosaic (no edge of it needs σ1 > 16 or σ2 > 8), and a faster detector
 #:   (no 64-px FFT padding level): the coarse-scale caps sigma1_scales ≤ 16, sigma2_scales ≤ 8
 #:   (their accuracy on σ 5–8 tiles and renders: docs/presets.md, the accuracy bench).
@@ -299,8 +288,8 @@ LIGHT = ("measure_light",)
 
 def test_every_robust_switch_has_a_measured_claim():
     """A switch added to ROBUST_CHANGES must be measured and put in one of the groups above."""
-    groups = (DENSE_HELPS + DENSE_NEUTRAL_SPARSE_HELPS + DENSE_NEUTRAL_BLURRY_HELPS + DENSE_HURTS + GAUSSIAN_IDENTICAL
-              + SCALE_CAPS_IDENTICAL + DENSE_HELPS_EDGE_ONLY + REGION_CUE + LIGHT + MAGNIFICATION + DENSE_NEUTRAL
+    groups = (DENSE_HELPS + DENSE_NEUTRAL_SPARSE_HELPS + DENSE_NEUTRAL_BLURRY_HELPS + DENSE_HURTS + FOLLOW_IDENTICAL
+              + SCALE_CAPS_IDENTICAL + REGION_CUE + LIGHT + MAGNIFICATION + DENSE_NEUTRAL
               + NOISE_SPECTRUM_IDENTICAL)
     assert len(set(groups)) == len(groups)
     assert set(ROBUST_CHANGES) <= set(groups), sorted(set(ROBUST_CHANGES) - set(groups))
@@ -350,9 +339,9 @@ def test_robust_beats_paper_on_mosaic(mosaic_ablation):
     assert np.mean(ab["all"]["sparse"]) < np.mean(ab["paper"]["sparse"])
 
 
-@pytest.mark.parametrize("field", GAUSSIAN_IDENTICAL + SCALE_CAPS_IDENTICAL + NOISE_SPECTRUM_IDENTICAL)
-def test_switch_identical_on_the_gaussian_mosaic(mosaic_ablation, field):
-    """The PSF model selection keeps Eq. (2c) on Gaussian-blurred texture, the coarse-scale caps
+@pytest.mark.parametrize("field", FOLLOW_IDENTICAL + SCALE_CAPS_IDENTICAL + NOISE_SPECTRUM_IDENTICAL)
+def test_switch_identical_on_the_sharp_mosaic(mosaic_ablation, field):
+    """The guarded scale following re-fits no edge of this σ ≤ 4 mosaic, the coarse-scale caps
     remove no edge of this σ ≤ 4 mosaic, and its noise spectrum cannot be measured (white): the same
     maps on every seed."""
     _in_preset(field)

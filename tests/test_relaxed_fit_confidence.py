@@ -18,9 +18,10 @@ from method.edges.elder_zucker import detect_edges
 from method.pipeline import luminance, propagate_stage, refine_stage
 from scenes.analytic import texture_mosaic
 
-#: robust's edge cue alone: these tests are about the edge measures' confidence (the region cue of
-#: Eq. (4), on in robust, is tested in tests/test_cue_fusion.py)
-ROBUST = DefocusParams.preset("robust").replace(region_estimator=None)
+#: robust's edge cue with the hand-set confidence (``measure_weighting="hand"``; robust itself weighs
+#: by each measure's uncertainty, tests/test_measure_uncertainty.py): these tests are about that rule
+ROBUST = DefocusParams.preset("robust").replace(region_estimator=None, measure_weighting="hand",
+                                                relaxed_fit_weight=0.1)
 #: the robust preset without its two noise-relaxation fields (the strict residual test alone)
 STRICT = ROBUST.replace(fit_residual_noise=0.0, relaxed_fit_weight=1.0)
 #: the noise allowance with every measure at full weight (the measured-and-dropped setting of 4f90ab4)

@@ -59,7 +59,8 @@ class BlurParams:
     # allowance; the others have c_q = 1. c_q multiplies the measure's weight in Eq. (3) and its α_p in
     # Eq. (4), so relaxed measures decide the map only where no strict measure is near. 1: off.
     measure_weighting: str = "hand"
-    # beyond the paper (estimator "model_fit_checked"): what gives each measure its confidence c_q in
+    # beyond the paper (estimator "model_fit_checked"; other estimators report no fit to weigh, so it has no
+    # effect with them): what gives each measure its confidence c_q in
     # Eq. (3) and in α_p of Eq. (4) (key of method.blur.measure_uncertainty.MEASURE_WEIGHTINGS): "hand"
     # (1, or relaxed_fit_weight as above; the paper: every c_q = 1) or "uncertainty" (c_q ∝ 1/Var(σb), the
     # Cramér–Rao variance of the fit's width from its residual and curvature under the pixel's noise,
@@ -133,9 +134,6 @@ class BlurParams:
         require_field(self, "relaxed_fit_weight", 0 < self.relaxed_fit_weight <= 1,
                       "0 < c <= 1 (dimensionless confidence)")
         check_field_choice(self, "measure_weighting", MEASURE_WEIGHTINGS)
-        if self.measure_weighting != "hand" and self.estimator != "model_fit_checked":
-            raise invalid_field("measure_weighting", self.measure_weighting,
-                                "'hand' unless estimator='model_fit_checked' (the fit whose uncertainty it reads)")
         require_field(self, "fit_scale_ratio", 0 < self.fit_scale_ratio <= 1, "0 < ratio <= 1 (dimensionless)")
         if self.fit_max_scale is not None and not self.fit_max_scale > 0:
             raise invalid_field("fit_max_scale", self.fit_max_scale, "None or > 0 (px)")

@@ -47,7 +47,8 @@ PAPER_BEFORE_THE_SPLIT = {
     "fusion_straddle_weight": 1.0,
     # Eq. (4)
     "propagation": "colorization", "alpha_confidence": "none", "matting_lambda": 0.005, "matting_epsilon": 1e-05,
-    "matting_data_weight": "constant", "matting_tol": 1e-06, "alpha": 0.5, "propagation_window": 7, "propagation_neighborhood": 3,
+    "matting_data_weight": "constant", "matting_tol": 1e-06, "alpha": 0.5, "propagation_window": 7,
+    "propagation_neighborhood": 3,
     "propagation_tol": 1e-06, "propagation_solver": "amg_pcg", "propagation_downsample": "auto",
     "propagation_refinement": "galerkin",
     # Sec. 5

@@ -1,12 +1,13 @@
 """CPU seconds of Zhuo & Sim's matting-Laplacian solves on the stages figure's ``zhuo_sim`` cases.
 
 ``.venv/bin/python benchmarks/matting_solve.py [--scenes portrait planes] [--f-numbers 8 4] [--solver cg_amg]
-[--tol 1e-6] [--preset full]``
+[--tol TOL] [--preset full]``
 
 For each render case of the stages figure (:mod:`experiments.figS1_stages`, renders from the cache;
 a missing render is rendered) it runs ``stage_errors`` with the ``zhuo_sim`` preset once with the
 matting solves recorded, then solves every distinct system (the estimate and the oracle inputs)
-with the earlier default (``cg_vcycle``, tol 1e-6: the oracle) and with ``--solver`` at ``--tol``,
+with the earlier default (``cg_vcycle``, tol 1e-6: the oracle) and with ``--solver`` at ``--tol`` (default:
+the ``zhuo_sim`` preset's ``matting_tol``, the tolerance ``stage_errors`` now solves to),
 and prints per case: the solves ``stage_errors`` now makes (two: the oracle inputs share one), the
 process CPU seconds of the old code (``cg_vcycle`` over its three solves, the oracle's twice) and of
 the new one (``--solver`` over the two), and max |Δσ| px between the two solutions. Results are appended to
@@ -65,9 +66,13 @@ def main(argv=None) -> int:
     p.add_argument("--scenes", nargs="+", default=list(FULL.scenes))
     p.add_argument("--f-numbers", nargs="+", type=float, default=list(FULL.f_numbers))
     p.add_argument("--solver", default="cg_amg")
-    p.add_argument("--tol", type=float, default=1e-6)
+    p.add_argument("--tol", type=float, default=None, help="default: the zhuo_sim preset's matting_tol")
     p.add_argument("--preset", default=FULL.preset, help="render size preset (small / full)")
     args = p.parse_args(argv)
+    if args.tol is None:
+        from method import DefocusParams
+
+        args.tol = DefocusParams.preset("zhuo_sim").matting_tol
     config = FULL.__class__(**{**FULL.__dict__, "scenes": tuple(args.scenes), "f_numbers": tuple(args.f_numbers),
                                "preset": args.preset})
     rows = []

@@ -147,6 +147,28 @@ def test_default_solver_agrees_with_the_vcycle_oracle(rng):
     assert not np.array_equal(new, old)
 
 
+def test_zhuo_sim_tolerance_stays_within_the_budget(rng):
+    """The ``zhuo_sim`` preset's own stopping tolerance (``matting_tol``, looser than Eq. 4's
+    ``propagation_tol``) through the propagation registry: within MATTING_SOLVER_CHANGE_ATOL_PX of the
+    ``"cg_vcycle"`` tol-1e-6 solve, and not the tol-1e-6 ``"cg_amg"`` solve (so the field reaches the solver)."""
+    from method import DefocusParams
+    from method.propagation.methods import propagate_blur_measures
+
+    ref = _photo(rng, 64, 80)
+    bm = _sparse(rng, ref, density=0.08)
+    params = DefocusParams.preset("zhuo_sim")
+    assert params.matting_tol > params.propagation_tol
+    opts = {"lam": params.matting_lambda, "epsilon": params.matting_epsilon, "data_weight": params.matting_data_weight}
+    oracle = propagate_defocus_matting(bm, ref, solver="cg_vcycle", tol=1e-6, **opts)
+    loose = propagate_blur_measures(bm, ref, params=params)
+    tight = propagate_blur_measures(bm, ref, params=DefocusParams.preset("zhuo_sim", matting_tol=1e-6))
+    assert np.max(np.abs(loose - oracle)) <= MATTING_SOLVER_CHANGE_ATOL_PX
+    assert not np.array_equal(loose, tight)
+    # the budget is not met trivially: a far looser stop leaves the solve visibly short of it
+    rough = propagate_blur_measures(bm, ref, params=DefocusParams.preset("zhuo_sim", matting_tol=0.5))
+    assert np.max(np.abs(rough - oracle)) > MATTING_SOLVER_CHANGE_ATOL_PX
+
+
 # --- 4. bad inputs -----------------------------------------------------------------------------
 def _ok(rng):
     ref = _photo(rng, 12, 14)

@@ -43,7 +43,7 @@ def _matting_laplacian(sparse_sigma, reference, *, params, confidence=None, max_
                          "use alpha_confidence='none'")
     from .matting import propagate_defocus_matting
     return propagate_defocus_matting(sparse_sigma, reference, lam=params.matting_lambda,
-                                     epsilon=params.matting_epsilon, tol=params.propagation_tol,
+                                     epsilon=params.matting_epsilon, tol=params.matting_tol,
                                      data_weight=params.matting_data_weight)
 
 

@@ -45,6 +45,10 @@ class PropagationParams:
     matting_data_weight: str = "constant"
     # D of (L + λD) d = λ D d̂ (key of method.propagation.matting.MATTING_DATA_WEIGHTS): "constant" (1 at
     # every measure, Zhuo & Sim's equation) or "sigma" (D = diag(d̂), as their public code builds it).
+    matting_tol: float = 1e-6
+    # relative residual ‖λDd̂ − (L + λD) d‖ / ‖λDd̂‖ at which the CG solve of the matting system stops
+    # (propagation="matting_laplacian"; Eq. 4's own solve stops at propagation_tol). Measured distance of
+    # the dense σ from the tol-1e-6 solve per value: docs/figures.md.
     alpha: float = 0.5
     # data-term weight α_p at edge pixels, dimensionless; 0 elsewhere (Sec. 4.1; Fig. 6 sweeps 0.1–1).
     propagation_window: int = 7
@@ -78,7 +82,8 @@ class PropagationParams:
         for name in ("propagation_window", "propagation_neighborhood"):
             value = getattr(self, name)
             require_field(self, name, is_integer(value, 3) and value % 2 == 1, "odd integer >= 3")
-        require_field(self, "propagation_tol", 0 < self.propagation_tol < 1, "0 < tol < 1")
+        for name in ("propagation_tol", "matting_tol"):
+            require_field(self, name, 0 < getattr(self, name) < 1, "0 < tol < 1")
         ds = self.propagation_downsample
         require_field(self, "propagation_downsample", ds == "auto" or (is_integer(ds, 1) and (ds & (ds - 1)) == 0),
                       "'auto' or a power of two >= 1")

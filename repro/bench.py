@@ -26,7 +26,7 @@ analytic and rendered cases run on the case runner (:mod:`repro._runner`): ``--w
 steps blurred by a lens PSF in linear light, then a camera's noise and tone curve) and ``--full`` its
 full grid; ``--grid large`` runs its large-blur grid instead (σ 8–16 px on 224-px tiles, its own variants).
 ``python -m repro.bench --doubling`` runs the doubling claim of Fig. 7 at both render sizes of the same
-scenes with the f/4 stage attribution (:mod:`experiments.doubling_sizes`; ``doubling.md``, which
+scenes with the f/4 stage attribution for each ``--preset`` (:mod:`experiments.doubling_sizes`; ``doubling.md``, which
 ``repro.report`` shows). ``python -m repro.bench --ablation`` runs the robust preset's ablation on the lens bench, the
 paper_cameras renders and the real photos (:mod:`experiments.bench.ablation`; ``ablation.md``).
 
@@ -262,7 +262,7 @@ def _parser():
                              "tiles, the fit's scale following off, on and guarded)")
     parser.add_argument("--doubling", action="store_true",
                         help="run the doubling claim (Fig. 7) at both render sizes of the same scenes with the f/4 "
-                             "stage attribution instead (doubling.md / doubling.json)")
+                             "stage attribution instead, per --preset (doubling.md / doubling.json)")
     from ._runner import add_engine_options
 
     add_engine_options(parser, what="with --accuracy: the analytic and rendered cases")
@@ -353,11 +353,16 @@ def main(argv=None) -> int:
     if args.doubling:
         require_extras("render", command="repro.bench --doubling")
         from experiments.cache_keys import to_jsonable
-        from experiments.doubling_sizes import doubling_markdown, doubling_report
+        from experiments.doubling_sizes import DOUBLING_SIZES_CONFIG, doubling_markdown, doubling_report
+        from method import PRESETS
+        from repro._cli import user_input
 
-        report = doubling_report(progress=not args.quiet)
-        _write_report(args.out, "doubling", json.dumps(to_jsonable(report), indent=1, allow_nan=False),
-                      doubling_markdown(report))
+        with user_input():
+            PRESETS.check_all(args.preset)
+        reports = {p: doubling_report({**DOUBLING_SIZES_CONFIG, "preset": p}, progress=not args.quiet)
+                   for p in args.preset}
+        _write_report(args.out, "doubling", json.dumps(to_jsonable(reports), indent=1, allow_nan=False),
+                      "\n".join(doubling_markdown(r) for r in reports.values()))
         return 0
     if args.figures:
         require_extras("sweep", "render", command="repro.bench --figures")

@@ -358,3 +358,25 @@ def test_rendered_verdict_per_scene_set_and_one_table_each(monkeypatch):
     md = markdown.accuracy_markdown(report)
     assert md.count("### Scene set `tabletop_stress`") == 1 and md.count("### Scene set `paper_cameras`") == 1
     assert "| portrait_garden | 8 |" in md
+
+
+def test_doubling_runs_each_preset_and_refuses_an_unknown_one(tmp_path, monkeypatch, capsys):
+    """``--doubling`` judges every ``--preset`` (one section each); an unknown name is one line, exit 2."""
+    import experiments.doubling_sizes as ds
+    from repro._cli import run_cli
+
+    seen = []
+
+    def fake_report(cfg, *, progress=True):
+        seen.append(cfg["preset"])
+        return {"config": dict(cfg), "cases": [], "sizes": {}}
+
+    monkeypatch.setattr(ds, "doubling_report", fake_report)
+    assert bench.main(["--doubling", "--preset", "paper", "robust", "--out", str(tmp_path), "-q"]) == 0
+    assert seen == ["paper", "robust"]
+    md = (tmp_path / "doubling.md").read_text(encoding="utf-8")
+    assert "(paper preset)" in md and "(robust preset)" in md
+    assert set(json.loads((tmp_path / "doubling.json").read_text(encoding="utf-8"))) == {"paper", "robust"}
+    assert run_cli(bench.main, ["--doubling", "--preset", "nope", "--out", str(tmp_path)], prog=bench.PROG) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "'nope'" in err[0] and seen == ["paper", "robust"]

@@ -131,3 +131,23 @@ def test_large_lens_grid_and_its_flags():
                        (["--accuracy", "--full", "--grid", "large"], "exclude each other")):
         r = run_in_process("repro.bench", argv)
         assert r.returncode == 2 and text in r.stderr and r.stderr.count("\n") == 1, (argv, r.stderr)
+
+
+def test_nearest_scale_matches_a_plain_broadcast_over_every_pixel():
+    """The edge-pixel-only lookup equals the obvious whole-array nearest-in-log-scale oracle (NaN, 0, < 0, inf)."""
+    from method.blur.scale_follow import _nearest_scale
+
+    def oracle(values, scales):
+        grid = np.log(np.asarray(sorted(scales), dtype=np.float64))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            logv = np.log(np.asarray(values, dtype=np.float64))
+        ok = np.isfinite(logv)
+        idx = np.argmin(np.abs(np.where(ok, logv, 0.0)[..., None] - grid), axis=-1)
+        return np.where(ok, np.exp(grid)[idx], np.nan)
+
+    rng = np.random.default_rng(0)
+    v = rng.uniform(-1, 40, (60, 50))
+    v[rng.random(v.shape) < 0.5] = np.nan
+    v[0, :5] = [0.0, -2.0, np.inf, 1e-300, 3.0]
+    for scales in ((0.5, 1.0, 2.0, 4.0, 8.0), (8.0, 0.5, 16.0)):
+        np.testing.assert_array_equal(_nearest_scale(v, scales), oracle(v, scales))

@@ -59,11 +59,12 @@ def _restricted(edge_map, mask, sigma2):
 def _nearest_scale(values, scales):
     """The value of ``scales`` (px) nearest each of ``values`` (px) in log scale; NaN where not > 0."""
     grid = np.log(np.asarray(sorted(scales), dtype=np.float64))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        logv = np.log(np.asarray(values, dtype=np.float64))
-    ok = np.isfinite(logv)
-    idx = np.argmin(np.abs(np.where(ok, logv, 0.0)[..., None] - grid), axis=-1)
-    return np.where(ok, np.exp(grid)[idx], np.nan)
+    values = np.asarray(values, dtype=np.float64)
+    out = np.full(values.shape, np.nan)
+    ok = np.isfinite(values) & (values > 0)  # the edge pixels only (values are NaN off edges)
+    logv = np.log(values[ok])
+    out[ok] = np.exp(grid)[np.argmin(np.abs(logv[:, None] - grid), axis=-1)]
+    return out
 
 
 def _fits(diag, rho_max):

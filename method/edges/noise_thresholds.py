@@ -47,7 +47,8 @@ _SPECTRUM_GRID = 256
 
 
 @functools.lru_cache(maxsize=1)
-def _radial_frequency():
+def radial_frequency():
+    """|ω| (rad/px) on the 256² DFT grid of :func:`band_shares` (one shared array: do not modify)."""
     w = 2.0 * np.pi * np.fft.fftfreq(_SPECTRUM_GRID)
     return np.hypot(w[:, None], w[None, :])
 
@@ -66,20 +67,15 @@ def band_shares(power, band_edges):
     -------
     ndarray, (len(band_edges) + 1,), float64
     """
-    idx = np.searchsorted(-np.asarray(band_edges, dtype=np.float64), -_radial_frequency())
+    idx = np.searchsorted(-np.asarray(band_edges, dtype=np.float64), -radial_frequency())
     shares = np.bincount(idx.ravel(), weights=np.asarray(power, dtype=np.float64).ravel(),
                          minlength=len(band_edges) + 1)
     return shares / shares.sum()
 
 
-def radial_frequency():
-    """|ω| (rad/px) on the 256² DFT grid of :func:`band_shares`."""
-    return _radial_frequency()
-
-
 @functools.lru_cache(maxsize=256)
 def _derivative_shares(order, sigma, band_edges):
-    r2 = _radial_frequency() ** 2
+    r2 = radial_frequency() ** 2
     return band_shares(r2 ** order * np.exp(-(sigma ** 2) * r2), band_edges)
 
 

@@ -87,29 +87,27 @@ def test_ground_truth_mask_on_synthetic_depth():
 
 
 # --- renders ---------------------------------------------------------------------------------------
-@pytest.fixture(scope="module")
-def cache_dir(tmp_path_factory):
-    """A fresh render cache for this module, so every scene is really rendered once."""
+@pytest.fixture
+def cache_dir(tmp_path, monkeypatch):
+    """A fresh, empty cache for one test (renders, σ ranges), so what it renders or measures is really computed."""
     old = os.environ.get("DEFOCUS_CACHE_DIR")
-    d = tmp_path_factory.mktemp("render-cache")
-    os.environ["DEFOCUS_CACHE_DIR"] = str(d)
+    d = tmp_path / "render-cache"
+    d.mkdir()
+    monkeypatch.setenv("DEFOCUS_CACHE_DIR", str(d))
     # Keep the variant probe results and Dr.Jit kernels of the project cache.
     proj = Path(old) if old else ROOT / ".cache"
     if (proj / "variant-probes.json").exists():
         (d / "variant-probes.json").write_bytes((proj / "variant-probes.json").read_bytes())
-    yield d
-    if old is None:
-        os.environ.pop("DEFOCUS_CACHE_DIR", None)
-    else:
-        os.environ["DEFOCUS_CACHE_DIR"] = old
+    return d
 
 
 @pytest.fixture(scope="module")
-def small_renders(cache_dir):
-    out = {}
-    for name in SCENES:
-        out[name] = render_scene(name, preset="small", progress=False)
-    return out
+def small_renders():
+    """Every scene at the small preset (f/8, its default spp and seed 0) from the session's render cache: the
+    renders the quick figures read (content-keyed, so a change of a scene or of the ground-truth code is a
+    new entry, rendered here or by the first figure that needs it). test_full_preset_render renders every
+    scene without any cache."""
+    return {name: render_scene(name, preset="small", progress=False) for name in SCENES}
 
 
 @pytest.mark.render
@@ -294,8 +292,10 @@ def test_render_image_encodings(small_renders):
 
 
 @pytest.mark.render
-def test_cache_hit_and_truncated_entry_rebuilt(small_renders):
-    r = small_renders["tilted_plane"]
+def test_cache_hit_and_truncated_entry_rebuilt(cache_dir):
+    # a cheap render in a cache of this test's own (the entry is truncated below)
+    r = render_scene("tilted_plane", preset="small", spp=16, progress=False)
+    assert Path(r.path).is_relative_to(cache_dir)
     import scenes.render as render_module
 
     def no_render(*args, **kwargs):
@@ -303,12 +303,12 @@ def test_cache_hit_and_truncated_entry_rebuilt(small_renders):
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(render_module, "_compute", no_render)
-        again = render_scene("tilted_plane", preset="small", progress=False)
+        again = render_scene("tilted_plane", preset="small", spp=16, progress=False)
     assert again.path == r.path
     np.testing.assert_array_equal(again.rgb, r.rgb)
     with open(r.path, "r+b") as fh:
         fh.truncate(r.path.stat().st_size // 2)
-    rebuilt = render_scene("tilted_plane", preset="small", progress=False)
+    rebuilt = render_scene("tilted_plane", preset="small", spp=16, progress=False)
     np.testing.assert_array_equal(rebuilt.rgb, r.rgb)  # same seed: bit-identical
     np.testing.assert_array_equal(rebuilt.sigma_px, r.sigma_px)
 
@@ -354,8 +354,9 @@ def test_render_scene_rejects_bad_options():
 @pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(SCENES))
 def test_full_preset_render(name, cache_dir):
-    # 64 spp keeps the path-traced scene at ~15 s; the default spp only lowers noise.
-    r = render_scene(name, preset="full", spp=min(64, SCENES[name].spp("full")), progress=False, use_cache=False)
+    # Rendered without any cache. 4 spp: the assertions read the shape, finiteness and σ_gt (from lens-centre
+    # rays, independent of spp); the default spp only lowers noise.
+    r = render_scene(name, preset="full", spp=4, progress=False, use_cache=False)
     assert r.rgb.shape == (480, 640, 3) and np.isfinite(r.rgb).all()
     assert r.sigma_px.min() <= SCENE_SIGMA_FLOOR_PX + 0.5
     assert r.sigma_px.max() >= 4 * _small_f8_min_max_sigma(name)

@@ -118,11 +118,29 @@ def test_cli_bad_jobs_exits_2(tmp_path):
     assert "--workers/--jobs" in proc.stderr
 
 
+def _store_all_but_the_last_case(data, cache) -> None:
+    """Copy every case of ``data`` (a quick figure computed in this session) but its last from the session's
+    case store into the case store of the cache folder ``cache`` (same keys, so the same entries)."""
+    import shutil
+
+    from defocus_cache import Cache
+    from experiments.cache_keys import CACHE_SUBDIR
+    from experiments.cases import case_key, stored_case
+
+    for case in list(data.outputs)[:-1]:
+        src = stored_case(data.figure, data.config, case)
+        assert src is not None, case.label
+        shutil.copytree(src, Cache(Path(cache) / CACHE_SUBDIR).path_for(case_key(data.figure, data.config, case)))
+
+
 @pytest.fixture(scope="module")
-def fig10_quick(tmp_path_factory):
-    """Two runs of ``repro.figures fig10 --quick`` against a fresh cache: outputs and both metrics files."""
+def fig10_quick(tmp_path_factory, quick_figure):
+    """Two runs of ``repro.figures fig10 --quick`` against a fresh cache holding fig10's quick cases but the last
+    (from the session's case store, where the calibration tests and the claims golden read them): the first
+    run computes that case and reads the others, the second reads all. Outputs and both metrics files."""
     cache = tmp_path_factory.mktemp("cache")
     out = tmp_path_factory.mktemp("figures")
+    _store_all_but_the_last_case(quick_figure("fig10"), cache)
     first = _cli("fig10", "--quick", "--workers", "1", "--out", out, cache_dir=cache)
     assert first.returncode == 0, first.stderr[-3000:]
     m1 = json.loads((out / "fig10.metrics.json").read_text())
@@ -147,6 +165,7 @@ def test_fig10_quick_writes_outputs_and_matches_eq5(fig10_quick):
     assert (out / "fig10.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert (out / "fig10.pdf").read_bytes()[:5] == b"%PDF-"
     assert m["mode"] == "quick" and m["cache"]["hit"] is False
+    assert (m["cache"]["cases"], m["cache"]["cached_cases"]) == (3, 2)  # one case computed, two read back
     assert m["config"]["spp"] > 0 and "sigma_convention" in m and m["versions"]["mitsuba"]
     paper = read_table(out).where(figure="fig10", variant="paper")
     assert paper.value("n_points") >= 12

@@ -412,10 +412,11 @@ def test_paper_cameras_are_the_papers():
 
 @pytest.mark.render
 @pytest.mark.slow
-def test_paper_cameras_sigma_span_the_papers_regime_at_the_full_preset(cache_dir):
+def test_paper_cameras_sigma_span_the_papers_regime_at_the_full_preset():
     """Measured on the ground truth (lens-centre-ray depth, Eq. 5): every paper_cameras scene has in-focus
     pixels at the box-filter floor, and its largest σ_gt is about 4 px at f/8 and 8 px at f/4; the tabletop
-    stress scenes go far beyond (≥ 10.5 px at f/4; shadow_gloss 11.0 px)."""
+    stress scenes go far beyond (≥ 10.5 px at f/4; shadow_gloss 11.0 px). The ranges come from the session's
+    cache (content-keyed; ``repro.render --list`` reads the same entries)."""
     from scenes.library.ranges import sigma_gt_ranges
 
     for name in SCENE_SETS["paper_cameras"]:

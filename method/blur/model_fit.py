@@ -267,7 +267,7 @@ def model_fit_diagnostics(gray, edge_map, *, params):
     if not groups:
         return diag
     s_max = math.sqrt(float(params.max_sigma) ** 2 + max(g[0] for g in groups) ** 2) * math.sqrt(2.0)
-    s_grid, t0_grid, table, cum = template_table(w_max, float(np.float32(max(s_max, 1.0))))
+    templates = template_table(w_max, float(np.float32(max(s_max, 1.0))))
     cached = edge_map.hessians or {}
     bank = None
     theta = np.asarray(edge_map.theta, dtype=np.float64)
@@ -287,7 +287,7 @@ def model_fit_diagnostics(gray, edge_map, *, params):
             ixx, ixy, iyy = bank.hessian(sigma2)
         th = theta[rows, cols]
         s_est, r_est, w_est, e_est, sd_est, rd_est = run_fit_kernel(
-            (ixx, ixy, iyy), rows, cols, th, w_min, w_max, (s_grid, t0_grid, table, cum), sigma2,
+            (ixx, ixy, iyy), rows, cols, th, w_min, w_max, templates, sigma2,
             first_min_width, disk_table)
         sigma_b = blur_from_extrema_distance(2.0 * s_est, sigma2)
         out[rows, cols] = np.clip(sigma_b, 0.0, float(params.max_sigma))
@@ -308,7 +308,7 @@ def model_fit_diagnostics(gray, edge_map, *, params):
             if sel.any():
                 rr, cc = rows[sel], cols[sel]
                 *_, sd_est, rd_est = run_fit_kernel(hessian, rr, cc, th[sel], w_min, w_max,
-                                                     (s_grid, t0_grid, table, cum), sigma2, 0.0, disk_table)
+                                                     templates, sigma2, 0.0, disk_table)
                 disk_width[rr, cc] = sd_est
                 disk_res[rr, cc] = rd_est
 

@@ -1,0 +1,87 @@
+"""The model fit's fast paths against their slow, obviously-correct forms: the same bytes.
+
+The Eq. (2c) template search computes each pass's dot products together
+(:func:`method.blur.fit_templates._best_gaussian_template`); the oracle is the one-template-at-a-time
+search :func:`method.blur.fit_templates._best_template` (which the disk model still uses).
+:func:`method.blur.model_fit_checked.fit_measure_sd` evaluates only the fitted pixels; the oracle is
+:func:`method.blur.measure_uncertainty.measure_sd` over every pixel of the image.
+"""
+
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from method import DefocusParams
+from method.blur.fit_templates import (COARSE_STRIDE, EMPTY_DISK_TABLE, _best_gaussian_template, _best_template,
+                                       template_table)
+from method.blur.measure_uncertainty import measure_sd
+from method.blur.model_fit_checked import fit_measure_sd, steered_second_noise_variance
+from method.blur.noise_model import noise_variance_map
+from method.blur.scale_follow import follow_scale_diagnostics
+from method.pipeline import edges_stage
+
+
+def _responses(rng, K, n):
+    """n sampled responses of length 2K+1: Eq. (2c)-like lobes of random width, shift and sign, plus noise."""
+    k = np.arange(-K, K + 1, dtype=np.float64)
+    for _ in range(n):
+        s = rng.uniform(0.4, 0.6 * K)
+        t0 = rng.uniform(-0.7, 0.7)
+        amp = rng.choice([1.0, -1.0, 0.0])  # negative and zero: no positive-amplitude template
+        r = -amp * (k - t0) / s ** 3 * np.exp(-0.5 * ((k - t0) / s) ** 2)
+        yield r + rng.normal(0.0, rng.choice([0.0, 1e-3, 0.05]) / s ** 2, r.shape), t0
+
+
+@pytest.mark.parametrize("half_window, s_max", [(35, 91.0), (12, 5.0)])
+def test_gaussian_search_is_the_one_template_at_a_time_search(half_window, s_max):
+    s_grid, t0_grid, table, cum, table_t = template_table(half_window, s_max)
+    n_s = s_grid.size
+    buf = np.empty(max(n_s, 2 * COARSE_STRIDE + 1, 9))
+    rng = np.random.default_rng(38)
+    K = half_window
+    checked = found = 0
+    for r, t0 in _responses(rng, K, 400):
+        a = -int(rng.integers(1, K + 1))
+        b = int(rng.integers(1, K + 1))
+        k0 = float(np.clip(t0 + rng.normal(0.0, 0.3), -0.9, 0.9))  # also beyond the t0 grid (clamped)
+        energy_r = float(np.sum(r[a + K:b + K + 1] ** 2))
+        want = _best_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, COARSE_STRIDE, False, 0.0,
+                              *EMPTY_DISK_TABLE, 0, n_s)
+        got = _best_gaussian_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, table_t,
+                                      COARSE_STRIDE, buf)
+        np.testing.assert_array_equal(np.array(got), np.array(want))  # bit-identical, NaN where no fit
+        checked += 1
+        found += bool(np.isfinite(want[0]))
+    assert checked == 400 and 100 < found < 400  # both sides: fitted and declined responses
+
+
+def test_transposed_templates_are_the_templates():
+    s_grid, t0_grid, table, cum, table_t = template_table(20, 30.0)
+    np.testing.assert_array_equal(table_t, table.transpose(1, 2, 0))
+    assert table_t.flags.c_contiguous and not table_t.flags.writeable
+
+
+def _textured(size=80, seed=5):
+    """A small image with blurred and sharp edges of several widths and some noise (linear light)."""
+    rng = np.random.default_rng(seed)
+    img = ndimage.zoom(rng.uniform(0.1, 0.9, (10, 10)), size / 10, order=0)
+    img = np.where(np.arange(size)[None, :] < size // 2, ndimage.gaussian_filter(img, 3.0), img)
+    return np.clip(img + rng.normal(0.0, 0.01, img.shape), 0.0, 1.0)
+
+
+@pytest.mark.parametrize("noise_model", ["constant", "signal_dependent"])
+def test_fit_measure_sd_on_the_fitted_pixels_is_measure_sd_on_the_image(noise_model):
+    params = DefocusParams.preset("robust").replace(noise_model=noise_model)
+    gray = _textured()
+    em = edges_stage(gray, params=params, encoding="linear")
+    diag = follow_scale_diagnostics(gray, em, params=params)
+    nv = None if noise_model == "constant" else noise_variance_map(gray, params)
+    got = fit_measure_sd(diag, em, params=params, noise_variance=nv)
+    v_pixel = float(params.noise_std) ** 2 if nv is None else nv
+    with np.errstate(invalid="ignore"):
+        v_sample = steered_second_noise_variance(diag["sigma2"], 1.0) * v_pixel
+    theta = np.asarray(em.theta, dtype=np.float64)
+    proj = np.maximum(np.abs(np.cos(theta)), np.abs(np.sin(theta)))
+    want = measure_sd(diag, sample_noise_variance=v_sample, proj=proj)
+    np.testing.assert_array_equal(got, want)
+    assert np.isfinite(got).sum() >= 50 and np.isnan(got).sum() > 0

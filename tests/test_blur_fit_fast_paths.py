@@ -14,7 +14,7 @@ from scipy import ndimage
 from method import DefocusParams
 from method.blur.fit_templates import (COARSE_STRIDE, EMPTY_DISK_TABLE, _best_gaussian_template, _best_template,
                                        template_table)
-from method.blur.measure_uncertainty import measure_sd
+from method.blur.measure_uncertainty import measure_sd, width_information
 from method.blur.model_fit_checked import fit_measure_sd, steered_second_noise_variance
 from method.blur.noise_model import noise_variance_map
 from method.blur.scale_follow import follow_scale_diagnostics
@@ -34,7 +34,7 @@ def _responses(rng, K, n):
 
 @pytest.mark.parametrize("half_window, s_max", [(35, 91.0), (12, 5.0)])
 def test_gaussian_search_is_the_one_template_at_a_time_search(half_window, s_max):
-    s_grid, t0_grid, table, cum, table_t = template_table(half_window, s_max)
+    s_grid, t0_grid, table, cum, table_t, cum_t, table_c, cum_c = template_table(half_window, s_max)
     n_s = s_grid.size
     buf = np.empty(max(n_s, 2 * COARSE_STRIDE + 1, 9))
     rng = np.random.default_rng(38)
@@ -47,7 +47,7 @@ def test_gaussian_search_is_the_one_template_at_a_time_search(half_window, s_max
         energy_r = float(np.sum(r[a + K:b + K + 1] ** 2))
         want = _best_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, COARSE_STRIDE, False, 0.0,
                               *EMPTY_DISK_TABLE, 0, n_s)
-        got = _best_gaussian_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, table_t,
+        got = _best_gaussian_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, table_t, cum_t, table_c, cum_c,
                                       COARSE_STRIDE, buf)
         np.testing.assert_array_equal(np.array(got), np.array(want))  # bit-identical, NaN where no fit
         checked += 1
@@ -56,9 +56,12 @@ def test_gaussian_search_is_the_one_template_at_a_time_search(half_window, s_max
 
 
 def test_transposed_templates_are_the_templates():
-    s_grid, t0_grid, table, cum, table_t = template_table(20, 30.0)
-    np.testing.assert_array_equal(table_t, table.transpose(1, 2, 0))
-    assert table_t.flags.c_contiguous and not table_t.flags.writeable
+    s_grid, t0_grid, table, cum, table_t, cum_t, table_c, cum_c = template_table(20, 30.0)
+    for full, t, c in ((table, table_t, table_c), (cum, cum_t, cum_c)):
+        np.testing.assert_array_equal(t, full.transpose(1, 2, 0))
+        np.testing.assert_array_equal(c, full.transpose(1, 2, 0)[:, :, ::COARSE_STRIDE])
+    for t in (table_t, cum_t, table_c, cum_c):
+        assert t.flags.c_contiguous and not t.flags.writeable
 
 
 def _textured(size=80, seed=5):
@@ -85,3 +88,31 @@ def test_fit_measure_sd_on_the_fitted_pixels_is_measure_sd_on_the_image(noise_mo
     want = measure_sd(diag, sample_noise_variance=v_sample, proj=proj)
     np.testing.assert_array_equal(got, want)
     assert np.isfinite(got).sum() >= 50 and np.isnan(got).sum() > 0
+
+
+def _width_information_every_offset(s, n):
+    """width_information's sums over every offset of the longest window for every measure (m = 0 outside)."""
+    half = 0.5 * (n - 1.0)
+    mm = md = dd = np.zeros(s.size)
+    for o in np.arange(-np.ceil(half.max()), np.ceil(half.max()) + 1):
+        k = o + (half - np.floor(half))
+        u = k / s
+        m = np.where(np.abs(k) <= half + 1e-9, k * np.exp(-0.5 * u * u), 0.0)
+        d = m * (u * u - 3.0)
+        mm, md, dd = mm + m * m, md + m * d, dd + d * d
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g = (dd - md * md / mm) / mm
+    return np.where(np.isfinite(g), np.where(g > 1e-9, g, 0.0), np.nan)
+
+
+def test_width_information_sums_only_the_offsets_each_window_reaches():
+    rng = np.random.default_rng(7)
+    n = rng.integers(3, 72, 3000)
+    n[:10] = 161  # a few long windows, as the re-fit's
+    s = rng.uniform(0.3, 40.0, n.size)
+    s[::97] = np.nan
+    n[::89] = 2  # too short: NaN
+    got = width_information(s, n)
+    ok = np.isfinite(s) & (n >= 3)
+    np.testing.assert_array_equal(got[ok], _width_information_every_offset(s[ok], n[ok].astype(np.float64)))
+    assert np.isnan(got[~ok]).all() and (got[ok] > 0).mean() > 0.9

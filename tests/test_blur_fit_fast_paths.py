@@ -17,6 +17,7 @@ from method.blur.fit_templates import (COARSE_STRIDE, EMPTY_DISK_TABLE, _best_ga
 from method.blur.measure_uncertainty import measure_sd, width_information
 from method.blur.model_fit_checked import fit_measure_sd, steered_second_noise_variance
 from method.blur.noise_model import noise_variance_map
+from method.blur.psf_selection import PSF_SELECT_SAMPLE, psf_selection_sample, select_psf_model
 from method.blur.scale_follow import follow_scale_diagnostics
 from method.pipeline import edges_stage
 
@@ -116,3 +117,25 @@ def test_width_information_sums_only_the_offsets_each_window_reaches():
     ok = np.isfinite(s) & (n >= 3)
     np.testing.assert_array_equal(got[ok], _width_information_every_offset(s[ok], n[ok].astype(np.float64)))
     assert np.isnan(got[~ok]).all() and (got[ok] > 0).mean() > 0.9
+
+
+def test_psf_choice_on_the_fitted_pixels_is_the_choice_on_the_image():
+    """model_fit_diagnostics decides fit_psf="auto" on the fitted pixels in raster order: same sample, same model."""
+    rng = np.random.default_rng(11)
+    shape = (150, 160)
+    fitted = rng.random(shape) < 0.4  # > PSF_SELECT_SAMPLE candidates: the sample is thinned
+    s2 = np.where(fitted, rng.choice([0.5, 1.0, 2.0], shape), np.nan)
+    width = np.where(fitted, s2 * rng.uniform(0.5, 4.0, shape), np.nan)
+    res = np.where(fitted, rng.uniform(0.0, 0.02, shape), np.nan)
+    flat = np.flatnonzero(fitted)
+    want = psf_selection_sample(width, s2)
+    got = np.zeros(shape, dtype=bool)
+    got.ravel()[flat] = psf_selection_sample(width.ravel()[flat], s2.ravel()[flat])
+    np.testing.assert_array_equal(got, want)
+    assert 1000 < want.sum() <= PSF_SELECT_SAMPLE < (fitted & (width > 1.5 * s2)).sum()
+    for shift, model in ((-0.004, "disk"), (0.004, "gaussian")):  # both sides of the choice
+        disk_res = np.clip(res + shift * rng.uniform(0.5, 1.5, shape), 0.0, None)
+        diag = {"residual": res, "width": width, "sigma2": s2}
+        fits = {k: v.ravel()[flat] for k, v in diag.items()}
+        assert select_psf_model(diag, width, disk_res) == model
+        assert select_psf_model(fits, width.ravel()[flat], disk_res.ravel()[flat]) == model

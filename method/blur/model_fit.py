@@ -312,10 +312,13 @@ def model_fit_diagnostics(gray, edge_map, *, params):
                 disk_width[rr, cc] = sd_est
                 disk_res[rr, cc] = rd_est
 
-    if psf == "auto":
-        sample = psf_selection_sample(width, s2_map)
+    if psf == "auto":  # decided on the fitted pixels (all in the groups), in raster order as on the image
+        flat = np.sort(np.concatenate([rows * img.shape[1] + cols for _, rows, cols in groups]))
+        fits = {name: diag[name].ravel()[flat] for name in ("residual", "width", "sigma2")}
+        sample = np.zeros(img.shape, dtype=bool)
+        sample.ravel()[flat] = psf_selection_sample(fits["width"], fits["sigma2"])
         fit_disk(lambda rr, cc: sample[rr, cc])
-        if select_psf_model(diag, disk_width, disk_res) == "disk":
+        if select_psf_model(fits, disk_width.ravel()[flat], disk_res.ravel()[flat]) == "disk":
             fit_disk(lambda rr, cc: np.isfinite(width[rr, cc]) & ~np.isfinite(disk_width[rr, cc]))
             choose_psf(diag, disk_width, disk_res, psf="disk", max_sigma=float(params.max_sigma))
     elif psf in ("disk", "best"):

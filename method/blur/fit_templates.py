@@ -114,18 +114,24 @@ def template_table(half_window, s_max):
     return s_grid, t0_grid, table, cum, table_t, cum_t, table_c, cum_c
 
 
-@numba.njit(cache=True, nogil=True)
-def _score(r, a, b, K, table, cum, i, j):
-    """Least-squares fit of r[a..b] by A·T[i, j]: returns (r·T)²/(T·T) (0 if A would be ≤ 0)."""
-    dot = 0.0
-    for k in range(a, b + 1):
-        dot += r[k + K] * table[i, j, k + K]
+@numba.njit(cache=True, nogil=True, inline="always")
+def _finish(dot, cum, i, j, a, b, K):
+    """:func:`_score` of template (i, j) from its dot product with r[a..b]."""
     if dot <= 0.0:
         return 0.0
     energy = cum[i, j, b + K + 1] - cum[i, j, a + K]
     if energy <= 0.0:
         return 0.0
     return dot * dot / energy
+
+
+@numba.njit(cache=True, nogil=True)
+def _score(r, a, b, K, table, cum, i, j):
+    """Least-squares fit of r[a..b] by A·T[i, j]: returns (r·T)²/(T·T) (0 if A would be ≤ 0)."""
+    dot = 0.0
+    for k in range(a, b + 1):
+        dot += r[k + K] * table[i, j, k + K]
+    return _finish(dot, cum, i, j, a, b, K)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -233,17 +239,6 @@ def _best_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, coarse
             delta = 0.5 * (e_m - e_p) / den
             pos += max(-0.5, min(0.5, delta))
     return s_grid[0] * (s_grid[1] / s_grid[0]) ** pos, best
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _finish(dot, cum, i, j, a, b, K):
-    """:func:`_score` of template (i, j) from its dot product with r[a..b]."""
-    if dot <= 0.0:
-        return 0.0
-    energy = cum[i, j, b + K + 1] - cum[i, j, a + K]
-    if energy <= 0.0:
-        return 0.0
-    return dot * dot / energy
-
 
 @numba.njit(cache=True, nogil=True)
 def _scores_along_s(r, a, b, K, table_t, cum_t, j, i0, n, out):

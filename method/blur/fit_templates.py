@@ -91,7 +91,8 @@ def blur_from_extrema_distance(d, sigma2):
 
 @functools.lru_cache(maxsize=4)
 def template_table(half_window, s_max):
-    """Model templates T[i, j, k] = m_{s'_i}(k − t0_j), k = −K…K, and their cumulative energy."""
+    """Model templates T[i, j, k] = m_{s'_i}(k − t0_j), k = −K…K, their cumulative energy over k, T as [j, k, i]
+    and its every COARSE_STRIDE-th s' (the coarse pass's)."""
     n_s = int(math.ceil(math.log(s_max / S_GRID_MIN) / math.log(S_GRID_RATIO))) + 1
     s_grid = S_GRID_MIN * S_GRID_RATIO ** np.arange(n_s)
     n_t = int(round(2 * T0_GRID_HALF / T0_GRID_STEP)) + 1
@@ -102,9 +103,26 @@ def template_table(half_window, s_max):
     # Amplitude is fitted in closed form, so the normalisation only needs to be well scaled.
     table = -(x / s) * np.exp(-0.5 * (x / s) ** 2) / s ** 2
     cum = np.concatenate([np.zeros((n_s, n_t, 1)), np.cumsum(table ** 2, axis=2)], axis=2)
-    table.setflags(write=False)
-    cum.setflags(write=False)
-    return s_grid, t0_grid, table, cum
+    # the same values ordered (t0, k, s'), and every COARSE_STRIDE-th s' of them: the search's passes
+    # along s' read contiguous rows
+    table_t = np.ascontiguousarray(table.transpose(1, 2, 0))
+    cum_t = np.ascontiguousarray(cum.transpose(1, 2, 0))
+    table_c = np.ascontiguousarray(table_t[:, :, ::COARSE_STRIDE])
+    cum_c = np.ascontiguousarray(cum_t[:, :, ::COARSE_STRIDE])
+    for a in (table, cum, table_t, cum_t, table_c, cum_c):
+        a.setflags(write=False)
+    return s_grid, t0_grid, table, cum, table_t, cum_t, table_c, cum_c
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
+def _finish(dot, cum, i, j, a, b, K):
+    """:func:`_score` of template (i, j) from its dot product with r[a..b]."""
+    if dot <= 0.0:
+        return 0.0
+    energy = cum[i, j, b + K + 1] - cum[i, j, a + K]
+    if energy <= 0.0:
+        return 0.0
+    return dot * dot / energy
 
 
 @numba.njit(cache=True, nogil=True)
@@ -113,12 +131,7 @@ def _score(r, a, b, K, table, cum, i, j):
     dot = 0.0
     for k in range(a, b + 1):
         dot += r[k + K] * table[i, j, k + K]
-    if dot <= 0.0:
-        return 0.0
-    energy = cum[i, j, b + K + 1] - cum[i, j, a + K]
-    if energy <= 0.0:
-        return 0.0
-    return dot * dot / energy
+    return _finish(dot, cum, i, j, a, b, K)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -227,6 +240,95 @@ def _best_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, coarse
             pos += max(-0.5, min(0.5, delta))
     return s_grid[0] * (s_grid[1] / s_grid[0]) ** pos, best
 
+@numba.njit(cache=True, nogil=True)
+def _scores_along_s(r, a, b, K, table_t, cum_t, j, i0, n, out):
+    """out[m] = :func:`_score` of T[i0 + m, j] for m < n (T[i, j, k] = table_t[j, k, i], cum likewise).
+
+    Each dot product is summed in ascending k as in :func:`_score` (the same bytes); the n sums
+    advance together, so they are independent chains the CPU overlaps and vectorises.
+    """
+    for m in range(n):
+        out[m] = 0.0
+    for k in range(a, b + 1):
+        rk = r[k + K]
+        row = table_t[j, k + K]
+        for m in range(n):
+            out[m] += rk * row[i0 + m]
+    hi, lo = cum_t[j, b + K + 1], cum_t[j, a + K]
+    for m in range(n):
+        dot = out[m]
+        energy = hi[i0 + m] - lo[i0 + m]
+        out[m] = 0.0 if dot <= 0.0 or energy <= 0.0 else dot * dot / energy
+
+
+@numba.njit(cache=True, nogil=True)
+def _dots_along_t0(r, a, b, K, table, i, j0, n, out):
+    """out[m] = r[a..b]·T[i, j0 + m] for m < n, each summed in ascending k as in :func:`_score`."""
+    for m in range(n):
+        out[m] = 0.0
+    for k in range(a, b + 1):
+        rk = r[k + K]
+        for m in range(n):
+            out[m] += rk * table[i, j0 + m, k + K]
+
+
+@numba.njit(cache=True, nogil=True)
+def _best_gaussian_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, table_t, cum_t, table_c, cum_c,
+                            coarse_stride, buf):
+    """:func:`_best_template` for Eq. (2c) alone (``disk`` False, whole grid): the same search and result.
+
+    Each pass computes its templates' scores together (:func:`_scores_along_s`, :func:`_dots_along_t0`)
+    and then scans them in the order of :func:`_best_template`; every score is the same float as
+    :func:`_score`'s, so the chosen template and (s', best score) are identical. ``table_t``, ``cum_t``
+    and ``table_c``, ``cum_c`` are :func:`template_table`'s T and its cumulative energy as [j, k, i],
+    all s' and every ``coarse_stride``-th (:data:`COARSE_STRIDE`); ``buf`` is scratch of length
+    ≥ max(⌈n_s / coarse_stride⌉, 2·coarse_stride + 1, 9).
+    """
+    n_s = s_grid.shape[0]
+    n_t = t0_grid.shape[0]
+    t0_min = t0_grid[0]
+    t0_step = t0_grid[1] - t0_grid[0]
+    jc = int(round((k0 - t0_min) / t0_step))
+    jc = max(0, min(n_t - 1, jc))
+    best_i, best = -1, 0.0
+    n = (n_s + coarse_stride - 1) // coarse_stride
+    _scores_along_s(r, a, b, K, table_c, cum_c, jc, 0, n, buf)
+    for m in range(n):
+        if buf[m] > best:
+            best, best_i = buf[m], m * coarse_stride
+    if best_i < 0:
+        return np.nan, 0.0
+    bi, bj = best_i, jc
+    lo, hi = max(0, best_i - coarse_stride), min(n_s, best_i + coarse_stride + 1)
+    _scores_along_s(r, a, b, K, table_t, cum_t, jc, lo, hi - lo, buf)
+    for m in range(hi - lo):
+        if buf[m] > best:
+            best, bi = buf[m], lo + m
+    i_mid = bi
+    lo, hi = max(0, jc - 4), min(n_t, jc + 5)
+    _dots_along_t0(r, a, b, K, table, i_mid, lo, hi - lo, buf)
+    for m in range(hi - lo):
+        sc = _finish(buf[m], cum, i_mid, lo + m, a, b, K)
+        if sc > best:
+            best, bj = sc, lo + m
+    j_mid = bj
+    lo, hi = max(0, i_mid - 3), min(n_s, i_mid + 4)
+    _scores_along_s(r, a, b, K, table_t, cum_t, j_mid, lo, hi - lo, buf)
+    for m in range(hi - lo):
+        if buf[m] > best:
+            best, bi = buf[m], lo + m
+    pos = float(bi)
+    if 0 < bi < n_s - 1:
+        e_m = energy_r - _score(r, a, b, K, table, cum, bi - 1, bj)
+        e_0 = energy_r - best
+        e_p = energy_r - _score(r, a, b, K, table, cum, bi + 1, bj)
+        den = e_m - 2.0 * e_0 + e_p
+        if den > 0.0:
+            delta = 0.5 * (e_m - e_p) / den
+            pos += max(-0.5, min(0.5, delta))
+    return s_grid[0] * (s_grid[1] / s_grid[0]) ** pos, best
+
+
 EMPTY_DISK_TABLE = (np.zeros(1), np.zeros(1, dtype=np.int64), np.ones(1, dtype=np.int64), np.ones(1))
 
 
@@ -236,7 +338,7 @@ _FIT_CHUNK = 256
 
 @numba.njit(cache=True, nogil=True, parallel=True)
 def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
-                s_grid, t0_grid, table, cum, coarse_stride, out_s, out_res, out_win, out_energy,
+                s_grid, t0_grid, table, cum, table_t, cum_t, table_c, cum_c, coarse_stride, out_s, out_res, out_win, out_energy,
                 sigma2, disk_min_width, dvalues, doffsets, dlengths, dsteps, out_sd, out_resd):
     # out_res[n]: normalised residual (‖r‖² − best score)/‖r‖² of the best grid fit, in [0, 1]
     # (NaN where out_s is NaN); out_win[n]: number of samples b − a + 1 in the fit window (0 where
@@ -257,6 +359,7 @@ def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
     bracket_hi = math.log(1.25) / log_ratio
     for chunk in numba.prange((nrows + _FIT_CHUNK - 1) // _FIT_CHUNK):
         r = np.zeros(2 * K + 1)
+        buf = np.empty(max(n_s, 2 * coarse_stride + 1, 9))
         for n in range(chunk * _FIT_CHUNK, min(nrows, (chunk + 1) * _FIT_CHUNK)):
             out_s[n] = np.nan
             out_res[n] = np.nan
@@ -321,8 +424,8 @@ def _fit_kernel(ixx, ixy, iyy, rows, cols, cos_t, sin_t, w_min, w_max, kappa,
             for k in range(a, b + 1):
                 energy_r += r[k + K] * r[k + K]
             # 4.–5. brute-force search over (s', t0) and parabolic refinement (_best_template)
-            s_prime, best = _best_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, coarse_stride,
-                                           False, 0.0, dvalues, doffsets, dlengths, dsteps, 0, n_s)
+            s_prime, best = _best_gaussian_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, table_t,
+                                                    cum_t, table_c, cum_c, coarse_stride, buf)
             if not (s_prime == s_prime):  # no positive-amplitude template
                 continue
             out_s[n] = s_prime * proj

@@ -66,21 +66,27 @@ def width_information(width_samples, n_samples) -> np.ndarray:
     if not ok.any():
         return out
     sv, nv = np.broadcast_to(s, out.shape)[ok], np.broadcast_to(n, out.shape)[ok]
+    # longest windows first: the measures a sample offset can reach are a prefix
+    order = np.argsort(-nv, kind="stable")
+    sv, nv = sv[order], nv[order]
     half = 0.5 * (nv - 1.0)
-    k_max = int(np.ceil(half.max()))
-    offsets = np.arange(-k_max, k_max + 1, dtype=np.float64)
-    mm = md = dd = np.zeros(sv.size)
-    for o in offsets:  # one sample offset at a time: O(N) memory, vectorised over the measures
-        k = o + (half - np.floor(half))  # an even window is centred between two samples
-        inside = np.abs(k) <= half + 1e-9
-        u = k / sv
+    shift = half - np.floor(half)  # an even window is centred between two samples
+    k_max = int(np.ceil(half[0]))
+    mm, md, dd = np.zeros(sv.size), np.zeros(sv.size), np.zeros(sv.size)
+    for o in np.arange(-k_max, k_max + 1, dtype=np.float64):  # one sample offset at a time, vectorised
+        # over the measures whose window reaches it (|o| − 1 < half; elsewhere m = d = 0 adds nothing)
+        p = int(np.searchsorted(-half, 1.0 - abs(o), side="left"))
+        k = o + shift[:p]
+        inside = np.abs(k) <= half[:p] + 1e-9
+        u = k / sv[:p]
         m = np.where(inside, k * np.exp(-0.5 * u * u), 0.0)
         d = m * (u * u - 3.0)  # s'·∂m/∂s'
-        mm = mm + m * m
-        md = md + m * d
-        dd = dd + d * d
+        mm[:p] += m * m
+        md[:p] += m * d
+        dd[:p] += d * d
     with np.errstate(invalid="ignore", divide="ignore"):
-        g = (dd - md * md / mm) / mm
+        g = np.empty(sv.size)
+        g[order] = (dd - md * md / mm) / mm
     # three centred samples (and any window where ∂m/∂s' ∥ m) cannot tell the width from the amplitude
     out[ok] = np.where(np.isfinite(g), np.where(g > _G_MIN, g, 0.0), np.nan)
     return out

@@ -267,7 +267,7 @@ def model_fit_diagnostics(gray, edge_map, *, params):
     if not groups:
         return diag
     s_max = math.sqrt(float(params.max_sigma) ** 2 + max(g[0] for g in groups) ** 2) * math.sqrt(2.0)
-    s_grid, t0_grid, table, cum = template_table(w_max, float(np.float32(max(s_max, 1.0))))
+    templates = template_table(w_max, float(np.float32(max(s_max, 1.0))))
     cached = edge_map.hessians or {}
     bank = None
     theta = np.asarray(edge_map.theta, dtype=np.float64)
@@ -287,7 +287,7 @@ def model_fit_diagnostics(gray, edge_map, *, params):
             ixx, ixy, iyy = bank.hessian(sigma2)
         th = theta[rows, cols]
         s_est, r_est, w_est, e_est, sd_est, rd_est = run_fit_kernel(
-            (ixx, ixy, iyy), rows, cols, th, w_min, w_max, (s_grid, t0_grid, table, cum), sigma2,
+            (ixx, ixy, iyy), rows, cols, th, w_min, w_max, templates, sigma2,
             first_min_width, disk_table)
         sigma_b = blur_from_extrema_distance(2.0 * s_est, sigma2)
         out[rows, cols] = np.clip(sigma_b, 0.0, float(params.max_sigma))
@@ -308,14 +308,17 @@ def model_fit_diagnostics(gray, edge_map, *, params):
             if sel.any():
                 rr, cc = rows[sel], cols[sel]
                 *_, sd_est, rd_est = run_fit_kernel(hessian, rr, cc, th[sel], w_min, w_max,
-                                                     (s_grid, t0_grid, table, cum), sigma2, 0.0, disk_table)
+                                                     templates, sigma2, 0.0, disk_table)
                 disk_width[rr, cc] = sd_est
                 disk_res[rr, cc] = rd_est
 
-    if psf == "auto":
-        sample = psf_selection_sample(width, s2_map)
+    if psf == "auto":  # decided on the fitted pixels (all in the groups), in raster order as on the image
+        flat = np.sort(np.concatenate([rows * img.shape[1] + cols for _, rows, cols in groups]))
+        fits = {name: diag[name].ravel()[flat] for name in ("residual", "width", "sigma2")}
+        sample = np.zeros(img.shape, dtype=bool)
+        sample.ravel()[flat] = psf_selection_sample(fits["width"], fits["sigma2"])
         fit_disk(lambda rr, cc: sample[rr, cc])
-        if select_psf_model(diag, disk_width, disk_res) == "disk":
+        if select_psf_model(fits, disk_width.ravel()[flat], disk_res.ravel()[flat]) == "disk":
             fit_disk(lambda rr, cc: np.isfinite(width[rr, cc]) & ~np.isfinite(disk_width[rr, cc]))
             choose_psf(diag, disk_width, disk_res, psf="disk", max_sigma=float(params.max_sigma))
     elif psf in ("disk", "best"):

@@ -134,12 +134,16 @@ def fit_measure_sd(diagnostics, edge_map, *, params, noise_variance=None):
     ndarray, (H, W), float64
         sd(σb), px; NaN where not fitted.
     """
-    v_pixel = float(params.noise_std) ** 2 if noise_variance is None else np.asarray(noise_variance)
+    fitted = np.isfinite(diagnostics["width"])  # measure_sd is NaN wherever the width is: evaluate the rest only
+    fits = {name: np.asarray(diagnostics[name])[fitted] for name in ("width", "sigma2", "residual", "energy", "window")}
+    v_pixel = float(params.noise_std) ** 2 if noise_variance is None else np.asarray(noise_variance)[fitted]
     with np.errstate(invalid="ignore"):
-        v_sample = steered_second_noise_variance(diagnostics["sigma2"], 1.0) * v_pixel
-    theta = np.asarray(edge_map.theta, dtype=np.float64)
+        v_sample = steered_second_noise_variance(fits["sigma2"], 1.0) * v_pixel
+    theta = np.asarray(edge_map.theta, dtype=np.float64)[fitted]
     proj = np.maximum(np.abs(np.cos(theta)), np.abs(np.sin(theta)))
-    return measure_sd(diagnostics, sample_noise_variance=v_sample, proj=proj)
+    out = np.full(fitted.shape, np.nan)
+    out[fitted] = measure_sd(fits, sample_noise_variance=v_sample, proj=proj)
+    return out
 
 
 def estimate_blur_model_fit_checked_sd(gray, edge_map, *, params):

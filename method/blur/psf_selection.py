@@ -33,6 +33,8 @@ def psf_selection_sample(width, sigma2):
 
     Candidates have a finite Gaussian width s > PSF_SELECT_MIN_WIDTH · σ2; beyond PSF_SELECT_SAMPLE
     candidates every k-th one in raster order is kept (deterministic; the statistic is a mean).
+    ``width`` and ``sigma2`` (px) are the image's (H, W) or its fitted pixels' in raster order (N,):
+    the same pixels are chosen (the others have no width).
     """
     with np.errstate(invalid="ignore"):
         cand = np.isfinite(width) & (width > PSF_SELECT_MIN_WIDTH * sigma2)
@@ -64,7 +66,8 @@ def select_psf_model(diag, disk_width, disk_res) -> str:
         The Gaussian fit's diagnostics (:func:`model_fit_diagnostics` with ``fit_psf="gaussian"``:
         ``residual``, ``width``, px, ``sigma2``, px).
     disk_width, disk_res : ndarray, (H, W)
-        Width s (px) and normalised residual of the disk model's fit on the same windows.
+        Width s (px) and normalised residual of the disk model's fit on the same windows. All four
+        arrays may instead be the fitted pixels' in raster order, (N,): the same choice.
 
     Returns
     -------

@@ -57,13 +57,18 @@ def _restricted(edge_map, mask, sigma2):
 
 
 def _nearest_scale(values, scales):
-    """The value of ``scales`` (px) nearest each of ``values`` (px) in log scale; NaN where not > 0."""
-    grid = np.log(np.asarray(sorted(scales), dtype=np.float64))
+    """The value of ``scales`` (px) nearest each of ``values`` (px) in log scale; NaN where not > 0.
+
+    The values are the scales themselves (not exp(log(scale))), so the detector's responses at that
+    scale (``EdgeMap.hessians``) serve the re-fit.
+    """
+    scales = np.asarray(sorted(scales), dtype=np.float64)
+    grid = np.log(scales)
     values = np.asarray(values, dtype=np.float64)
     out = np.full(values.shape, np.nan)
     ok = np.isfinite(values) & (values > 0)  # the edge pixels only (values are NaN off edges)
     logv = np.log(values[ok])
-    out[ok] = np.exp(grid)[np.argmin(np.abs(logv[:, None] - grid), axis=-1)]
+    out[ok] = scales[np.argmin(np.abs(logv[:, None] - grid), axis=-1)]
     return out
 
 

@@ -140,6 +140,27 @@ def test_constant_variance_map_gives_the_constant_thresholds():
 def test_detect_edges_refuses_a_bad_variance_map(bad):
     with pytest.raises(ValueError, match="noise_variance"):
         detect_edges(_halves("iso100"), noise_variance=bad)
+    with pytest.raises(ValueError, match="noise_variance"):  # also when it is computed lazily
+        detect_edges(_halves("iso100"), noise_variance=lambda: bad)
+
+
+def test_lazy_noise_estimates_give_the_same_edges():
+    """Callables for the variance map and the spectrum (the pipeline's: run while the first gradients are
+    transformed) give the bytes of the arrays themselves."""
+    from method.blur.noise_spectrum import noise_spectrum_of
+
+    seen = _halves("iso800")
+    params = DefocusParams(noise_model="signal_dependent", measure_light="linear", noise_spectrum="estimated")
+    var, spectrum = noise_variance_map(seen, params), noise_spectrum_of(seen, params)
+    calls = []
+    eager = detect_edges(seen, noise_variance=var, noise_spectrum=spectrum)
+    lazy = detect_edges(seen, noise_variance=lambda: calls.append(1) or var,
+                        noise_spectrum=lambda: calls.append(2) or spectrum)
+    assert calls == [1, 2]
+    for name in ("edges", "theta", "gradient_magnitude", "sigma1", "sigma2", "noise_variance"):
+        assert getattr(lazy, name).tobytes() == getattr(eager, name).tobytes(), name
+    assert lazy.noise_spectrum == spectrum
+    assert detect_edges(seen, noise_variance=lambda: None).noise_variance is None
 
 
 def test_residual_share_reads_the_per_pixel_variance():

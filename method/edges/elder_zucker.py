@@ -160,6 +160,17 @@ def _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, c2, noise, scale, level, si
     return left, new
 
 
+def _noise_factor(noise_variance, noise_std, shape):
+    """(per-pixel noise std factor (H, W), the s_n it multiplies, the variance kept or None) of :func:`detect_edges`."""
+    if noise_variance is None:  # c·1.0 == c: the paper's constant thresholds, bit for bit
+        return np.ones(shape), noise_std, None
+    var = np.asarray(noise_variance, dtype=np.float64)
+    if var.shape != shape or not (np.all(np.isfinite(var)) and np.all(var > 0)):
+        raise ValueError(f"noise_variance (shape {var.shape}) is invalid; allowed: None or finite values > 0 "
+                         f"of the image's shape {shape}")
+    return np.sqrt(var), 1.0, var
+
+
 def _scales(scales, name):
     try:
         vals = tuple(sorted(float(s) for s in scales))
@@ -191,15 +202,18 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
         Keep the 2nd-derivative responses of every σ2 that produced edge pixels in
         ``EdgeMap.hessians`` so the model-fit estimator does not recompute them (≈ 12 MB per σ2 at
         1 MP). Default False.
-    noise_variance : ndarray, shape (H, W), float, or None, keyword-only
+    noise_variance : ndarray, shape (H, W), float, or None, or a callable returning one, keyword-only
         Beyond the paper: the per-pixel noise variance, image units² (> 0; e.g.
         :func:`method.blur.noise_model.noise_variance_map`); the thresholds of Eq. (9) then use the
         pixel's own s_n = √variance instead of ``noise_std``. None (default): ``noise_std`` everywhere.
-    noise_spectrum : NoiseSpectrum or None, keyword-only
+        A callable (no argument) is called once the first gradient responses are under way, so an
+        estimate from the image overlaps their transforms.
+    noise_spectrum : NoiseSpectrum or None, or a callable returning one, keyword-only
         Beyond the paper: the noise's power spectrum relative to white noise of that variance
         (:func:`method.blur.noise_spectrum.estimate_noise_spectrum`); each threshold of scale σ is then
         multiplied by √``noise_spectrum.factor(k, σ)`` (k = 1 for c1, 2 for c2): the std of that
-        filter's response to the correlated noise. None (default): white noise.
+        filter's response to the correlated noise. None (default): white noise. A callable: as for
+        ``noise_variance``.
 
     Returns
     -------
@@ -247,21 +261,16 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
     alpha_p = per_pixel_false_positive_rate(false_positive_rate, h * w)
     if not (np.isfinite(noise_std) and noise_std > 0):
         raise ValueError(f"noise_std={noise_std!r} is invalid; allowed: > 0 (image units)")
-    if noise_variance is None:  # c·1.0 == c: the paper's constant thresholds, bit for bit
-        noise, s_n, var = np.ones((h, w)), noise_std, None
-    else:
-        var = np.asarray(noise_variance, dtype=np.float64)
-        if var.shape != (h, w) or not (np.all(np.isfinite(var)) and np.all(var > 0)):
-            raise ValueError(f"noise_variance (shape {var.shape}) is invalid; allowed: None or finite values > 0 "
-                             f"of the image's shape {(h, w)}")
-        noise, s_n = np.sqrt(var), 1.0
-
     threads = numba.get_num_threads()
     bank = GaussianDerivativeBank(img, max(s1[-1], s2[-1]), precision="single", workers=1)
     sigma1 = np.full((h, w), np.nan)
     theta = np.zeros((h, w))
     gmag = np.zeros((h, w))
     with bank.responses([(s, *orders) for s in s1 for orders in ((1, 0), (0, 1))], threads=threads) as gradients:
+        # a lazy noise estimate runs while the first gradients are transformed
+        noise, s_n, var = _noise_factor(noise_variance() if callable(noise_variance) else noise_variance,
+                                        noise_std, (h, w))
+        noise_spectrum = noise_spectrum() if callable(noise_spectrum) else noise_spectrum
         for s in s1:
             c1 = first_derivative_threshold(s, noise_std=s_n, alpha_p=alpha_p)
             if noise_spectrum is not None:

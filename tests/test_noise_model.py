@@ -210,3 +210,18 @@ def test_good_noise_fields():
     assert (p.noise_a, p.noise_b, p.edges.noise_model) == (2e-4, 0, "signal_dependent")
     with pytest.raises(ValueError, match="light=.*allowed"):
         noise_variance(0.5, 1e-3, 0.0, light="raw")
+
+
+def test_second_differences_are_numpys_shifted_sum_byte_for_byte(rng):
+    """The one-pass kernel of the noise estimate equals the nine shifted NumPy images summed left to right."""
+    from method.blur.image_noise import _second_differences
+
+    for shape in ((3, 3), (10, 17), (64, 41)):
+        g = rng.random(shape) * rng.choice([1e-3, 1.0, 1e3], size=shape)
+        want = (g[:-2, :-2] - 2 * g[:-2, 1:-1] + g[:-2, 2:] - 2 * g[1:-1, :-2] + 4 * g[1:-1, 1:-1]
+                - 2 * g[1:-1, 2:] + g[2:, :-2] - 2 * g[2:, 1:-1] + g[2:, 2:])
+        got = _second_differences(g)
+        assert got.shape == want.shape and got.tobytes() == want.tobytes(), shape
+    assert _second_differences(np.zeros((2, 5))).shape == (0, 3)
+    ramp = np.add.outer(np.arange(6.0), 2 * np.arange(7.0))
+    assert np.all(_second_differences(ramp) == 0)  # 0 on a linear ramp; not a copy of the input

@@ -95,8 +95,8 @@ class GaussianDerivativeBank:
         < 1e−3 of the Eq. (9) thresholds at every paper scale (measured), so the edge detector uses
         it. Responses are float64 for "double", float32 for "single".
     workers : int or None, keyword-only
-        FFT threads; None (default): numba's thread count (:func:`numba.get_num_threads`, which
-        :func:`experiments.threads.single_threaded` sets to 1 for the runner's cases).
+        FFT threads; None (default): numba's thread count (:func:`numba.get_num_threads`), so a
+        caller that limits numba to one thread (the runner's cases do) gets one-thread FFTs too.
 
     Notes
     -----

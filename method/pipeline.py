@@ -268,8 +268,8 @@ def edges_stage(gray, *, params, encoding: str = "srgb"):
                                   high_threshold=params.canny_high_threshold)
     return detect_edges(gray, sigma1_scales=params.sigma1_scales, sigma2_scales=params.sigma2_scales,
                         noise_std=params.noise_std, false_positive_rate=params.false_positive_rate,
-                        noise_variance=noise_variance_map(gray, params, encoding=encoding),
-                        noise_spectrum=noise_spectrum_of(gray, params),
+                        noise_variance=lambda: noise_variance_map(gray, params, encoding=encoding),
+                        noise_spectrum=lambda: noise_spectrum_of(gray, params),
                         keep_hessians="detector_hessians" in BLUR_ESTIMATORS.entry(params.estimator).capabilities)
 
 

@@ -113,3 +113,20 @@ def test_bad_options_raise():
         detect_edges(img, noise_std=0.0)
     with pytest.raises(ValueError, match="false_positive_rate"):
         detect_edges(img, false_positive_rate=2.0)
+
+
+def test_edges_do_not_depend_on_the_thread_count(rng, monkeypatch):
+    """One thread (the runner's cases) and several (responses computed ahead on a pool) give the same bytes."""
+    import numba
+
+    img = blurred_disk(_SHAPE, sigma=2.0, radius=22.0, noise_std=0.02, rng=rng).image
+    maps = []
+    for n in (1, 3):  # the pool's path whatever the machine's core count
+        monkeypatch.setattr(numba, "get_num_threads", lambda n=n: n)
+        maps.append(detect_edges(img, keep_hessians=True))
+    assert maps[0].edges.any() and len(maps[0].hessians) > 1
+    for name in ("edges", "theta", "gradient_magnitude", "sigma1", "sigma2"):
+        assert getattr(maps[1], name).tobytes() == getattr(maps[0], name).tobytes(), name
+    assert sorted(maps[1].hessians) == sorted(maps[0].hessians)
+    for s in maps[0].hessians:
+        assert [h.tobytes() for h in maps[1].hessians[s]] == [h.tobytes() for h in maps[0].hessians[s]]

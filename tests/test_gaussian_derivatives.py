@@ -290,3 +290,36 @@ def test_steering_weights_match_the_closed_form_bit_for_bit():
         np.testing.assert_array_equal(got, want)
     assert nearest_axis_step(0.9, -0.3) == (0, 1, 0.9)
     assert nearest_axis_step(-0.2, -0.8) == (-1, 0, 0.8)
+
+
+def test_responses_on_threads_are_response_byte_for_byte(rng):
+    """The responses computed ahead on threads are :meth:`response`'s, in request order; close() stops early."""
+    img = np.clip(0.5 + 0.2 * rng.standard_normal((61, 70)), 0, 1)
+    bank = GaussianDerivativeBank(img, 16.0, precision="single", workers=1)
+    requests = [(s, a, b) for s in (0.5, 2.0, 16.0) for a, b in ((1, 0), (0, 1), (2, 0), (1, 1), (0, 2))]
+    want = [GaussianDerivativeBank(img, 16.0, precision="single", workers=1).response(*r) for r in requests]
+    for threads, ahead in ((1, 6), (2, 1), (2, 6), (3, 100)):
+        got = list(bank.responses(requests, threads=threads, ahead=ahead))
+        assert [g.tobytes() for g in got] == [w.tobytes() for w in want], (threads, ahead)
+    # responses of different requests differ: the order is tested, not just the values
+    assert want[0].tobytes() != want[1].tobytes()
+    stream = bank.responses(requests, threads=2, ahead=4)
+    assert next(stream).tobytes() == want[0].tobytes()
+    stream.close()
+    with pytest.raises(StopIteration):
+        next(stream)
+
+
+def test_bank_fft_threads_follow_numbas_thread_count():
+    """Without ``workers`` the bank's FFTs use numba's thread count (1 inside the runner's single_threaded)."""
+    import numba
+
+    from experiments.threads import single_threaded
+
+    img = np.zeros((20, 20))
+    assert GaussianDerivativeBank(img, 1.0).workers == numba.get_num_threads()
+    with single_threaded():
+        assert GaussianDerivativeBank(img, 1.0).workers == 1
+    assert GaussianDerivativeBank(img, 1.0, workers=3).workers == 3
+    with pytest.raises(ValueError, match="workers"):
+        GaussianDerivativeBank(img, 1.0, workers=0)

@@ -140,6 +140,27 @@ def test_constant_variance_map_gives_the_constant_thresholds():
 def test_detect_edges_refuses_a_bad_variance_map(bad):
     with pytest.raises(ValueError, match="noise_variance"):
         detect_edges(_halves("iso100"), noise_variance=bad)
+    with pytest.raises(ValueError, match="noise_variance"):  # also when it is computed lazily
+        detect_edges(_halves("iso100"), noise_variance=lambda: bad)
+
+
+def test_lazy_noise_estimates_give_the_same_edges():
+    """Callables for the variance map and the spectrum (the pipeline's: run while the first gradients are
+    transformed) give the bytes of the arrays themselves."""
+    from method.blur.noise_spectrum import noise_spectrum_of
+
+    seen = _halves("iso800")
+    params = DefocusParams(noise_model="signal_dependent", measure_light="linear", noise_spectrum="estimated")
+    var, spectrum = noise_variance_map(seen, params), noise_spectrum_of(seen, params)
+    calls = []
+    eager = detect_edges(seen, noise_variance=var, noise_spectrum=spectrum)
+    lazy = detect_edges(seen, noise_variance=lambda: calls.append(1) or var,
+                        noise_spectrum=lambda: calls.append(2) or spectrum)
+    assert calls == [1, 2]
+    for name in ("edges", "theta", "gradient_magnitude", "sigma1", "sigma2", "noise_variance"):
+        assert getattr(lazy, name).tobytes() == getattr(eager, name).tobytes(), name
+    assert lazy.noise_spectrum == spectrum
+    assert detect_edges(seen, noise_variance=lambda: None).noise_variance is None
 
 
 def test_residual_share_reads_the_per_pixel_variance():
@@ -189,3 +210,18 @@ def test_good_noise_fields():
     assert (p.noise_a, p.noise_b, p.edges.noise_model) == (2e-4, 0, "signal_dependent")
     with pytest.raises(ValueError, match="light=.*allowed"):
         noise_variance(0.5, 1e-3, 0.0, light="raw")
+
+
+def test_second_differences_are_numpys_shifted_sum_byte_for_byte(rng):
+    """The one-pass kernel of the noise estimate equals the nine shifted NumPy images summed left to right."""
+    from method.blur.image_noise import _second_differences
+
+    for shape in ((3, 3), (10, 17), (64, 41)):
+        g = rng.random(shape) * rng.choice([1e-3, 1.0, 1e3], size=shape)
+        want = (g[:-2, :-2] - 2 * g[:-2, 1:-1] + g[:-2, 2:] - 2 * g[1:-1, :-2] + 4 * g[1:-1, 1:-1]
+                - 2 * g[1:-1, 2:] + g[2:, :-2] - 2 * g[2:, 1:-1] + g[2:, 2:])
+        got = _second_differences(g)
+        assert got.shape == want.shape and got.tobytes() == want.tobytes(), shape
+    assert _second_differences(np.zeros((2, 5))).shape == (0, 3)
+    ramp = np.add.outer(np.arange(6.0), 2 * np.arange(7.0))
+    assert np.all(_second_differences(ramp) == 0)  # 0 on a linear ramp; not a copy of the input

@@ -81,16 +81,16 @@ class EdgeMap:
     noise_spectrum: NoiseSpectrum | None = dataclasses.field(default=None, repr=False, compare=False)
 
 
-@numba.njit(cache=True, nogil=True, parallel=True)
+@numba.njit(cache=True, nogil=True)
 def _gradient_pass(ix, iy, c1, noise, scale, sigma1, theta, gmag):
     """Assign σ1 = scale, θ and |∇| to unresolved pixels whose |∇| exceeds c1·noise; count the rest.
 
-    Every pixel reads and writes only itself: rows run in parallel (the count is an integer sum),
-    with the same result for any thread count.
+    Every pixel reads and writes only itself. One thread: the passes run while the bank's threads
+    compute the next scale's responses (:meth:`GaussianDerivativeBank.responses`).
     """
     h, w = ix.shape
     left = 0
-    for i in numba.prange(h):
+    for i in range(h):
         for j in range(w):
             if sigma1[i, j] == sigma1[i, j]:  # already resolved (not NaN)
                 continue
@@ -106,7 +106,7 @@ def _gradient_pass(ix, iy, c1, noise, scale, sigma1, theta, gmag):
     return left
 
 
-@numba.njit(cache=True, nogil=True, parallel=True)
+@numba.njit(cache=True, nogil=True)
 def _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, c2, noise, scale, level, sigma1, sigma2, edge_level):
     """One σ2 scale of the 2nd-derivative test for every undecided pixel with a reliable gradient.
 
@@ -117,13 +117,12 @@ def _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, c2, noise, scale, level, si
     pixels still undecided and the number of new edge pixels.
 
     A pixel writes only its own σ2 and edge level and reads its neighbours' edge levels only for
-    levels below this one (set by earlier passes), so rows run in parallel with the same result
-    for any thread count (the counts are integer sums).
+    levels below this one (set by earlier passes). One thread, as :func:`_gradient_pass`.
     """
     h, w = ixx.shape
     left = 0
     new = 0
-    for i in numba.prange(h):
+    for i in range(h):
         for j in range(w):
             if sigma1[i, j] != sigma1[i, j] or sigma2[i, j] == sigma2[i, j]:
                 continue
@@ -161,6 +160,17 @@ def _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, c2, noise, scale, level, si
     return left, new
 
 
+def _noise_factor(noise_variance, noise_std, shape):
+    """(per-pixel noise std factor (H, W), the s_n it multiplies, the variance kept or None) of :func:`detect_edges`."""
+    if noise_variance is None:  # c·1.0 == c: the paper's constant thresholds, bit for bit
+        return np.ones(shape), noise_std, None
+    var = np.asarray(noise_variance, dtype=np.float64)
+    if var.shape != shape or not (np.all(np.isfinite(var)) and np.all(var > 0)):
+        raise ValueError(f"noise_variance (shape {var.shape}) is invalid; allowed: None or finite values > 0 "
+                         f"of the image's shape {shape}")
+    return np.sqrt(var), 1.0, var
+
+
 def _scales(scales, name):
     try:
         vals = tuple(sorted(float(s) for s in scales))
@@ -192,15 +202,18 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
         Keep the 2nd-derivative responses of every σ2 that produced edge pixels in
         ``EdgeMap.hessians`` so the model-fit estimator does not recompute them (≈ 12 MB per σ2 at
         1 MP). Default False.
-    noise_variance : ndarray, shape (H, W), float, or None, keyword-only
+    noise_variance : ndarray, shape (H, W), float, or None, or a callable returning one, keyword-only
         Beyond the paper: the per-pixel noise variance, image units² (> 0; e.g.
         :func:`method.blur.noise_model.noise_variance_map`); the thresholds of Eq. (9) then use the
         pixel's own s_n = √variance instead of ``noise_std``. None (default): ``noise_std`` everywhere.
-    noise_spectrum : NoiseSpectrum or None, keyword-only
+        A callable (no argument) is called once the first gradient responses are under way, so an
+        estimate from the image overlaps their transforms.
+    noise_spectrum : NoiseSpectrum or None, or a callable returning one, keyword-only
         Beyond the paper: the noise's power spectrum relative to white noise of that variance
         (:func:`method.blur.noise_spectrum.estimate_noise_spectrum`); each threshold of scale σ is then
         multiplied by √``noise_spectrum.factor(k, σ)`` (k = 1 for c1, 2 for c2): the std of that
-        filter's response to the correlated noise. None (default): white noise.
+        filter's response to the correlated noise. None (default): white noise. A callable: as for
+        ``noise_variance``.
 
     Returns
     -------
@@ -237,6 +250,9 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
     5. Pixels without a reliable gradient, or with no reliable σ2, are never edges.
     6. With ``keep_hessians``, the (I_xx, I_xy, I_yy) of each σ2 that produced edges are kept on the
        EdgeMap for the blur estimators (Sec. 3.2 samples the same responses).
+    7. Threads: the passes of steps 2–4 run on one thread while the next scales' responses are
+       computed ahead on :func:`numba.get_num_threads` threads (one FFT thread each;
+       :meth:`GaussianDerivativeBank.responses`); the result does not depend on the thread count.
     """
     img = check_gray_image(gray, "gray", MIN_IMAGE_SIZE)
     s1 = _scales(sigma1_scales, "sigma1_scales")
@@ -245,43 +261,42 @@ def detect_edges(gray, *, sigma1_scales=_DEFAULT_SIGMA1, sigma2_scales=_DEFAULT_
     alpha_p = per_pixel_false_positive_rate(false_positive_rate, h * w)
     if not (np.isfinite(noise_std) and noise_std > 0):
         raise ValueError(f"noise_std={noise_std!r} is invalid; allowed: > 0 (image units)")
-    if noise_variance is None:  # c·1.0 == c: the paper's constant thresholds, bit for bit
-        noise, s_n, var = np.ones((h, w)), noise_std, None
-    else:
-        var = np.asarray(noise_variance, dtype=np.float64)
-        if var.shape != (h, w) or not (np.all(np.isfinite(var)) and np.all(var > 0)):
-            raise ValueError(f"noise_variance (shape {var.shape}) is invalid; allowed: None or finite values > 0 "
-                             f"of the image's shape {(h, w)}")
-        noise, s_n = np.sqrt(var), 1.0
-
-    bank = GaussianDerivativeBank(img, max(s1[-1], s2[-1]), precision="single")
+    threads = numba.get_num_threads()
+    bank = GaussianDerivativeBank(img, max(s1[-1], s2[-1]), precision="single", workers=1)
     sigma1 = np.full((h, w), np.nan)
     theta = np.zeros((h, w))
     gmag = np.zeros((h, w))
-    for s in s1:
-        c1 = first_derivative_threshold(s, noise_std=s_n, alpha_p=alpha_p)
-        if noise_spectrum is not None:
-            c1 = c1 * np.sqrt(noise_spectrum.factor(1, s))
-        ix, iy = bank.gradient(s)
-        if _gradient_pass(ix, iy, float(c1), noise, float(s), sigma1, theta, gmag) == 0:
-            break
+    with bank.responses([(s, *orders) for s in s1 for orders in ((1, 0), (0, 1))], threads=threads) as gradients:
+        # a lazy noise estimate runs while the first gradients are transformed
+        noise, s_n, var = _noise_factor(noise_variance() if callable(noise_variance) else noise_variance,
+                                        noise_std, (h, w))
+        noise_spectrum = noise_spectrum() if callable(noise_spectrum) else noise_spectrum
+        for s in s1:
+            c1 = first_derivative_threshold(s, noise_std=s_n, alpha_p=alpha_p)
+            if noise_spectrum is not None:
+                c1 = c1 * np.sqrt(noise_spectrum.factor(1, s))
+            ix, iy = next(gradients), next(gradients)
+            if _gradient_pass(ix, iy, float(c1), noise, float(s), sigma1, theta, gmag) == 0:
+                break
 
     sigma2 = np.full((h, w), np.nan)
     edge_level = np.zeros((h, w), dtype=np.int32)
     hessians = {}
     if np.isfinite(sigma1).any():
-        cos_t, sin_t = np.cos(theta), np.sin(theta)
-        for level, s in enumerate(s2, start=1):
-            c2 = second_derivative_threshold(s, noise_std=s_n, alpha_p=alpha_p)
-            if noise_spectrum is not None:
-                c2 = c2 * np.sqrt(noise_spectrum.factor(2, s))
-            ixx, ixy, iyy = bank.hessian(s)
-            left, new = _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, float(c2), noise, float(s), level,
-                                            sigma1, sigma2, edge_level)
-            if keep_hessians and new:
-                hessians[float(s)] = (ixx, ixy, iyy)
-            if left == 0:
-                break
+        with bank.responses([(s, *orders) for s in s2 for orders in ((2, 0), (1, 1), (0, 2))],
+                            threads=threads) as second:
+            cos_t, sin_t = np.cos(theta), np.sin(theta)
+            for level, s in enumerate(s2, start=1):
+                c2 = second_derivative_threshold(s, noise_std=s_n, alpha_p=alpha_p)
+                if noise_spectrum is not None:
+                    c2 = c2 * np.sqrt(noise_spectrum.factor(2, s))
+                ixx, ixy, iyy = next(second), next(second), next(second)
+                left, new = _zero_crossing_pass(ixx, ixy, iyy, cos_t, sin_t, float(c2), noise, float(s), level,
+                                                sigma1, sigma2, edge_level)
+                if keep_hessians and new:
+                    hessians[float(s)] = (ixx, ixy, iyy)
+                if left == 0:
+                    break
     edges = edge_level > 0
     return EdgeMap(edges=edges, theta=theta, gradient_magnitude=gmag, sigma1=sigma1, sigma2=sigma2,
                    hessians=hessians if keep_hessians else None, noise_variance=var, noise_spectrum=noise_spectrum)

@@ -88,8 +88,7 @@ ZHUO_SIM_CHANGES: dict = {
     # 0.0104 px on the oracle systems; docs/figures.md). Eq. (4) keeps its own tolerance (propagation_tol).
     "matting_tol": 1e-5,
     # ... or once a CG step moved no pixel by more than 1e-4 px, whichever comes first: the error left was
-    # at most ~26× the last step on those systems (≤ 1.5e-3 px; docs/figures.md), reached in 40–60 % of
-    # the iterations that relative residual 1e-5 takes.
+    # ≤ 2.0e-3 px from the tol-1e-6 solve on those renders (20× the step; docs/figures.md).
     "matting_step_tol": 1e-4,
 }
 

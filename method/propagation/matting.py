@@ -42,17 +42,19 @@ searched), so **none of the defaults is taken from the paper**:
 
 Solver (measured; see :data:`MATTING_SOLVERS`)
 ----------------------------------------------
-Default ``"cg_amg"``: CG preconditioned by pyamg smoothed aggregation whose candidate vectors are
-1, R, G, B of the guide (the near-null space of L: maps locally affine in the colour cost ~ε; with
-Zhuo & Sim's ε = 9e-7 and data term λ·d̂ ≈ 1e-3 that space is what a geometric V-cycle fails to
-reduce). On the stages figure's ``zhuo_sim`` systems (640×480 renders, λ = 0.001, ε = 9e-7,
-D = d̂; portrait f/8, tol 1e-6) it needed 205 CG iterations against ≈ 1050 for ``"cg_vcycle"`` and
-1.4–1.6× less CPU (set-up 2 s included), 1.5e-6 px from the ``"cg_vcycle"`` solution; plain
-smoothed aggregation (constant candidate only) needed 710 iterations and was slower than the
-V-cycle. ``benchmarks/matting_solve.py`` measures both on the stage cases (docs/figures.md). The
-relative residual does not bound the error in px: on those systems ``"cg_amg"`` stopped at tol 1e-5 was
-within 4.9e-4 px of the tol-1e-6 ``"cg_vcycle"`` solution, at 1e-4 up to 9.5e-3 px and at 1e-3 up to
-0.0104 px (the ``zhuo_sim`` preset solves to its own ``matting_tol`` = 1e-5).
+Default ``"cg_amg"`` (:mod:`method.propagation.matting_amg`): CG preconditioned by a V-cycle of pyamg
+smoothed aggregation whose candidate vectors are 1, R, G, B of the guide (the near-null space of L: maps
+locally affine in the colour cost ~ε; with Zhuo & Sim's ε = 9e-7 and data term λ·d̂ ≈ 1e-3 that space is
+what a geometric V-cycle fails to reduce), held in float32 with forward/backward Gauss–Seidel, CG in
+float64; optionally also stopped once a step moves no pixel by more than ``step_tol`` px. Plain smoothed
+aggregation (constant candidate only) needed 710 iterations at tol 1e-6 on portrait f/8 and was slower
+than the V-cycle. On the stages figure's ``zhuo_sim`` systems (640×480 renders, λ = 0.001, ε = 9e-7,
+D = d̂) CG stopped when a step first moved no pixel by more than 1e-4 px left ≤ 2.0e-3 px (20× that
+step; past the 10th iteration the error was at most 40× the last step) from the tol-1e-6 ``"cg_vcycle"``
+solution, after 63–182 iterations; the relative residual at which the error first fell below 0.01 px
+ranged over 2e-2 … 2e-4, so the residual does not bound the error in px (``"cg_amg"`` at tol 1e-4 was
+once 9.5e-3 px away, at 1e-3 0.0104 px). ``benchmarks/matting_solve.py`` measures the solvers on those
+cases (docs/figures.md).
 The earlier measurements of ``"cg_vcycle"`` and ``"cg_ichol"`` (Zhuo & Sim's options not used):
 Conjugate gradients (:func:`pymatting.cg`, BLAS limited to one thread) started from the mean of the
 sparse values (exact when they are all equal, since L·1 = 0), preconditioned by pymatting's

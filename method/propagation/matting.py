@@ -291,15 +291,21 @@ def _solve_direct(A, b, *, shape, x0, tol, max_iterations, guide=None):
 #: Solvers of (L + λD) d = λ D d̂, chosen with ``solver="..."``. Each is called as
 #: ``solve(A, b, *, shape, x0, tol, max_iterations, guide) -> d`` (``guide``: the HxWx3 guide image);
 #: the iterative ones stop at relative residual ``tol`` and raise RuntimeError after ``max_iterations``;
-#: ``"direct"`` ignores both. Those in :data:`STEP_TOL_SOLVERS` also take ``step_tol`` (px or None).
+#: ``"direct"`` ignores both. Those whose function has a ``step_tol`` parameter (``"cg_amg"``) also take it
+#: (px or None: :func:`_reads_step_tol`).
 MATTING_SOLVERS = Registry("matting solver", {
     "cg_amg": Entry(_solve_cg_amg, "CG preconditioned by pyamg smoothed aggregation (colour candidates)"),
     "cg_vcycle": Entry(_solve_cg_vcycle, "CG preconditioned by pymatting's multigrid V-cycle"),
     "cg_ichol": Entry(_solve_cg_ichol, "CG preconditioned by pymatting's incomplete Cholesky"),
     "direct": Entry(_solve_direct, "sparse LU (scipy)"),
 })
-#: The solvers that can also stop on the iterate's change (``step_tol``).
-STEP_TOL_SOLVERS = ("cg_amg",)
+
+
+def _reads_step_tol(solver) -> bool:
+    """Whether the solver ``solver`` (a key of :data:`MATTING_SOLVERS`) can also stop on the iterate's change."""
+    import inspect
+
+    return "step_tol" in inspect.signature(MATTING_SOLVERS[solver]).parameters
 
 
 # --------------------------------------------------------------------------------------------
@@ -390,9 +396,10 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
     data_weight = _check_data_weight(data_weight)
     if step_tol is not None:
         step_tol = check_positive("step_tol", step_tol)
-        if solver not in STEP_TOL_SOLVERS:
+        if not _reads_step_tol(solver):
+            readers = [name for name in MATTING_SOLVERS if _reads_step_tol(name)]
             raise ValueError(f"step_tol={step_tol!r} with solver={solver!r} is invalid; allowed: step_tol=None, "
-                             f"or a solver of {STEP_TOL_SOLVERS}")
+                             f"or a solver of {readers}")
     h, w = sparse_sigma.shape
     if solver == "direct" and h * w > DIRECT_MAX_PIXELS:
         raise ValueError(f"solver='direct' is for small images; got {h * w} px, allowed <= {DIRECT_MAX_PIXELS}")

@@ -1,13 +1,14 @@
 """CPU seconds of Zhuo & Sim's matting-Laplacian solves on the stages figure's ``zhuo_sim`` cases.
 
 ``.venv/bin/python benchmarks/matting_solve.py [--scenes portrait planes] [--f-numbers 8 4] [--solver cg_amg]
-[--tol TOL] [--preset full]``
+[--tol TOL] [--step-tol PX] [--preset full]``
 
 For each render case of the stages figure (:mod:`experiments.figS1_stages`, renders from the cache;
 a missing render is rendered) it runs ``stage_errors`` with the ``zhuo_sim`` preset once with the
 matting solves recorded, then solves every distinct system (the estimate and the oracle inputs)
 with the earlier default (``cg_vcycle``, tol 1e-6: the oracle) and with ``--solver`` at ``--tol`` (default:
-the ``zhuo_sim`` preset's ``matting_tol``, the tolerance ``stage_errors`` now solves to),
+the ``zhuo_sim`` preset's ``matting_tol``, the tolerance ``stage_errors`` now solves to, and ``--step-tol``,
+default its ``matting_step_tol``),
 and prints per case: the solves ``stage_errors`` now makes (two: the oracle inputs share one), the
 process CPU seconds of the old code (``cg_vcycle`` over its three solves, the oracle's twice) and of
 the new one (``--solver`` over the two), and max |Δσ| px between the two solutions. Results are appended to
@@ -67,12 +68,17 @@ def main(argv=None) -> int:
     p.add_argument("--f-numbers", nargs="+", type=float, default=list(FULL.f_numbers))
     p.add_argument("--solver", default="cg_amg")
     p.add_argument("--tol", type=float, default=None, help="default: the zhuo_sim preset's matting_tol")
+    p.add_argument("--step-tol", type=float, default=None, help="px; default: the zhuo_sim preset's matting_step_tol")
     p.add_argument("--preset", default=FULL.preset, help="render size preset (small / full)")
     args = p.parse_args(argv)
     if args.tol is None:
         from method import DefocusParams
 
         args.tol = DefocusParams.preset("zhuo_sim").matting_tol
+    if args.step_tol is None:
+        from method import DefocusParams
+
+        args.step_tol = DefocusParams.preset("zhuo_sim").matting_step_tol
     config = FULL.__class__(**{**FULL.__dict__, "scenes": tuple(args.scenes), "f_numbers": tuple(args.f_numbers),
                                "preset": args.preset})
     rows = []
@@ -80,13 +86,15 @@ def main(argv=None) -> int:
         if case.preset != "zhuo_sim" or case.variant != "render":
             continue
         row = {"case": f"{case.scene} f/{case.aperture:g} ({args.preset})", "solver": args.solver, "tol": args.tol,
+               "step_tol": args.step_tol,
                "old_cpu_s": 0.0, "new_cpu_s": 0.0, "max_abs_diff_px": 0.0}
         systems = _record_systems(config, case)
         row["solves"] = len(systems)
         for sparse, ref, kw in systems:
-            kw = {k: v for k, v in kw.items() if k != "tol"}
+            kw = {k: v for k, v in kw.items() if k not in ("tol", "step_tol")}
             old, t_old = _cpu(lambda: propagate_defocus_matting(sparse, ref, solver="cg_vcycle", tol=1e-6, **kw))
-            new, t_new = _cpu(lambda: propagate_defocus_matting(sparse, ref, solver=args.solver, tol=args.tol, **kw))
+            new, t_new = _cpu(lambda: propagate_defocus_matting(sparse, ref, solver=args.solver, tol=args.tol,
+                                                                step_tol=args.step_tol, **kw))
             row["old_cpu_s"] += t_old
             row["new_cpu_s"] += t_new
             row["max_abs_diff_px"] = max(row["max_abs_diff_px"], float(np.max(np.abs(new - old))))

@@ -11,6 +11,7 @@ from method.propagation.matting import (
     DEFAULT_EPSILON,
     DEFAULT_LAMBDA,
     MATTING_SOLVERS,
+    _reads_step_tol,
     matting_system,
     propagate_defocus_matting,
 )
@@ -56,6 +57,7 @@ def _oracle(sparse_sigma, ref, lam, epsilon, radius):
 
 def test_solver_registry():
     assert set(MATTING_SOLVERS) == {"cg_amg", "cg_vcycle", "cg_ichol", "direct"}
+    assert {name for name in MATTING_SOLVERS if _reads_step_tol(name)} == {"cg_amg"}
 
 
 # --- 1. equal to a direct sparse solve of the same system ------------------------------------
@@ -150,22 +152,44 @@ def test_default_solver_agrees_with_the_vcycle_oracle(rng):
 def test_zhuo_sim_tolerance_stays_within_the_budget(rng):
     """The ``zhuo_sim`` preset's own stopping tolerance (``matting_tol``, looser than Eq. 4's
     ``propagation_tol``) through the propagation registry: within MATTING_SOLVER_CHANGE_ATOL_PX of the
-    ``"cg_vcycle"`` tol-1e-6 solve, and not the tol-1e-6 ``"cg_amg"`` solve (so the field reaches the solver)."""
+    ``"cg_vcycle"`` tol-1e-6 solve, and not the tol-1e-6 ``"cg_amg"`` solve (so the field reaches the solver).
+    The stop on the iterate's change (``matting_step_tol``) is switched off here: it has its own test."""
+    from method import DefocusParams
+    from method.propagation.methods import propagate_blur_measures
+
+    ref = _photo(rng, 64, 80)
+    bm = _sparse(rng, ref, density=0.08)
+    params = DefocusParams.preset("zhuo_sim", matting_step_tol=None)
+    assert params.matting_tol > params.propagation_tol
+    opts = {"lam": params.matting_lambda, "epsilon": params.matting_epsilon, "data_weight": params.matting_data_weight}
+    oracle = propagate_defocus_matting(bm, ref, solver="cg_vcycle", tol=1e-6, **opts)
+    loose = propagate_blur_measures(bm, ref, params=params)
+    tight = propagate_blur_measures(bm, ref, params=params.replace(matting_tol=1e-6))
+    assert np.max(np.abs(loose - oracle)) <= MATTING_SOLVER_CHANGE_ATOL_PX
+    assert not np.array_equal(loose, tight)
+    # the budget is not met trivially: a far looser stop leaves the solve visibly short of it
+    rough = propagate_blur_measures(bm, ref, params=params.replace(matting_tol=0.5))
+    assert np.max(np.abs(rough - oracle)) > MATTING_SOLVER_CHANGE_ATOL_PX
+
+
+def test_zhuo_sim_step_tolerance_stays_within_the_budget(rng):
+    """The ``zhuo_sim`` preset's stop on the iterate's change (``matting_step_tol``) through the propagation
+    registry: within MATTING_SOLVER_CHANGE_ATOL_PX of the ``"cg_vcycle"`` tol-1e-6 solve and not the solve
+    without it (so the field reaches the solver); a far looser step leaves the solve visibly short."""
     from method import DefocusParams
     from method.propagation.methods import propagate_blur_measures
 
     ref = _photo(rng, 64, 80)
     bm = _sparse(rng, ref, density=0.08)
     params = DefocusParams.preset("zhuo_sim")
-    assert params.matting_tol > params.propagation_tol
+    assert params.matting_step_tol is not None
     opts = {"lam": params.matting_lambda, "epsilon": params.matting_epsilon, "data_weight": params.matting_data_weight}
     oracle = propagate_defocus_matting(bm, ref, solver="cg_vcycle", tol=1e-6, **opts)
-    loose = propagate_blur_measures(bm, ref, params=params)
-    tight = propagate_blur_measures(bm, ref, params=DefocusParams.preset("zhuo_sim", matting_tol=1e-6))
-    assert np.max(np.abs(loose - oracle)) <= MATTING_SOLVER_CHANGE_ATOL_PX
-    assert not np.array_equal(loose, tight)
-    # the budget is not met trivially: a far looser stop leaves the solve visibly short of it
-    rough = propagate_blur_measures(bm, ref, params=DefocusParams.preset("zhuo_sim", matting_tol=0.5))
+    stepped = propagate_blur_measures(bm, ref, params=params)
+    residual_only = propagate_blur_measures(bm, ref, params=params.replace(matting_step_tol=None))
+    assert np.max(np.abs(stepped - oracle)) <= MATTING_SOLVER_CHANGE_ATOL_PX
+    assert not np.array_equal(stepped, residual_only)
+    rough = propagate_blur_measures(bm, ref, params=params.replace(matting_step_tol=0.5))
     assert np.max(np.abs(rough - oracle)) > MATTING_SOLVER_CHANGE_ATOL_PX
 
 
@@ -215,12 +239,19 @@ def test_unknown_solver_names_the_allowed_ones(rng):
 @pytest.mark.parametrize("name, value", [
     ("lam", 0.0), ("lam", -1.0), ("lam", np.nan), ("lam", "big"),
     ("epsilon", 0.0), ("radius", 0), ("radius", 1.5), ("radius", True),
-    ("tol", 0.0), ("tol", 1.0), ("max_iterations", 0),
+    ("tol", 0.0), ("tol", 1.0), ("max_iterations", 0), ("step_tol", 0.0), ("step_tol", -1e-4), ("step_tol", np.nan),
 ])
 def test_bad_options(rng, name, value):
     bm, ref = _ok(rng)
     with pytest.raises(ValueError, match=name):
         propagate_defocus_matting(bm, ref, **{name: value})
+
+
+@pytest.mark.parametrize("solver", ["cg_vcycle", "cg_ichol", "direct"])
+def test_step_tol_only_with_a_solver_that_reads_it(rng, solver):
+    bm, ref = _ok(rng)
+    with pytest.raises(ValueError, match=rf"step_tol=0.0001 with solver='{solver}' is invalid; allowed: step_tol=None"):
+        propagate_defocus_matting(bm, ref, solver=solver, step_tol=1e-4)
 
 
 def test_image_smaller_than_window(rng):

@@ -175,6 +175,7 @@ def test_propagation_registry_calls_the_method(rng):
     ("matting_lambda", [0.0, -1e-3, math.nan]),
     ("matting_epsilon", [0.0, -1e-5]),
     ("matting_tol", [0.0, 1.0, -1e-3, math.nan]),
+    ("matting_step_tol", [0.0, 1.0, -1e-4, math.nan, True, "1e-4"]),
     ("fit_residual_noise", [-1.0, math.inf]),
     ("fit_scale_ratio", [0.0, 1.5]),
     ("relaxed_fit_weight", [0.0, 1.5]),
@@ -194,7 +195,8 @@ def test_new_fields_reject_bad_values(field, values):
     ("fit_max_scale", 4.0), ("fit_max_scale", None), ("fit_min_samples", 7), ("fit_max_width_ratio", 1.0),
     ("fit_below_scale", "nan"), ("bilateral_range_kernel", "product"), ("bias_reference", "image_fraction"),
     ("refinement_robust_iterations", 0), ("refinement_robust_scale", 2.0), ("alpha_confidence", "agreement"),
-    ("matting_lambda", 0.1), ("matting_epsilon", 1e-3), ("matting_tol", 1e-3), ("fit_residual_noise", 2.0),
+    ("matting_lambda", 0.1), ("matting_epsilon", 1e-3), ("matting_tol", 1e-3), ("matting_step_tol", 1e-3), ("matting_step_tol", None),
+    ("fit_residual_noise", 2.0),
     ("fit_scale_ratio", 0.5),
     ("relaxed_fit_weight", 0.1), ("measure_weighting", "hand"), ("bias_weighting", "uniform"), ("fit_psf", "disk"), ("fit_psf", "best"), ("fit_psf", "gaussian")])
 def test_new_fields_accept_good_values(field, value):

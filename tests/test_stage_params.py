@@ -48,7 +48,7 @@ PAPER_BEFORE_THE_SPLIT = {
     "fusion_straddle_weight": 1.0,
     # Eq. (4)
     "propagation": "colorization", "alpha_confidence": "none", "matting_lambda": 0.005, "matting_epsilon": 1e-05,
-    "matting_data_weight": "constant", "matting_tol": 1e-06, "alpha": 0.5, "propagation_window": 7,
+    "matting_data_weight": "constant", "matting_tol": 1e-06, "matting_step_tol": None, "alpha": 0.5, "propagation_window": 7,
     "propagation_neighborhood": 3,
     "propagation_tol": 1e-06, "propagation_solver": "amg_pcg", "propagation_downsample": "auto",
     "propagation_refinement": "galerkin",
@@ -173,7 +173,7 @@ def test_every_flat_field_reads_its_stage(name):
 
 def test_field_names_are_one_namespace():
     names = [f.name for cls in STAGE_CLASSES.values() for f in dataclasses.fields(cls)]
-    assert len(names) == len(set(names)) == len(DefocusParams.field_types()) == 83
+    assert len(names) == len(set(names)) == len(DefocusParams.field_types()) == 84
     assert not set(names) & set(STAGE_CLASSES)
     assert DefocusParams.stage_classes() == STAGE_CLASSES
     with pytest.raises(ValueError, match="'nope' is invalid"):

@@ -42,17 +42,19 @@ searched), so **none of the defaults is taken from the paper**:
 
 Solver (measured; see :data:`MATTING_SOLVERS`)
 ----------------------------------------------
-Default ``"cg_amg"``: CG preconditioned by pyamg smoothed aggregation whose candidate vectors are
-1, R, G, B of the guide (the near-null space of L: maps locally affine in the colour cost ~ε; with
-Zhuo & Sim's ε = 9e-7 and data term λ·d̂ ≈ 1e-3 that space is what a geometric V-cycle fails to
-reduce). On the stages figure's ``zhuo_sim`` systems (640×480 renders, λ = 0.001, ε = 9e-7,
-D = d̂; portrait f/8, tol 1e-6) it needed 205 CG iterations against ≈ 1050 for ``"cg_vcycle"`` and
-1.4–1.6× less CPU (set-up 2 s included), 1.5e-6 px from the ``"cg_vcycle"`` solution; plain
-smoothed aggregation (constant candidate only) needed 710 iterations and was slower than the
-V-cycle. ``benchmarks/matting_solve.py`` measures both on the stage cases (docs/figures.md). The
-relative residual does not bound the error in px: on those systems ``"cg_amg"`` stopped at tol 1e-5 was
-within 4.9e-4 px of the tol-1e-6 ``"cg_vcycle"`` solution, at 1e-4 up to 9.5e-3 px and at 1e-3 up to
-0.0104 px (the ``zhuo_sim`` preset solves to its own ``matting_tol`` = 1e-5).
+Default ``"cg_amg"`` (:mod:`method.propagation.matting_amg`): CG preconditioned by a V-cycle of pyamg
+smoothed aggregation whose candidate vectors are 1, R, G, B of the guide (the near-null space of L: maps
+locally affine in the colour cost ~ε; with Zhuo & Sim's ε = 9e-7 and data term λ·d̂ ≈ 1e-3 that space is
+what a geometric V-cycle fails to reduce), held in float32 with forward/backward Gauss–Seidel, CG in
+float64; optionally also stopped once a step moves no pixel by more than ``step_tol`` px. Plain smoothed
+aggregation (constant candidate only) needed 710 iterations at tol 1e-6 on portrait f/8 and was slower
+than the V-cycle. On the stages figure's ``zhuo_sim`` systems (640×480 renders, λ = 0.001, ε = 9e-7,
+D = d̂) CG stopped when a step first moved no pixel by more than 1e-4 px left ≤ 2.0e-3 px (20× that
+step; past the 10th iteration the error was at most 40× the last step) from the tol-1e-6 ``"cg_vcycle"``
+solution, after 63–182 iterations; the relative residual at which the error first fell below 0.01 px
+ranged over 2e-2 … 2e-4, so the residual does not bound the error in px (``"cg_amg"`` at tol 1e-4 was
+once 9.5e-3 px away, at 1e-3 0.0104 px). ``benchmarks/matting_solve.py`` measures the solvers on those
+cases (docs/figures.md).
 The earlier measurements of ``"cg_vcycle"`` and ``"cg_ichol"`` (Zhuo & Sim's options not used):
 Conjugate gradients (:func:`pymatting.cg`, BLAS limited to one thread) started from the mean of the
 sparse values (exact when they are all equal, since L·1 = 0), preconditioned by pymatting's
@@ -246,29 +248,15 @@ def _pcg(A, b, x0, tol, max_iterations, M):
             f"({exc}); raise max_iterations or tol") from None
 
 
-def _solve_cg_amg(A, b, *, shape, x0, tol, max_iterations, guide):
-    """CG preconditioned by pyamg smoothed aggregation fitted to the matting Laplacian (default).
+def _solve_cg_amg(A, b, *, shape, x0, tol, max_iterations, guide, step_tol=None):
+    """CG preconditioned by a float32 pyamg smoothed-aggregation V-cycle fitted to the matting Laplacian
+    (default; :mod:`method.propagation.matting_amg`): candidate vectors 1, R, G, B of the guide, BLAS on one
+    thread, an optional stop on the iterate's change (``step_tol`` px)."""
+    from .matting_amg import amg_hierarchy, pcg, vcycle_preconditioner
 
-    The near-null space of L is the maps that are locally affine in the colour (cost ~ε): the
-    aggregation's candidate vectors are therefore 1, R, G, B of the guide (centred), not only the
-    constant of a plain Laplacian. Deterministic prolongation smoother
-    (:data:`method.propagation.solvers.AMG_PROLONGATION_SMOOTHER`), BLAS on one thread.
-    """
-    import pyamg
-    from threadpoolctl import threadpool_limits
-
-    from .solvers import AMG_PROLONGATION_SMOOTHER
-
-    rgb = guide.reshape(-1, guide.shape[-1])
-    candidates = np.column_stack([np.ones(len(rgb)), rgb - rgb.mean(axis=0)])
-    with threadpool_limits(limits=1):
-        ml = pyamg.smoothed_aggregation_solver(A, B=candidates, symmetry="symmetric", max_coarse=500,
-                                               smooth=AMG_PROLONGATION_SMOOTHER)
-        x, info = ml.solve(b, x0=x0, tol=tol, accel="cg", maxiter=max_iterations, return_info=True)
-    if info != 0:
-        raise RuntimeError(f"conjugate gradients did not reach tol={tol:g} within max_iterations={max_iterations}; "
-                           "raise max_iterations or tol")
-    return np.asarray(x, dtype=np.float64)
+    precondition = vcycle_preconditioner(amg_hierarchy(A, guide))
+    x, _ = pcg(A, b, x0, precondition, tol=tol, max_iterations=max_iterations, step_tol=step_tol)
+    return x
 
 
 def _solve_cg_vcycle(A, b, *, shape, x0, tol, max_iterations, guide=None):
@@ -303,7 +291,8 @@ def _solve_direct(A, b, *, shape, x0, tol, max_iterations, guide=None):
 #: Solvers of (L + λD) d = λ D d̂, chosen with ``solver="..."``. Each is called as
 #: ``solve(A, b, *, shape, x0, tol, max_iterations, guide) -> d`` (``guide``: the HxWx3 guide image);
 #: the iterative ones stop at relative residual ``tol`` and raise RuntimeError after ``max_iterations``;
-#: ``"direct"`` ignores both.
+#: ``"direct"`` ignores both. Those whose function has a ``step_tol`` parameter (``"cg_amg"``) also take it
+#: (px or None: :func:`_reads_step_tol`).
 MATTING_SOLVERS = Registry("matting solver", {
     "cg_amg": Entry(_solve_cg_amg, "CG preconditioned by pyamg smoothed aggregation (colour candidates)"),
     "cg_vcycle": Entry(_solve_cg_vcycle, "CG preconditioned by pymatting's multigrid V-cycle"),
@@ -312,12 +301,19 @@ MATTING_SOLVERS = Registry("matting solver", {
 })
 
 
+def _reads_step_tol(solver) -> bool:
+    """Whether the solver ``solver`` (a key of :data:`MATTING_SOLVERS`) can also stop on the iterate's change."""
+    import inspect
+
+    return "step_tol" in inspect.signature(MATTING_SOLVERS[solver]).parameters
+
+
 # --------------------------------------------------------------------------------------------
 # public entry point
 # --------------------------------------------------------------------------------------------
 def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, epsilon=DEFAULT_EPSILON,
                               radius=1, tol=1e-6, solver="cg_amg", max_iterations=2000,
-                              data_weight="constant") -> np.ndarray:
+                              data_weight="constant", step_tol=None) -> np.ndarray:
     """Dense defocus map from sparse blur σ by matting-Laplacian propagation (Zhuo & Sim 2011).
 
     Minimises E(d) = dᵀ L d + λ (d − d̂)ᵀ D (d − d̂) (see the module docstring).
@@ -353,6 +349,10 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
         Key of :data:`MATTING_DATA_WEIGHTS`: ``"constant"`` (default; D = 1 at every measure, Zhuo &
         Sim's equation) or ``"sigma"`` (D = d̂, as the public Zhuo & Sim code builds it, so larger
         measures weigh more and a measure of 0 px weighs nothing; docs/zhuo-sim.md).
+    step_tol : float or None, keyword-only
+        px (> 0): CG also stops once an iteration changed no pixel of d by more than ``step_tol``
+        (``"cg_amg"`` only; default None: the relative residual alone). On the stages figure's
+        ``zhuo_sim`` systems the error left was at most ~20× the last step (docs/figures.md).
 
     Returns
     -------
@@ -366,7 +366,8 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
     ------
     ValueError
         Shapes disagree, non-float input, NaN/Inf in the reference, Inf or negative σ, image
-        smaller than 2r+1 px, unknown ``solver``, bad option value, ``"direct"`` on a too-large image.
+        smaller than 2r+1 px, unknown ``solver``, bad option value, ``"direct"`` on a too-large image,
+        ``step_tol`` with a solver other than ``"cg_amg"``.
     RuntimeError
         CG did not reach ``tol`` within ``max_iterations``, or (``"cg_ichol"``) the incomplete
         Cholesky factorisation failed.
@@ -393,6 +394,12 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
         raise ValueError(f"tol={tol!r} is invalid; allowed: 0 < tol < 1")
     max_iterations = _check_int("max_iterations", max_iterations, 1)
     data_weight = _check_data_weight(data_weight)
+    if step_tol is not None:
+        step_tol = check_positive("step_tol", step_tol)
+        if not _reads_step_tol(solver):
+            readers = [name for name in MATTING_SOLVERS if _reads_step_tol(name)]
+            raise ValueError(f"step_tol={step_tol!r} with solver={solver!r} is invalid; allowed: step_tol=None, "
+                             f"or a solver of {readers}")
     h, w = sparse_sigma.shape
     if solver == "direct" and h * w > DIRECT_MAX_PIXELS:
         raise ValueError(f"solver='direct' is for small images; got {h * w} px, allowed <= {DIRECT_MAX_PIXELS}")
@@ -409,5 +416,7 @@ def propagate_defocus_matting(sparse_sigma, reference, *, lam=DEFAULT_LAMBDA, ep
         return np.zeros((h, w))
     A, b = _assemble(ref, sparse_sigma, lam, epsilon, radius, data_weight)
     x0 = np.full(h * w, fill)
-    d = MATTING_SOLVERS[solver](A, b, shape=(h, w), x0=x0, tol=tol, max_iterations=max_iterations, guide=ref)
+    extra = {} if step_tol is None else {"step_tol": step_tol}
+    d = MATTING_SOLVERS[solver](A, b, shape=(h, w), x0=x0, tol=tol, max_iterations=max_iterations, guide=ref,
+                                **extra)
     return np.asarray(d, dtype=np.float64).reshape(h, w)

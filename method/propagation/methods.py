@@ -44,7 +44,7 @@ def _matting_laplacian(sparse_sigma, reference, *, params, confidence=None, max_
     from .matting import propagate_defocus_matting
     return propagate_defocus_matting(sparse_sigma, reference, lam=params.matting_lambda,
                                      epsilon=params.matting_epsilon, tol=params.matting_tol,
-                                     data_weight=params.matting_data_weight)
+                                     data_weight=params.matting_data_weight, step_tol=params.matting_step_tol)
 
 
 #: name -> fn(sparse_sigma, reference, *, params, confidence) -> (H, W) float64 σ in px.

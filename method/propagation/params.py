@@ -49,6 +49,10 @@ class PropagationParams:
     # relative residual ‖λDd̂ − (L + λD) d‖ / ‖λDd̂‖ at which the CG solve of the matting system stops
     # (propagation="matting_laplacian"; Eq. 4's own solve stops at propagation_tol). Measured distance of
     # the dense σ from the tol-1e-6 solve per value: docs/figures.md.
+    matting_step_tol: float | None = None
+    # px: the matting system's CG also stops once an iteration changed no pixel by more than this
+    # (propagation="matting_laplacian"); None: the relative residual matting_tol alone. Measured error
+    # left per value on the stages figure's renders: docs/figures.md.
     alpha: float = 0.5
     # data-term weight α_p at edge pixels, dimensionless; 0 elsewhere (Sec. 4.1; Fig. 6 sweeps 0.1–1).
     propagation_window: int = 7
@@ -84,6 +88,10 @@ class PropagationParams:
             require_field(self, name, is_integer(value, 3) and value % 2 == 1, "odd integer >= 3")
         for name in ("propagation_tol", "matting_tol"):
             require_field(self, name, 0 < getattr(self, name) < 1, "0 < tol < 1")
+        step = self.matting_step_tol
+        require_field(self, "matting_step_tol",
+                      step is None or (not isinstance(step, bool) and isinstance(step, (int, float)) and 0 < step < 1),
+                      "None or a number of px in (0, 1)")
         ds = self.propagation_downsample
         require_field(self, "propagation_downsample", ds == "auto" or (is_integer(ds, 1) and (ds & (ds - 1)) == 0),
                       "'auto' or a power of two >= 1")

@@ -277,6 +277,19 @@ def _apply_normal_3x3(p, weights, offs, a_diag, q, rowdot):
         row_dots(p, y0 + 1, vb, 0, y1 - y0, 1, w, rowdot, y0)
 
 
+@numba.njit(cache=True, inline="always")
+def _direction_row_3x3(weights, pb, t, a_diag, p_new, q, vb, y, y0, w):
+    """Row y of :func:`_direction_and_apply_3x3`: p_new's row from the block buffer ``pb`` and q's row
+    (unrounded into ``vb``) from the L·p rows ``t`` (block rows start at image row y0)."""
+    py = y + 1
+    ty = y - y0 + 1
+    prow = pb[y - y0 + 2]
+    outp = p_new[py]
+    for x in range(1, w + 1):
+        outp[x] = prow[x]
+    _lt_row_3x3(weights, py, prow, a_diag[y], t[ty - 1], t[ty], t[ty + 1], q[py], vb[y - y0], w)
+
+
 @numba.njit(cache=True, parallel=True)
 def _direction_and_apply_3x3(z, p_old, beta, weights, offs, a_diag, p_new, q, rowdot):
     """:func:`direction_and_apply` for the 3×3 neighbourhood, bit-identical (see :func:`_apply_normal_3x3`)."""
@@ -294,18 +307,18 @@ def _direction_and_apply_3x3(z, p_old, beta, weights, offs, a_diag, p_new, q, ro
             for x in range(1, w + 1):
                 brow[x] = zrow[x] + beta * orow[x]
         t = np.zeros((nb + 2, wp))  # L·p for rows y0 − 1 … y1; 0 outside the image
+        vb = np.empty((nb, wp))  # unrounded q rows for the dot products
+        # q row y as soon as L·p rows y − 1 … y + 1 exist: the three weight rows it gathers were
+        # just read for L·p and are still in cache (one pass over the affinities, not two)
+        nxt = y0
         for yy in range(max(0, y0 - 1), min(h, y1 + 1)):
             by = yy - y0 + 2
             _l_row_3x3(weights, yy + 1, pb[by - 1], pb[by], pb[by + 1], t[yy - y0 + 1], w)
-        vb = np.empty((nb, wp))  # unrounded q rows for the dot products
-        for y in range(y0, y1):
-            py = y + 1
-            ty = y - y0 + 1
-            prow = pb[y - y0 + 2]
-            outp = p_new[py]
-            for x in range(1, w + 1):
-                outp[x] = prow[x]
-            _lt_row_3x3(weights, py, prow, a_diag[y], t[ty - 1], t[ty], t[ty + 1], q[py], vb[y - y0], w)
+            while nxt < y1 and nxt < yy:
+                _direction_row_3x3(weights, pb, t, a_diag, p_new, q, vb, nxt, y0, w)
+                nxt += 1
+        for y in range(nxt, y1):  # the image's last row (t row y1 is outside: zero)
+            _direction_row_3x3(weights, pb, t, a_diag, p_new, q, vb, y, y0, w)
         row_dots(pb, 2, vb, 0, nb, 1, w, rowdot, y0)
 
 

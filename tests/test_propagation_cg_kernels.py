@@ -157,3 +157,23 @@ def test_unrolled_3x3_kernels_equal_their_oracle_with_float32_vectors(shape):
         assert rd2.tolist() == rd2_want
         assert not q2[0].any() and not q2[-1].any() and not p_new[:, 0].any() and not p_new[:, -1].any()
     assert np.any(q_want != 0)
+
+
+@pytest.mark.parametrize("neighborhood", [3, 5])
+def test_normal_diagonal_equals_its_oracle_bit_for_bit(neighborhood):
+    """Jacobi's diagonal 1 + a_p + Σ_j w[j, p − o_j]², added in offset order (float32 affinities)."""
+    rng = np.random.default_rng(6)
+    h, w = 29, 41
+    r = neighborhood // 2
+    ref = rng.random((h, w, 3))
+    weights, offs = E.padded_weights(ref, 7, neighborhood, 1e-6)
+    a_diag = np.where(rng.random((h, w)) < 0.3, 0.5, 0.0) + 5e-7
+    want = 1.0 + a_diag
+    for j, (dy, dx) in enumerate(offs):
+        g = weights[j, r - dy:r - dy + h, r - dx:r - dx + w].astype(F64)
+        want = want + g * g
+    for run in (lambda f: f(), _one_thread):
+        out = np.zeros((h + 2 * r, w + 2 * r))
+        run(lambda: NO.normal_diagonal(weights, offs, a_diag, r, out))
+        np.testing.assert_array_equal(out[r:r + h, r:r + w], want)
+        assert not out[:r].any() and not out[:, -r:].any()

@@ -96,18 +96,28 @@ def apply_normal(p, weights, offs, a_diag, q, rowdot):
 
 @numba.njit(cache=True, parallel=True)
 def normal_diagonal(weights, offs, a_diag, r, out):
-    """diag(LᵀL + diag a)[p] = 1 + a_p + Σ_j w[j, p − o_j]² (gather), padded like the vectors."""
+    """diag(LᵀL + diag a)[p] = 1 + a_p + Σ_j w[j, p − o_j]² (gather, added in offset order), padded
+    like the vectors. Rows in parallel; per row one pass per offset over a float64 row buffer
+    (unsigned column indices, so LLVM vectorises it)."""
     k = offs.shape[0]
     h, w = a_diag.shape
+    wu = np.uint64(w)
+    ru = np.uint64(r)
     for y in numba.prange(h):
         py = y + r
-        for x in range(w):
-            px = x + r
-            v = 1.0 + a_diag[y, x]
-            for j in range(k):
-                wv = np.float64(weights[j, py - offs[j, 0], px - offs[j, 1]])
-                v += wv * wv
-            out[py, px] = v
+        arow = a_diag[y]
+        v = np.empty(w)
+        for x in range(wu):
+            v[x] = 1.0 + arow[x]
+        for j in range(k):
+            wrow = weights[j, py - offs[j, 0]]
+            sh = np.uint64(r - offs[j, 1])
+            for x in range(wu):
+                wv = np.float64(wrow[x + sh])
+                v[x] += wv * wv
+        orow = out[py]
+        for x in range(wu):
+            orow[x + ru] = v[x]
 
 
 

@@ -177,3 +177,46 @@ def test_normal_diagonal_equals_its_oracle_bit_for_bit(neighborhood):
         run(lambda: NO.normal_diagonal(weights, offs, a_diag, r, out))
         np.testing.assert_array_equal(out[r:r + h, r:r + w], want)
         assert not out[:r].any() and not out[:, -r:].any()
+
+
+def test_affinity_kernels_equal_a_per_pixel_loop_with_libm_exp_bit_for_bit():
+    """Eq. (4c)'s normalised affinities against a slow per-pixel loop (math.exp for every term, the
+    per-pixel maximum subtracted): the same bytes, with flat patches whose identical neighbours give
+    exponents of exactly 0 (the kernels' shortcut exp(0) = 1) and image borders."""
+    import math
+
+    rng = np.random.default_rng(21)
+    h, w = 23, 31
+    ref = rng.random((h, w, 3))
+    ref[3:12, 4:15] = 0.25  # flat: d = 0 for every channel
+    ref[15:20, 20:28, 1] = 0.7  # flat in one channel only
+    ref = np.ascontiguousarray(ref)
+    inv = np.ascontiguousarray(0.5 / np.maximum(E._local_variance(ref, 7), 1e-6))
+    offs = E._offsets(3)
+    want = np.zeros((8, h, w))
+    zeros = 0
+    for y in range(h):
+        for x in range(w):
+            e = {}
+            for j, (dy, dx) in enumerate(offs):
+                if 0 <= y + dy < h and 0 <= x + dx < w:
+                    e[j] = [-(float(ref[y, x, i]) - float(ref[y + dy, x + dx, i])) ** 2 * float(inv[y, x, i])
+                            for i in range(3)]
+            m = max(max(v) for v in e.values())
+            raw = {}
+            for j, v in e.items():
+                acc = 0.0
+                for vi in v:
+                    zeros += (vi - m) == 0.0
+                    acc += math.exp(vi - m)
+                raw[j] = acc
+            total = 0.0
+            for j in range(8):
+                total += raw.get(j, 0.0)
+            for j, r in raw.items():
+                want[j, y, x] = r / total
+    assert zeros > 100
+    for kernel in (E._weights_kernel, E._weights_kernel_3x3_rgb):
+        got = np.zeros((8, h, w))
+        kernel(ref, inv, offs, got)
+        np.testing.assert_array_equal(got, want)

@@ -182,7 +182,7 @@ def test_normal_diagonal_equals_its_oracle_bit_for_bit(neighborhood):
 def test_affinity_kernels_equal_a_per_pixel_loop_with_libm_exp_bit_for_bit():
     """Eq. (4c)'s normalised affinities against a slow per-pixel loop (math.exp for every term, the
     per-pixel maximum subtracted): the same bytes, with flat patches whose identical neighbours give
-    exponents of exactly 0 (the kernels' shortcut exp(0) = 1) and image borders."""
+    exponents of exactly 0, and image borders."""
     import math
 
     rng = np.random.default_rng(21)

@@ -196,10 +196,7 @@ def _weights_row(ref, inv2var, offs, out, y, h, w, k, c):
             acc = 0.0
             if e[j, 0] > -np.inf:
                 for i in range(c):
-                    v = e[j, i] - m
-                    # exp(±0) = 1 exactly: skip the call (neighbours of identical colour; ~15 % of
-                    # the terms on the bench photo)
-                    acc += 1.0 if v == 0.0 else np.exp(v)
+                    acc += np.exp(e[j, i] - m)
             raw[j] = acc
             total += acc
         for j in range(k):

@@ -7,7 +7,7 @@ own) on a textured photo-like image (``skimage.data.astronaut`` resized, shipped
 with the 1-min load average before and after. Writes ``bench.json`` and ``bench.md`` and prints the
 table; the run it replaces (the previous ``bench.json`` in ``--out``) is kept in the output as
 "before". Targets (:mod:`experiments.bench.speed`, this 2-core machine kind), for every preset: whole
-pipeline at 1 MP ≤ 2.0 s and ≤ 1.5 GiB, at 512² ≤ 1.0 s; 512² → 1024² cost growth ≤ 4.5×. The machine
+pipeline at 1 MP ≤ 1.0 s and ≤ 1.5 GiB, at 512² ≤ 1.0 s; 512² → 1024² cost growth ≤ 4.5×. The machine
 is shared, so each row says how loaded it was; the fastest of ``--repeat`` runs counts. Then, for each
 renderer of ``--magnify-renderers`` (default ``scatter``; none to skip), the magnification step alone on
 a 12-MP photo (``skimage.data.coffee`` upscaled) with its map given, as ``repro.magnify --map`` runs it,

@@ -253,6 +253,36 @@ def test_blur_pair_is_scipy_gaussian_filter(rng, dims, sigmas):
     assert np.array_equal(gn, keep_n) and np.array_equal(gd, keep_d)  # inputs untouched
 
 
+@pytest.mark.parametrize("dims", [(9, 11, 7), (6, 7, 5, 6, 5), (5, 600), (3, 4, 700)])
+def test_blur_axis_pass_is_each_outputs_ascending_sum_bit_for_bit(rng, dims):
+    """One pass of the separable blur: every output Σ_j taps[j − i + r]·src[j] added from 0 in
+    ascending j (the kernel's fixed order, any thread count), the same bytes as this slow loop;
+    chunks wider than one work item and all-zero chunks included."""
+    import numba
+
+    taps = cbf.gaussian_taps(1.3, 3.0)
+    r = (len(taps) - 1) // 2
+    for axis in range(len(dims)):
+        outer, n, inner = int(np.prod(dims[:axis])), dims[axis], int(np.prod(dims[axis + 1:]))
+        src_n, src_d = _sparse_grid(rng, dims, fill=0.1), _sparse_grid(rng, dims, fill=0.1)
+        sn, sd = src_n.reshape(outer, n, inner), src_d.reshape(outer, n, inner)
+        want_n, want_d = np.zeros_like(sn), np.zeros_like(sd)
+        for i in range(n):
+            for j in range(max(0, i - r), min(n - 1, i + r) + 1):
+                want_n[:, i] += taps[j - i + r] * sn[:, j]
+                want_d[:, i] += taps[j - i + r] * sd[:, j]
+        threads = numba.get_num_threads()
+        for nt in (threads, 1):
+            numba.set_num_threads(nt)
+            try:
+                dst_n, dst_d = np.full_like(src_n, np.nan), np.full_like(src_d, np.nan)
+                cbf._blur_axis_pair(src_n, src_d, dst_n, dst_d, outer, n, inner, taps)
+            finally:
+                numba.set_num_threads(threads)
+            assert np.array_equal(dst_n.reshape(want_n.shape), want_n)
+            assert np.array_equal(dst_d.reshape(want_d.shape), want_d)
+
+
 def test_blur_pair_sigma_zero_skips_that_axis(rng):
     dims, sig = (8, 9, 10), (1.1, 0.0, 1.4)
     g = _sparse_grid(rng, dims)

@@ -18,7 +18,7 @@ import numba
 import numpy as np
 import scipy.sparse as sp
 
-from .normal_operator import normal_diagonal, operator_kernels
+from .normal_operator import DOT_ROWS, normal_diagonal, operator_kernels, row_dots
 
 # OpenMP wait policy: numba's "omp" worker threads busy-wait after every parallel region by default,
 # and the refinement runs ~3 regions per CG iteration with the serial coarse V-cycle in between. The
@@ -71,42 +71,55 @@ def _step_and_restrict(x, res_old, res_new, p, q, step, r, s, ty_ptr, ty_idx, ty
     """CG update and restriction of the new residual, in one parallel region over coarse rows.
 
     Coarse row i owns the fine rows [i·s, (i+1)·s) ∩ [0, H): x += step·p, res_new = res_old − step·q,
-    rowsq[y] = Σ_x res_new². It also forms r_c[i, :] = (Pᵀ res_new)[i, :] with P = P_y ⊗ P_x
-    (bilinear, :func:`bilinear_1d`), recomputing res_old − step·q for the fine rows it reads (the
-    same operation, so the same bits as the stored res_new) instead of reading rows another thread
-    writes. ``tmp`` (H_c, W) holds P_yᵀ res_new per coarse row. Fixed summation orders: the result
-    does not depend on the thread count. Padded fine grids (border r); ``r_c`` is (H_c, W_c).
+    rowsq[y] = Σ_x res_new² (of the unrounded float64 values, added in ascending x; :func:`row_dots`).
+    It also forms r_c[i, :] = (Pᵀ res_new)[i, :] with P = P_y ⊗ P_x (bilinear, :func:`bilinear_1d`)
+    from those unrounded rows, recomputing res_old − step·q for the fine rows of neighbouring blocks
+    it reads (the same operation, so the same bits) instead of reading rows another thread writes.
+    ``tmp`` (H_c, W) holds P_yᵀ res_new per coarse row. Fixed summation orders: the result does not
+    depend on the thread count. Padded fine grids (border r); ``r_c`` is (H_c, W_c).
     """
     hc, wc = r_c.shape
     w = tmp.shape[1]
     h = x.shape[0] - 2 * r
-    # (full-row views indexed xx + r: contiguous 1-D rows that LLVM vectorises; slices r:r + w were
-    # ~5x slower. Same operations in the same order.)
+    # (unsigned column indices on full-row views: numba emits no negative-index wrap-around for
+    # them, so LLVM vectorises the loops; same operations in the same order)
+    wu = np.uint64(w)
+    ru = np.uint64(r)
     for i in numba.prange(hc):
-        for y in range(i * s, min((i + 1) * s, h)):
+        y0 = i * s
+        y1 = min((i + 1) * s, h)
+        rv = np.empty((y1 - y0, w))  # unrounded res_new rows of this block
+        for y in range(y0, y1):
             py = y + r
             xr = x[py]
             ro = res_old[py]
             rn = res_new[py]
             pr = p[py]
             qr = q[py]
-            acc = 0.0
-            for xx in range(r, r + w):
-                xr[xx] += step * pr[xx]
-                rv = ro[xx] - step * qr[xx]
-                rn[xx] = rv
-                acc += rv * rv
-            rowsq[y] = acc
+            vr = rv[y - y0]
+            for xx in range(wu):
+                c = xx + ru
+                xr[c] += step * pr[c]
+                v = ro[c] - step * qr[c]
+                rn[c] = v
+                vr[xx] = v
+        row_dots(rv, 0, rv, 0, y1 - y0, 0, w, rowsq, y0)
         trow = tmp[i]
-        for xx in range(w):
+        for xx in range(wu):
             trow[xx] = 0.0
         for kk in range(ty_ptr[i], ty_ptr[i + 1]):
             v = ty_val[kk]
-            py = ty_idx[kk] + r
-            ro = res_old[py]
-            qr = q[py]
-            for xx in range(w):
-                trow[xx] += v * (ro[xx + r] - step * qr[xx + r])
+            y = ty_idx[kk]
+            if y0 <= y < y1:
+                vr = rv[y - y0]
+                for xx in range(wu):
+                    trow[xx] += v * vr[xx]
+            else:
+                ro = res_old[y + r]
+                qr = q[y + r]
+                for xx in range(wu):
+                    c = xx + ru
+                    trow[xx] += v * (ro[c] - step * qr[c])
         for j in range(wc):
             acc = 0.0
             for kk in range(tx_ptr[j], tx_ptr[j + 1]):
@@ -134,27 +147,30 @@ def _precondition(res, dinv, e_x, r, py_ptr, py_idx, py_val, z, rowdot):
     """z = dinv ∘ res + P_y e_x (additive two-level preconditioner) and rowdot[y] = Σ_x res·z.
 
     ``e_x`` (H_c, W) is the coarse correction already interpolated along x (:func:`_interpolate_x`);
-    each fine row (in parallel) adds its ≤ 2 weighted coarse rows. Padded grids (border r) as in
+    each fine row adds its ≤ 2 weighted coarse rows; groups of :data:`DOT_ROWS` rows run in
+    parallel (:func:`row_dots`: each row's sum in ascending x). Padded grids (border r) as in
     :func:`apply_normal`; the padding of z is left untouched (zero).
     """
     w = z.shape[1] - 2 * r
     h = z.shape[0] - 2 * r
-    for y in numba.prange(h):
-        py = y + r
-        zr = z[py]
-        rr_ = res[py]
-        dr = dinv[py]
-        for xx in range(r, r + w):
-            zr[xx] = dr[xx] * rr_[xx]
-        for kk in range(py_ptr[y], py_ptr[y + 1]):
-            v = py_val[kk]
-            erow = e_x[py_idx[kk]]
-            for xx in range(w):
-                zr[xx + r] += v * erow[xx]
-        acc = 0.0
-        for xx in range(r, r + w):
-            acc += rr_[xx] * zr[xx]
-        rowdot[y] = acc
+    wu = np.uint64(w)
+    ru = np.uint64(r)
+    for g in numba.prange((h + DOT_ROWS - 1) // DOT_ROWS):
+        y0 = g * DOT_ROWS
+        y1 = min(h, y0 + DOT_ROWS)
+        for y in range(y0, y1):
+            py = y + r
+            zr = z[py]
+            rr_ = res[py]
+            dr = dinv[py]
+            for xx in range(ru, ru + wu):
+                zr[xx] = dr[xx] * rr_[xx]
+            for kk in range(py_ptr[y], py_ptr[y + 1]):
+                v = py_val[kk]
+                erow = e_x[py_idx[kk]]
+                for xx in range(wu):
+                    zr[xx + ru] += v * erow[xx]
+        row_dots(res, y0 + r, z, y0 + r, y1 - y0, r, w, rowdot, y0)
 
 
 def two_level_pcg(weights, offs, a_diag, rhs, x0, *, coarse, s, coarse_shape, maxiter, tol, coarse_scale=1.0,

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["apply_normal", "direction_and_apply", "normal_diagonal", "operator_kernels"]
+__all__ = ["DOT_ROWS", "apply_normal", "direction_and_apply", "normal_diagonal", "operator_kernels", "row_dots"]
 
 
 #: Rows per block of the fused matrix-free operator (each block recomputes a halo of r rows of L·p).
@@ -96,18 +96,28 @@ def apply_normal(p, weights, offs, a_diag, q, rowdot):
 
 @numba.njit(cache=True, parallel=True)
 def normal_diagonal(weights, offs, a_diag, r, out):
-    """diag(LᵀL + diag a)[p] = 1 + a_p + Σ_j w[j, p − o_j]² (gather), padded like the vectors."""
+    """diag(LᵀL + diag a)[p] = 1 + a_p + Σ_j w[j, p − o_j]² (gather, added in offset order), padded
+    like the vectors. Rows in parallel; per row one pass per offset over a float64 row buffer
+    (unsigned column indices, so LLVM vectorises it)."""
     k = offs.shape[0]
     h, w = a_diag.shape
+    wu = np.uint64(w)
+    ru = np.uint64(r)
     for y in numba.prange(h):
         py = y + r
-        for x in range(w):
-            px = x + r
-            v = 1.0 + a_diag[y, x]
-            for j in range(k):
-                wv = np.float64(weights[j, py - offs[j, 0], px - offs[j, 1]])
-                v += wv * wv
-            out[py, px] = v
+        arow = a_diag[y]
+        v = np.empty(w)
+        for x in range(wu):
+            v[x] = 1.0 + arow[x]
+        for j in range(k):
+            wrow = weights[j, py - offs[j, 0]]
+            sh = np.uint64(r - offs[j, 1])
+            for x in range(wu):
+                wv = np.float64(wrow[x + sh])
+                v[x] += wv * wv
+        orow = out[py]
+        for x in range(wu):
+            orow[x + ru] = v[x]
 
 
 
@@ -177,10 +187,12 @@ def _l_row_3x3(weights, py, pm, pc, pp, tr, w):
 
 
 @numba.njit(cache=True, inline="always")
-def _lt_row_3x3(weights, py, pc, ar, tm, tc, tp, qr, w):
-    """qr[x] = (Lᵀ t + a ∘ p)[x] for one padded row py (gather form, 3×3); returns Σ_x p·q.
+def _lt_row_3x3(weights, py, pc, ar, tm, tc, tp, qr, vr, w):
+    """qr[x] = vr[x] = (Lᵀ t + a ∘ p)[x] for one padded row py (gather form, 3×3).
 
     Offset j = (dy, dx) contributes w[j, p − o_j]·t[p − o_j], in the order of :func:`apply_normal`.
+    ``vr`` (float64) keeps the unrounded values for Σ_x p·q (:func:`row_dots`); the loop carries no
+    sum, so LLVM vectorises it.
     """
     g0 = weights[0, py + 1]
     g1 = weights[1, py + 1]
@@ -190,14 +202,65 @@ def _lt_row_3x3(weights, py, pc, ar, tm, tc, tp, qr, w):
     g5 = weights[5, py - 1]
     g6 = weights[6, py - 1]
     g7 = weights[7, py - 1]
-    acc = 0.0
     for x in range(1, w + 1):
         v = (tc[x] + ar[x - 1] * pc[x] - g0[x + 1] * tp[x + 1] - g1[x] * tp[x] - g2[x - 1] * tp[x - 1]
              - g3[x + 1] * tc[x + 1] - g4[x - 1] * tc[x - 1] - g5[x + 1] * tm[x + 1] - g6[x] * tm[x]
              - g7[x - 1] * tm[x - 1])
+        vr[x] = v
         qr[x] = v
-        acc += pc[x] * v
+
+
+#: Rows whose sums :func:`row_dots` accumulates side by side.
+DOT_ROWS = 4
+
+
+@numba.njit(cache=True, inline="always")
+def _dot_row(a, b, lo, hi):
+    """Σ_{x=lo}^{hi−1} a[x]·b[x] added from 0 in ascending x (``lo``, ``hi`` unsigned)."""
+    acc = 0.0
+    for x in range(lo, hi):
+        acc += a[x] * b[x]
     return acc
+
+
+@numba.njit(cache=True, inline="always")
+def row_dots(a, ra, b, rb, n, lo, w, out, y0):
+    """out[y0 + i] = Σ_{x=lo}^{lo+w−1} a[ra + i, x]·b[rb + i, x] for i < n, each from 0 in ascending x.
+
+    The sums of :data:`DOT_ROWS` rows are accumulated in one loop as independent chains: each row's
+    additions keep their order (the same bits as one row at a time, whatever the grouping), but the
+    add latency no longer serialises the loop. ``a``/``b`` are 2-D; the products take the operands'
+    types (float32·float32 is rounded to float32 before the float64 sum, as in ``acc += a[x]*b[x]``).
+    """
+    lo_u = np.uint64(lo)
+    hi_u = np.uint64(lo + w)
+    i = 0
+    while i + DOT_ROWS <= n:
+        a0 = a[ra + i]
+        a1 = a[ra + i + 1]
+        a2 = a[ra + i + 2]
+        a3 = a[ra + i + 3]
+        b0 = b[rb + i]
+        b1 = b[rb + i + 1]
+        b2 = b[rb + i + 2]
+        b3 = b[rb + i + 3]
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        s3 = 0.0
+        for x in range(lo_u, hi_u):
+            s0 += a0[x] * b0[x]
+            s1 += a1[x] * b1[x]
+            s2 += a2[x] * b2[x]
+            s3 += a3[x] * b3[x]
+        out[y0 + i] = s0
+        out[y0 + i + 1] = s1
+        out[y0 + i + 2] = s2
+        out[y0 + i + 3] = s3
+        i += DOT_ROWS
+    while i < n:
+        out[y0 + i] = _dot_row(a[ra + i], b[rb + i], lo_u, hi_u)
+        i += 1
 
 
 @numba.njit(cache=True, parallel=True)
@@ -216,10 +279,25 @@ def _apply_normal_3x3(p, weights, offs, a_diag, q, rowdot):
         for yy in range(max(0, y0 - 1), min(h, y1 + 1)):
             py = yy + 1
             _l_row_3x3(weights, py, p[py - 1], p[py], p[py + 1], t[yy - y0 + 1], w)
+        vb = np.empty((y1 - y0, wp))  # unrounded q rows for the dot products
         for y in range(y0, y1):
             py = y + 1
             ty = y - y0 + 1
-            rowdot[y] = _lt_row_3x3(weights, py, p[py], a_diag[y], t[ty - 1], t[ty], t[ty + 1], q[py], w)
+            _lt_row_3x3(weights, py, p[py], a_diag[y], t[ty - 1], t[ty], t[ty + 1], q[py], vb[y - y0], w)
+        row_dots(p, y0 + 1, vb, 0, y1 - y0, 1, w, rowdot, y0)
+
+
+@numba.njit(cache=True, inline="always")
+def _direction_row_3x3(weights, pb, t, a_diag, p_new, q, vb, y, y0, w):
+    """Row y of :func:`_direction_and_apply_3x3`: p_new's row from the block buffer ``pb`` and q's row
+    (unrounded into ``vb``) from the L·p rows ``t`` (block rows start at image row y0)."""
+    py = y + 1
+    ty = y - y0 + 1
+    prow = pb[y - y0 + 2]
+    outp = p_new[py]
+    for x in range(1, w + 1):
+        outp[x] = prow[x]
+    _lt_row_3x3(weights, py, prow, a_diag[y], t[ty - 1], t[ty], t[ty + 1], q[py], vb[y - y0], w)
 
 
 @numba.njit(cache=True, parallel=True)
@@ -239,17 +317,19 @@ def _direction_and_apply_3x3(z, p_old, beta, weights, offs, a_diag, p_new, q, ro
             for x in range(1, w + 1):
                 brow[x] = zrow[x] + beta * orow[x]
         t = np.zeros((nb + 2, wp))  # L·p for rows y0 − 1 … y1; 0 outside the image
+        vb = np.empty((nb, wp))  # unrounded q rows for the dot products
+        # q row y as soon as L·p rows y − 1 … y + 1 exist: the three weight rows it gathers were
+        # just read for L·p and are still in cache (one pass over the affinities, not two)
+        nxt = y0
         for yy in range(max(0, y0 - 1), min(h, y1 + 1)):
             by = yy - y0 + 2
             _l_row_3x3(weights, yy + 1, pb[by - 1], pb[by], pb[by + 1], t[yy - y0 + 1], w)
-        for y in range(y0, y1):
-            py = y + 1
-            ty = y - y0 + 1
-            prow = pb[y - y0 + 2]
-            outp = p_new[py]
-            for x in range(1, w + 1):
-                outp[x] = prow[x]
-            rowdot[y] = _lt_row_3x3(weights, py, prow, a_diag[y], t[ty - 1], t[ty], t[ty + 1], q[py], w)
+            while nxt < y1 and nxt < yy:
+                _direction_row_3x3(weights, pb, t, a_diag, p_new, q, vb, nxt, y0, w)
+                nxt += 1
+        for y in range(nxt, y1):  # the image's last row (t row y1 is outside: zero)
+            _direction_row_3x3(weights, pb, t, a_diag, p_new, q, vb, y, y0, w)
+        row_dots(pb, 2, vb, 0, nb, 1, w, rowdot, y0)
 
 
 def operator_kernels(offs):

@@ -41,7 +41,7 @@ def test_killed_render_is_rebuilt_and_out_never_half_written(tmp_path):
     from scenes import load_render
 
     cache, out = tmp_path / "cache", tmp_path / "render.exr"
-    cmd = [sys.executable, "-m", "repro.render", "planes", "--preset", "small", "--spp", "2048",
+    cmd = [sys.executable, "-m", "repro.render", "planes", "--preset", "small", "--spp", "512",
            "--out", str(out), "--quiet"]
     proc = subprocess.Popen(cmd, cwd=ROOT, env=_env(cache), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     renders = cache / "renders"
@@ -55,7 +55,7 @@ def test_killed_render_is_rebuilt_and_out_never_half_written(tmp_path):
     again = subprocess.run(cmd, cwd=ROOT, env=_env(cache), capture_output=True, text=True)
     assert again.returncode == 0, again.stderr
     r = load_render(out)
-    assert r.rgb.shape == (120, 160, 3) and np.isfinite(r.rgb).all() and r.metadata["spp"] == 2048
+    assert r.rgb.shape == (120, 160, 3) and np.isfinite(r.rgb).all() and r.metadata["spp"] == 512
     assert not list(tmp_path.glob(".render.exr*")), "temporary output files left behind"
 
 

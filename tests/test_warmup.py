@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from repro._cli import console_main
+from tests.numba_cache import kernel_dir, seed_kernels
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -16,48 +17,20 @@ ROOT = Path(__file__).resolve().parents[1]
 LEFT_OUT = ROOT / "method" / "edges" / "elder_zucker.py"
 
 
-def _numba_cache_dir(py_file, cache_dir=None) -> Path:
-    """Where numba keeps ``py_file``'s compiled kernels: ``cache_dir`` (``NUMBA_CACHE_DIR``) or ``__pycache__``."""
-    from numba.core.caching import _CacheLocator
-
-    if cache_dir is None:
-        return Path(py_file).parent / "__pycache__"
-    return Path(cache_dir) / _CacheLocator.get_suitable_cache_subpath(str(py_file))
-
-
-def _seed(numba_dir) -> dict[Path, tuple[int, bytes]]:
-    """Copy this tree's compiled kernels (the set-up's warm-up, ``make setup``) of every ``method/`` source
-    except :data:`LEFT_OUT` into an empty ``NUMBA_CACHE_DIR``; return each copied code file's mtime and bytes."""
-    import numba
-
-    here = numba.config.CACHE_DIR or None
-    seeded = {}
-    for py in sorted((ROOT / "method").rglob("*.py")):
-        if py == LEFT_OUT:
-            continue
-        src, dst = _numba_cache_dir(py, here), _numba_cache_dir(py, numba_dir)
-        for f in sorted(src.glob(f"{py.stem}.*.nb[ic]")) if src.is_dir() else ():
-            dst.mkdir(parents=True, exist_ok=True)
-            (dst / f.name).write_bytes(f.read_bytes())
-            if f.suffix == ".nbc":
-                seeded[dst / f.name] = ((dst / f.name).stat().st_mtime_ns, f.read_bytes())
-    return seeded
-
-
 @pytest.mark.slow
 def test_warmup_compiles_what_the_cache_lacks_and_loads_the_rest(tmp_path):
     """One preset into a NUMBA_CACHE_DIR holding the set-up's kernels of every source but one: that source's
     index (.nbi) and code (.nbc) files appear, no seeded kernel is compiled again (its code file is left as
     it was), nothing is printed on stdout, and the map cache of the run is not the user's."""
     numba_dir, user_cache = tmp_path / "numba", tmp_path / "user-cache"
-    seeded = _seed(numba_dir)
+    seeded = seed_kernels(numba_dir, skip={LEFT_OUT})  # the set-up's kernels (make setup)
     env = {**os.environ, "NUMBA_CACHE_DIR": str(numba_dir), "DEFOCUS_CACHE_DIR": str(user_cache),
            "PYTHONPATH": str(ROOT)}
     proc = subprocess.run([sys.executable, "-m", "repro.warmup", "--preset", "paper", "-q"], cwd=tmp_path, env=env,
                           capture_output=True, text=True, check=False)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert proc.stdout == ""
-    filled = _numba_cache_dir(LEFT_OUT, numba_dir)
+    filled = kernel_dir(LEFT_OUT, numba_dir)
     assert list(filled.glob(f"{LEFT_OUT.stem}.*.nbi")) and list(filled.glob(f"{LEFT_OUT.stem}.*.nbc"))
     recompiled = [p.name for p, (mtime, data) in seeded.items()
                   if p.stat().st_mtime_ns != mtime or p.read_bytes() != data]

@@ -72,9 +72,30 @@ def _store_sharing_renders(folder: Path) -> dict:
     return env
 
 
-def test_figures_ctrl_c_then_resume_from_cache(tmp_path):
+def _copy_cases(data, env) -> int:
+    """Copy the finished cases of ``data`` (a :class:`experiments.figure_data.FigureData` computed through
+    this session's case store) into the case store of ``env``; return how many were copied."""
+    import shutil
+
+    from experiments.cache_keys import CACHE_SUBDIR
+    from experiments.cases import stored_case
+
+    dest = Path(env["DEFOCUS_CACHE_DIR"]) / CACHE_SUBDIR
+    n = 0
+    for case in data.outputs:
+        folder = stored_case(data.figure, data.config, case)
+        if folder is not None:
+            shutil.copytree(folder, dest / folder.name)  # the store's folder of an entry: its key's hash
+            n += 1
+    return n
+
+
+def test_figures_ctrl_c_then_resume_from_cache(tmp_path, quick_figure):
     out = tmp_path / "figures"
     env = _store_sharing_renders(tmp_path / "cache")
+    # fig10's quick cases are the session's (computed once for every test that reads them), copied into
+    # this run's store: the first run writes fig10 from them, then computes the photos figure
+    assert _copy_cases(quick_figure("fig10"), env) == 3
     # The photos figure's paper map of coffee (seconds; --preset paper: one map, magnified by two renderers)
     # is still being computed when the interrupt arrives, right after fig10's files are written.
     cmd = [sys.executable, "-m", "repro.figures", "fig10", "photos", "--quick", "--preset", "paper", "--workers", "1",

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.numba_cache import seed_kernels
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -32,6 +34,8 @@ def repo_copy(tmp_path) -> Path:
     _git(repo, "init", "-q")
     _git(repo, "add", "-A")
     _git(repo, "-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "copy")
+    # numba's compiled kernels of this checkout (git-ignored): the copy loads them instead of compiling
+    seed_kernels(os.environ.get("NUMBA_CACHE_DIR"), dest_root=repo)
     return repo
 
 

@@ -17,8 +17,8 @@ from tests import tolerances as tol
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _cli(*args, cache_dir=None, timeout=900):
-    env = os.environ.copy()
+def _cli(*args, cache_dir=None, env=None, timeout=900):
+    env = os.environ.copy() if env is None else dict(env)
     if cache_dir is not None:
         env["DEFOCUS_CACHE_DIR"] = str(cache_dir)
         # keep compiled kernels in the project's cache (only the figure results are fresh)
@@ -187,16 +187,24 @@ def test_fig10_second_run_uses_cache(fig10_quick):
 @pytest.mark.render
 def test_fig2_and_fig10_on_two_dask_workers(fig10_quick, tmp_path):
     """``--jobs 2`` (= ``--workers 2``): the cases on a LocalCluster of two workers; fig2 computed, fig10 from
-    the cache; the table rows of fig10 are the serial run's."""
-    proc = _cli("fig2", "fig10", "--quick", "--jobs", "2", "--out", tmp_path, cache_dir=fig10_quick["cache"])
+    the cache; the table rows of fig10 are the serial run's. Its case store holds a copy of the fig10 run's
+    cases, its renders are the session's (fig2's renders made once for every test that needs them)."""
+    import shutil
+
+    from tests.test_interrupts import _store_sharing_renders
+
+    env = _store_sharing_renders(tmp_path / "cache")
+    shutil.copytree(fig10_quick["cache"] / "figures", tmp_path / "cache" / "figures")
+    out = tmp_path / "out"
+    proc = _cli("fig2", "fig10", "--quick", "--jobs", "2", "--out", out, env=env)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "engine: LocalCluster with 2 worker(s)" in proc.stderr
     for stem in ("fig2", "fig10"):
         for ext in (".png", ".pdf", ".metrics.json"):
-            assert (tmp_path / f"{stem}{ext}").is_file()
-    m10 = json.loads((tmp_path / "fig10.metrics.json").read_text())
-    assert m10["cache"]["hit"] is True and read_table(tmp_path).where(figure="fig10").rows == fig10_quick["t1"]
-    fig2 = read_table(tmp_path).where(figure="fig2")
+            assert (out / f"{stem}{ext}").is_file()
+    m10 = json.loads((out / "fig10.metrics.json").read_text())
+    assert m10["cache"]["hit"] is True and read_table(out).where(figure="fig10").rows == fig10_quick["t1"]
+    fig2 = read_table(out).where(figure="fig2")
     assert fig2.value("max_ratio_rel_err") < tol.FIG2_RATIO_RTOL
     # the small sensor blurs ~3× less at the same field of view and f-number (Eq. 6)
     assert 2.5 < fig2.value("measured_ratio_median") < 4.0

@@ -41,7 +41,7 @@ def test_killed_render_is_rebuilt_and_out_never_half_written(tmp_path):
     from scenes import load_render
 
     cache, out = tmp_path / "cache", tmp_path / "render.exr"
-    cmd = [sys.executable, "-m", "repro.render", "planes", "--preset", "small", "--spp", "2048",
+    cmd = [sys.executable, "-m", "repro.render", "planes", "--preset", "small", "--spp", "512",
            "--out", str(out), "--quiet"]
     proc = subprocess.Popen(cmd, cwd=ROOT, env=_env(cache), stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     renders = cache / "renders"
@@ -55,7 +55,7 @@ def test_killed_render_is_rebuilt_and_out_never_half_written(tmp_path):
     again = subprocess.run(cmd, cwd=ROOT, env=_env(cache), capture_output=True, text=True)
     assert again.returncode == 0, again.stderr
     r = load_render(out)
-    assert r.rgb.shape == (120, 160, 3) and np.isfinite(r.rgb).all() and r.metadata["spp"] == 2048
+    assert r.rgb.shape == (120, 160, 3) and np.isfinite(r.rgb).all() and r.metadata["spp"] == 512
     assert not list(tmp_path.glob(".render.exr*")), "temporary output files left behind"
 
 
@@ -72,9 +72,30 @@ def _store_sharing_renders(folder: Path) -> dict:
     return env
 
 
-def test_figures_ctrl_c_then_resume_from_cache(tmp_path):
+def _copy_cases(data, env) -> int:
+    """Copy the finished cases of ``data`` (a :class:`experiments.figure_data.FigureData` computed through
+    this session's case store) into the case store of ``env``; return how many were copied."""
+    import shutil
+
+    from experiments.cache_keys import CACHE_SUBDIR
+    from experiments.cases import stored_case
+
+    dest = Path(env["DEFOCUS_CACHE_DIR"]) / CACHE_SUBDIR
+    n = 0
+    for case in data.outputs:
+        folder = stored_case(data.figure, data.config, case)
+        if folder is not None:
+            shutil.copytree(folder, dest / folder.name)  # the store's folder of an entry: its key's hash
+            n += 1
+    return n
+
+
+def test_figures_ctrl_c_then_resume_from_cache(tmp_path, quick_figure):
     out = tmp_path / "figures"
     env = _store_sharing_renders(tmp_path / "cache")
+    # fig10's quick cases are the session's (computed once for every test that reads them), copied into
+    # this run's store: the first run writes fig10 from them, then computes the photos figure
+    assert _copy_cases(quick_figure("fig10"), env) == 3
     # The photos figure's paper map of coffee (seconds; --preset paper: one map, magnified by two renderers)
     # is still being computed when the interrupt arrives, right after fig10's files are written.
     cmd = [sys.executable, "-m", "repro.figures", "fig10", "photos", "--quick", "--preset", "paper", "--workers", "1",

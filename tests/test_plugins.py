@@ -208,15 +208,37 @@ def test_without_plugins_nothing_is_registered_and_the_flags_parse_empty(monkeyp
 
 
 # --- a bug inside a registered estimator keeps its traceback --------------------------------------------------
+def _threaded_client(*, workers, scheduler):
+    """``repro._runner.start_client`` on a LocalCluster of one worker thread in this process: the Dask path
+    (futures, the worker's exception and traceback sent back) without starting worker processes."""
+    import logging
+
+    from dask.distributed import Client, LocalCluster
+
+    from repro._runner import _with_plugins
+
+    cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None,
+                           silence_logs=logging.ERROR)
+    return _with_plugins(Client(cluster), cluster)
+
+
 @pytest.mark.render
-def test_a_bug_inside_a_registered_estimator_shows_its_traceback(plugin, monkeypatch):
-    monkeypatch.setenv("DEFOCUS_MITSUBA_VARIANT", "scalar_rgb")
+@pytest.mark.parametrize("engine", ["here", "dask"])
+def test_a_bug_inside_a_registered_estimator_shows_its_traceback(engine, plugin, monkeypatch):
+    """In this process (``--workers 1``) and on a Dask worker (``--workers 2``, the worker a thread here: the
+    traceback crosses Dask's future, not a process), the estimator's NameError and its own frame are shown."""
+    started = []
+    if engine == "dask":
+        pytest.importorskip("distributed")
+        monkeypatch.setattr("repro._runner.start_client", lambda **kw: started.append(kw) or _threaded_client(**kw))
     with pytest.raises(RuntimeError) as info:
         _evaluate(["--estimator-module", "extpkg_blur:estimate_blur_buggy", "--estimator", "estimate_blur_buggy",
-                   "--scenes", "planes", "--fnumber", "8", "--out", str(plugin / "out"), "-q"])
+                   "--scenes", "planes", "--fnumber", "8", "--workers", "1" if engine == "here" else "2",
+                   "--out", str(plugin / "out"), "-q"])
     text = str(info.value)
     assert "NameError: name 'undefined_name' is not defined" in text, text
     assert "extpkg_blur.py" in text and "estimate_blur_buggy" in text, text  # the plugin's own frame
+    assert started == ([{"workers": 2, "scheduler": None}] if engine == "dask" else [])
 
 
 # --- Dask workers: the paths go along, other run-time entries are refused -------------------------------------

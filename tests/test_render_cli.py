@@ -42,20 +42,38 @@ def _renders(env):
     return sorted(p.name for p in d.iterdir()) if d.exists() else []
 
 
+#: The scene whose σ_gt ranges ``test_list`` measures (one ray cast per preset); the others' are stubbed.
+MEASURED = "planes"
+
+
 @pytest.mark.render
-def test_list(env):
-    """--list: each scene's set, camera and σ_gt range per preset and f-number, as measured on its
-    ground truth (the numbers equal scenes.library.ranges on the same cache)."""
+def test_list(monkeypatch):
+    """--list: each scene's set, camera and σ_gt range per preset and f-number, printed from
+    scenes.library.ranges.sigma_gt_ranges (in process: every scene but one gets stub ranges, whose numbers
+    must be the ones printed; :data:`MEASURED`'s are measured on its ground truth and equal a second call's)."""
     import re
 
     from scenes.camera import CAMERA_PRESETS
-    from scenes.library import SCENE_SETS
-    from scenes.library.ranges import sigma_gt_ranges
+    from scenes.library import SCENE_SETS, ranges
 
-    project = dict(os.environ)  # the project's cache: the ranges are computed once, then read back
-    project.pop("DEFOCUS_MITSUBA_VARIANT", None)
-    p = run(["--list", "--quiet"], project)
+    real = ranges.sigma_gt_ranges
+    called = []
+
+    def stub_or_real(sdef, *, variant=None, **kw):
+        called.append((sdef.name, variant))
+        if sdef.name == MEASURED:
+            return real(sdef, variant=variant, **kw)
+        k = sorted(SCENES).index(sdef.name)  # numbers of each scene's own
+        return {p: {"depth_m": [1.0, 2.0], "f_numbers": {f"{n:g}": {"min_px": k + 0.25 * j, "max_px": k + 10.5 + j,
+                                                                   "p95_px": k + 9.0}
+                                                         for j, n in enumerate((8.0, 4.0))}}
+                for p in ("small", "full")}
+
+    monkeypatch.setattr(ranges, "sigma_gt_ranges", stub_or_real)
+    monkeypatch.delenv("DEFOCUS_MITSUBA_VARIANT", raising=False)
+    p = run_here(["--list", "--quiet"], None)
     assert p.returncode == 0, p.stderr
+    assert called == [(name, None) for name in SCENES]
     lines = p.stdout.strip().splitlines()
     assert len(lines) == 4 * len(SCENES) + 1 and "measured from each scene's ground truth" in lines[-1]
     for i, name in enumerate(SCENES):
@@ -64,13 +82,13 @@ def test_list(env):
         assert head.startswith(f"{name}  [{sset}]") and SCENES[name].description in head
         lens = CAMERA_PRESETS[SCENES[name].camera_name]
         assert SCENES[name].camera_name in cam and f"f = {lens.focal_length_mm:g} mm" in cam
-        ranges = sigma_gt_ranges(name)
+        want_ranges = real(name) if name == MEASURED else stub_or_real(SCENES[name])
         for preset, line in (("small", small), ("full", full)):
             got = {float(n): (float(a), float(b)) for n, a, b in re.findall(r"f/(\d+) ([\d.]+)-([\d.]+) px", line)}
             assert set(got) == {8.0, 4.0}, line
             for n, (lo, hi) in got.items():
-                want = ranges[preset]["f_numbers"][f"{n:g}"]
-                assert (lo, hi) == (round(want["min_px"], 2), round(want["max_px"], 2))
+                want = want_ranges[preset]["f_numbers"][f"{n:g}"]
+                assert (lo, hi) == (round(want["min_px"], 2), round(want["max_px"], 2)), (name, line)
 
 
 @pytest.mark.render

@@ -135,19 +135,17 @@ def fit_measure_sd(diagnostics, edge_map, *, params, noise_variance=None):
         sd(σb), px; NaN where not fitted.
     """
     fitted = np.isfinite(diagnostics["width"])  # measure_sd is NaN wherever the width is: evaluate the rest only
-    fits = {name: np.asarray(diagnostics[name])[fitted] for name in _SD_FIELDS}
+    fits = {name: np.asarray(diagnostics[name])[fitted] for name in ("width", "sigma2", "residual", "energy", "window")}
     v_pixel = float(params.noise_std) ** 2 if noise_variance is None else np.asarray(noise_variance)[fitted]
     out = np.full(fitted.shape, np.nan)
     out[fitted] = _measure_sd_at(fits, np.asarray(edge_map.theta, dtype=np.float64)[fitted], v_pixel)
     return out
 
 
-_SD_FIELDS = ("width", "sigma2", "residual", "energy", "window")
-
-
 def _measure_sd_at(fits, theta, v_pixel):
-    """:func:`fit_measure_sd` of fitted pixels given as arrays of shape (n,): ``fits`` (the diagnostics of
-    :data:`_SD_FIELDS`), θ (radians) and the noise variance (image units², array or float); sd(σb), px."""
+    """:func:`fit_measure_sd` of fitted pixels given as arrays of shape (n,): ``fits`` (the diagnostics
+    :func:`~method.blur.measure_uncertainty.measure_sd` reads), θ (radians) and the noise variance
+    (image units², array or float); sd(σb), px."""
     with np.errstate(invalid="ignore"):
         v_sample = steered_second_noise_variance(fits["sigma2"], 1.0) * v_pixel
     proj = np.maximum(np.abs(np.cos(theta)), np.abs(np.sin(theta)))
@@ -337,7 +335,7 @@ def _checked(diagnostics, params, gray, edge_map, noise_variance=None):
         sd = np.full(fitted.size, np.nan)
         w = np.isfinite(fits["width"])
         v_pixel = float(params.noise_std) ** 2 if noise_variance is None else noise_variance[w]
-        sd[w] = _measure_sd_at({name: fits[name][w] for name in _SD_FIELDS},
+        sd[w] = _measure_sd_at({name: values[w] for name, values in fits.items()},
                                theta.reshape(-1)[fitted[w]], v_pixel)
         confidence = uncertainty_confidence(sd, np.isfinite(sigma_b))
     else:

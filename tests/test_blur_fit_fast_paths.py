@@ -4,8 +4,12 @@ The Eq. (2c) template search computes each pass's dot products together
 (:func:`method.blur.fit_templates._best_gaussian_template`); the oracle is the one-template-at-a-time
 search :func:`method.blur.fit_templates._best_template` (which the disk model still uses).
 :func:`method.blur.model_fit_checked.fit_measure_sd` evaluates only the fitted pixels; the oracle is
-:func:`method.blur.measure_uncertainty.measure_sd` over every pixel of the image.
+:func:`method.blur.measure_uncertainty.measure_sd` over every pixel of the image. The scale following
+(:func:`method.blur.scale_follow.follow_scale_diagnostics`) and the checked fit's rules and confidences
+(``method.blur.model_fit_checked._checked``) run on pixel lists; the oracles are their whole-image forms.
 """
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -14,11 +18,14 @@ from scipy import ndimage
 from method import DefocusParams
 from method.blur.fit_templates import (COARSE_STRIDE, EMPTY_DISK_TABLE, _best_gaussian_template, _best_template,
                                        template_table)
-from method.blur.measure_uncertainty import measure_sd, width_information
-from method.blur.model_fit_checked import fit_measure_sd, steered_second_noise_variance
+from method.blur.measure_uncertainty import measure_sd, uncertainty_confidence, width_information
+from method.blur.model_fit import apply_fit_rules, model_fit_diagnostics
+from method.blur.model_fit_checked import (_checked, _noise_spectrum, _noise_variance, fit_measure_sd,
+                                           noise_residual_share, steered_second_noise_variance)
 from method.blur.noise_model import noise_variance_map
 from method.blur.psf_selection import PSF_SELECT_SAMPLE, psf_selection_sample, select_psf_model
-from method.blur.scale_follow import follow_scale_diagnostics
+from method.blur.scale_follow import _nearest_scale, follow_scale_diagnostics, follow_window_max
+from method.blur.step_plateau import gate_step_measures
 from method.pipeline import edges_stage
 
 
@@ -139,3 +146,86 @@ def test_psf_choice_on_the_fitted_pixels_is_the_choice_on_the_image():
         fits = {k: v.ravel()[flat] for k, v in diag.items()}
         assert select_psf_model(diag, width, disk_res) == model
         assert select_psf_model(fits, width.ravel()[flat], disk_res.ravel()[flat]) == model
+
+
+def _blurry_steps(size=96, seed=3):
+    """Steps blurred by σ 1.5 and 7 px (the wide one is re-fitted at a coarser scale), texture, noise."""
+    rng = np.random.default_rng(seed)
+    yy, xx = np.mgrid[:size, :size]
+    img = 0.25 + 0.5 * (xx > size // 3) + 0.15 * (yy > size // 2)
+    img = np.where(xx < size // 2, ndimage.gaussian_filter(img, 7.0), ndimage.gaussian_filter(img, 1.5))
+    img += 0.1 * ndimage.zoom(rng.uniform(-1, 1, (8, 8)), size / 8, order=0) * (xx > 3 * size // 4)
+    return np.clip(img + rng.normal(0.0, 0.005, img.shape), 0.0, 1.0)
+
+
+def _follow_on_the_image(gray, em, params):
+    """follow_scale_diagnostics with whole-image masks: the coarse and re-fit see a σ2 map NaN off their pixels."""
+    diag = model_fit_diagnostics(gray, em, params=params)
+    ratio, rho_max = params.fit_follow_scale, params.fit_follow_max_residual
+    s2_det, s2_fit = np.asarray(em.sigma2, dtype=np.float64), diag["sigma2"]
+    with np.errstate(invalid="ignore"):
+        coarse_mask = em.edges & np.isfinite(s2_det) & np.isfinite(s2_fit) & (s2_det > s2_fit)
+    psf = "disk" if params.fit_psf == "auto" and diag["disk"].any() else params.fit_psf
+    base = params.replace(fit_max_scale=None, fit_scale_ratio=1.0, fit_psf=psf)
+    coarse = model_fit_diagnostics(gray, dataclasses.replace(em, sigma2=np.where(coarse_mask, s2_det, np.nan)),
+                                   params=base.replace(fit_window_max=follow_window_max(
+                                       np.max(s2_det[coarse_mask]), 1.0, params.fit_window_max)))
+    with np.errstate(invalid="ignore"):
+        target = _nearest_scale(np.minimum(s2_det, ratio * coarse["sigma_b"]), params.sigma2_scales)
+        refit = coarse_mask & np.isfinite(target) & (target > s2_fit) & (coarse["residual"] <= rho_max)
+    fine = model_fit_diagnostics(gray, dataclasses.replace(em, sigma2=np.where(refit, target, np.nan)),
+                                 params=base.replace(fit_window_max=follow_window_max(
+                                     np.max(target[refit]), ratio, params.fit_window_max)))
+    with np.errstate(invalid="ignore"):
+        keep = refit & (_nearest_scale(ratio * fine["sigma_b"], params.sigma2_scales) >= target)
+        keep &= fine["residual"] <= rho_max
+    for name, values in diag.items():
+        values[keep] = fine[name][keep]
+    return diag, int(keep.sum())
+
+
+def test_scale_following_on_the_pixel_list_is_the_whole_image_form():
+    params = DefocusParams.preset("robust")
+    gray = _blurry_steps()
+    em = edges_stage(gray, params=params, encoding="linear")
+    want, refitted = _follow_on_the_image(gray, em, params)
+    got = follow_scale_diagnostics(gray, em, params=params)
+    assert refitted >= 10  # the re-fit replaced some of the first fit's measures
+    assert got.keys() == want.keys()
+    for name in want:
+        assert got[name].dtype == want[name].dtype
+        np.testing.assert_array_equal(got[name], want[name])
+
+
+def _checked_on_the_image(diag, params, gray, em, nv):
+    """The checked fit's rules, noise allowance, plateau gate and confidences on whole-image maps."""
+    sigma_b = apply_fit_rules(diag, params=params)
+    limit = params.fit_max_residual + params.fit_residual_noise * noise_residual_share(
+        diag, noise_std=params.noise_std, noise_variance=nv, noise_spectrum=_noise_spectrum(gray, em, params))
+    with np.errstate(invalid="ignore"):
+        good, strict = diag["residual"] <= limit, diag["residual"] <= params.fit_max_residual
+    sigma_b = gate_step_measures(gray, em, np.where(good, sigma_b, np.nan), params=params)
+    if params.measure_weighting == "uncertainty":
+        sd = fit_measure_sd(diag, em, params=params, noise_variance=nv)
+        return sigma_b, uncertainty_confidence(sd, np.isfinite(sigma_b))
+    return sigma_b, np.where(np.isfinite(sigma_b), np.where(strict, 1.0, params.relaxed_fit_weight), np.nan)
+
+
+@pytest.mark.parametrize("weighting, noise_model, gate", [("uncertainty", "signal_dependent", "plateau"),
+                                                          ("hand", "constant", "plateau_flat"),
+                                                          ("hand", "signal_dependent", "none")])
+def test_checked_fit_on_the_fitted_pixels_is_the_whole_image_form(weighting, noise_model, gate):
+    params = DefocusParams.preset("robust").replace(measure_weighting=weighting, noise_model=noise_model,
+                                                    fit_step_gate=gate, relaxed_fit_weight=0.3)
+    gray = np.hstack([_blurry_steps(), _textured(96)])
+    em = edges_stage(gray, params=params, encoding="linear")
+    diag = follow_scale_diagnostics(gray, em, params=params)
+    nv = _noise_variance(gray, em, params)
+    want = _checked_on_the_image(diag, params, gray, em, nv)
+    got = _checked(diag, params, gray, em, nv)
+    for g, w in zip(got, want):
+        assert g.dtype == w.dtype == np.float64
+        np.testing.assert_array_equal(g, w)
+    fitted = np.isfinite(diag["sigma_b"])
+    assert 50 <= np.isfinite(want[0]).sum() < fitted.sum()  # some measures kept, some removed by the rules
+    assert len(np.unique(want[1][np.isfinite(want[1])])) >= 2  # confidences on both sides of 1

@@ -224,8 +224,12 @@ def _model_fit_with_residual(gray, edge_map, *, params):
     return d["sigma_b"], d["residual"]
 
 
-def model_fit_diagnostics(gray, edge_map, *, params):
+def model_fit_diagnostics(gray, edge_map, *, params, groups=None):
     """Private hook: :func:`estimate_blur_model_fit`'s σb map plus per-pixel fit diagnostics.
+
+    ``groups`` (list of (σ2 px, rows, cols), as :func:`~method.edges.elder_zucker.pixels_by_scale`
+    gives them; None: the edge pixels of ``edge_map`` at their :func:`fit_scales` σ2) are the pixels
+    fitted and the scale of each (``fit_max_scale`` and ``fit_scale_ratio`` then do not apply).
 
     Returns
     -------
@@ -262,8 +266,9 @@ def model_fit_diagnostics(gray, edge_map, *, params):
     disk_table = response_table() if psf != "gaussian" else EMPTY_DISK_TABLE
     disk_width = np.full(img.shape, np.nan) if psf != "gaussian" else None
     disk_res = np.full(img.shape, np.nan) if psf != "gaussian" else None
-    edge_map = fit_scales(edge_map, params=params)
-    groups = edge_pixels_by_scale(edge_map)
+    if groups is None:
+        edge_map = fit_scales(edge_map, params=params)
+        groups = edge_pixels_by_scale(edge_map)
     if not groups:
         return diag
     s_max = math.sqrt(float(params.max_sigma) ** 2 + max(g[0] for g in groups) ** 2) * math.sqrt(2.0)

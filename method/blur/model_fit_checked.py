@@ -20,7 +20,7 @@ from .model_fit import paper_rules, apply_fit_rules
 from .noise_model import noise_variance_map
 from .noise_spectrum import noise_spectrum_of
 from .scale_follow import follow_scale_diagnostics
-from .step_plateau import gate_step_measures
+from .step_plateau import gate_step_pixels
 
 __all__ = ["estimate_blur_model_fit_checked", "estimate_blur_model_fit_checked_confidence",
            "estimate_blur_model_fit_checked_psf", "estimate_blur_model_fit_checked_sd", "fit_measure_sd",
@@ -137,13 +137,19 @@ def fit_measure_sd(diagnostics, edge_map, *, params, noise_variance=None):
     fitted = np.isfinite(diagnostics["width"])  # measure_sd is NaN wherever the width is: evaluate the rest only
     fits = {name: np.asarray(diagnostics[name])[fitted] for name in ("width", "sigma2", "residual", "energy", "window")}
     v_pixel = float(params.noise_std) ** 2 if noise_variance is None else np.asarray(noise_variance)[fitted]
+    out = np.full(fitted.shape, np.nan)
+    out[fitted] = _measure_sd_at(fits, np.asarray(edge_map.theta, dtype=np.float64)[fitted], v_pixel)
+    return out
+
+
+def _measure_sd_at(fits, theta, v_pixel):
+    """:func:`fit_measure_sd` of fitted pixels given as arrays of shape (n,): ``fits`` (the diagnostics
+    :func:`~method.blur.measure_uncertainty.measure_sd` reads), θ (radians) and the noise variance
+    (image units², array or float); sd(σb), px."""
     with np.errstate(invalid="ignore"):
         v_sample = steered_second_noise_variance(fits["sigma2"], 1.0) * v_pixel
-    theta = np.asarray(edge_map.theta, dtype=np.float64)[fitted]
     proj = np.maximum(np.abs(np.cos(theta)), np.abs(np.sin(theta)))
-    out = np.full(fitted.shape, np.nan)
-    out[fitted] = measure_sd(fits, sample_noise_variance=v_sample, proj=proj)
-    return out
+    return measure_sd(fits, sample_noise_variance=v_sample, proj=proj)
 
 
 def estimate_blur_model_fit_checked_sd(gray, edge_map, *, params):
@@ -299,25 +305,43 @@ def _noise_spectrum(gray, edge_map, params):
 
 def _checked(diagnostics, params, gray, edge_map, noise_variance=None):
     """(σb, confidence) of the checked fit from the model fit's diagnostics (Notes of the estimator),
-    then ``params.fit_step_gate`` (:func:`method.blur.step_plateau.gate_step_measures`)."""
-    sigma_b, residual = diagnostics["sigma_b"], diagnostics["residual"]
+    then ``params.fit_step_gate`` (:func:`method.blur.step_plateau.gate_step_pixels`).
+
+    Every rule only removes measures, so it runs on the list of pixels with a fitted σb (raster order)."""
+    shape = diagnostics["sigma_b"].shape
+    fitted = np.flatnonzero(np.isfinite(diagnostics["sigma_b"]))
+    fits = {name: np.asarray(values).reshape(-1)[fitted] for name, values in diagnostics.items()}
+    if noise_variance is not None:
+        noise_variance = np.broadcast_to(np.asarray(noise_variance), shape).reshape(-1)[fitted]
+    sigma_b, residual = fits["sigma_b"], fits["residual"]
     if not paper_rules(params):  # the beyond-the-paper plausibility rules (robust preset) first
-        sigma_b = apply_fit_rules(diagnostics, params=params)
+        sigma_b = apply_fit_rules(fits, params=params)
     strict_limit = float(params.fit_max_residual)
     limit = strict_limit
     k = float(params.fit_residual_noise)
     if k > 0:  # beyond the paper: allow the residual that the sensor noise alone leaves (Notes, 4)
-        limit = limit + k * noise_residual_share(diagnostics, noise_std=params.noise_std,
-                                                 noise_variance=noise_variance,
+        limit = limit + k * noise_residual_share(fits, noise_std=params.noise_std, noise_variance=noise_variance,
                                                  noise_spectrum=_noise_spectrum(gray, edge_map, params))
     with np.errstate(invalid="ignore"):
         good = residual <= limit  # False where residual is NaN
         strict = residual <= strict_limit
-    sigma_b = gate_step_measures(gray, edge_map, np.where(good, sigma_b, np.nan), params=params)
+    sigma_b = np.where(good, sigma_b, np.nan)
+    measured = np.isfinite(sigma_b)
+    rows, cols = np.divmod(fitted[measured], shape[1])
+    theta = np.asarray(edge_map.theta, dtype=np.float64)
+    keep = gate_step_pixels(gray, rows, cols, theta[rows, cols], sigma_b[measured], params=params)
+    sigma_b[np.flatnonzero(measured)[~keep]] = np.nan
     if params.measure_weighting == "uncertainty":  # c_q ∝ 1 / Var(σb) (method.blur.measure_uncertainty)
-        sd = fit_measure_sd(diagnostics, edge_map, params=params, noise_variance=noise_variance)
-        return sigma_b, uncertainty_confidence(sd, np.isfinite(sigma_b))
-    c_relaxed = float(params.relaxed_fit_weight)
-    confidence = np.where(strict, 1.0, c_relaxed)
-    confidence[~np.isfinite(sigma_b)] = np.nan
-    return sigma_b, confidence
+        sd = np.full(fitted.size, np.nan)
+        w = np.isfinite(fits["width"])
+        v_pixel = float(params.noise_std) ** 2 if noise_variance is None else noise_variance[w]
+        sd[w] = _measure_sd_at({name: values[w] for name, values in fits.items()},
+                               theta.reshape(-1)[fitted[w]], v_pixel)
+        confidence = uncertainty_confidence(sd, np.isfinite(sigma_b))
+    else:
+        confidence = np.where(strict, 1.0, float(params.relaxed_fit_weight))
+        confidence[~np.isfinite(sigma_b)] = np.nan
+    out = np.full(shape, np.nan), np.full(shape, np.nan)
+    out[0].reshape(-1)[fitted] = sigma_b
+    out[1].reshape(-1)[fitted] = confidence
+    return out

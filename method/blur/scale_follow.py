@@ -12,12 +12,12 @@ lets the scale follow the blur: a coarse fit at σ2(p) picks the scale, a re-fit
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
 
 from .fit_templates import FIT_KAPPA
+from ..edges.elder_zucker import pixels_by_scale
 from .model_fit import model_fit_diagnostics
 
 __all__ = ["FOLLOW_WINDOW_SPAN", "follow_scale_diagnostics", "follow_window_max"]
@@ -51,9 +51,10 @@ def follow_window_max(sigma2, ratio, window_max) -> int:
     return max(int(window_max), 2 * half + 1)
 
 
-def _restricted(edge_map, mask, sigma2):
-    """``edge_map`` keeping the edge pixels of ``mask`` only, fitted at ``sigma2`` (px, per pixel)."""
-    return dataclasses.replace(edge_map, sigma2=np.where(mask, sigma2, np.nan))
+def _groups(flat, sigma2, width):
+    """The fit's pixel groups of the raster indices ``flat`` (ascending), fitted at ``sigma2`` (px, per pixel)."""
+    rows, cols = np.divmod(flat, width)
+    return pixels_by_scale(rows, cols, sigma2)
 
 
 def _nearest_scale(values, scales):
@@ -129,34 +130,37 @@ def follow_scale_diagnostics(gray, edge_map, *, params):
     if ratio is None:
         return diag
     ratio = float(ratio)
-    edges = np.asarray(edge_map.edges, dtype=bool)
-    s2_det = np.asarray(edge_map.sigma2, dtype=np.float64)
-    s2_fit = diag["sigma2"]
+    # on the list of fitted edge pixels (raster order, as the edge map's groups), not the whole image
+    width = diag["sigma2"].shape[1]
+    fitted = np.flatnonzero(np.isfinite(diag["sigma2"]))
+    s2_fit = diag["sigma2"].ravel()[fitted]
+    s2_det = np.asarray(edge_map.sigma2, dtype=np.float64).ravel()[fitted]
     with np.errstate(invalid="ignore"):
-        coarse_mask = edges & np.isfinite(s2_det) & np.isfinite(s2_fit) & (s2_det > s2_fit)
-    if not coarse_mask.any():
+        sel = np.asarray(edge_map.edges, dtype=bool).ravel()[fitted] & np.isfinite(s2_det) & (s2_det > s2_fit)
+    if not sel.any():
         return diag
+    flat, s2_det, s2_fit = fitted[sel], s2_det[sel], s2_fit[sel]
     psf = params.fit_psf
     if psf == "auto" and diag["disk"].any():  # the image's choice; else the re-fitted edges decide it
         psf = "disk"
     base = params.replace(fit_max_scale=None, fit_scale_ratio=1.0, fit_psf=psf)
     coarse = model_fit_diagnostics(
-        gray, _restricted(edge_map, coarse_mask, s2_det),
-        params=base.replace(fit_window_max=follow_window_max(np.max(s2_det[coarse_mask]), 1.0,
-                                                             params.fit_window_max)))
+        gray, edge_map, groups=_groups(flat, s2_det, width),
+        params=base.replace(fit_window_max=follow_window_max(np.max(s2_det), 1.0, params.fit_window_max)))
+    coarse = {name: coarse[name].ravel()[flat] for name in ("sigma_b", "residual")}
     rho_max = float(params.fit_follow_max_residual)
     with np.errstate(invalid="ignore"):
         target = _nearest_scale(np.minimum(s2_det, ratio * coarse["sigma_b"]), params.sigma2_scales)
-        refit_mask = coarse_mask & np.isfinite(target) & (target > s2_fit) & _fits(coarse, rho_max)
-    if not refit_mask.any():
+        sel = np.isfinite(target) & (target > s2_fit) & _fits(coarse, rho_max)
+    if not sel.any():
         return diag
+    flat, target = flat[sel], target[sel]
     fine = model_fit_diagnostics(
-        gray, _restricted(edge_map, refit_mask, target),
-        params=base.replace(fit_window_max=follow_window_max(np.max(target[refit_mask]), ratio,
-                                                             params.fit_window_max)))
+        gray, edge_map, groups=_groups(flat, target, width),
+        params=base.replace(fit_window_max=follow_window_max(np.max(target), ratio, params.fit_window_max)))
+    fine = {name: values.ravel()[flat] for name, values in fine.items()}
     with np.errstate(invalid="ignore"):
-        keep = refit_mask & (_nearest_scale(ratio * fine["sigma_b"], params.sigma2_scales) >= target)
-        keep &= _fits(fine, rho_max)
+        keep = (_nearest_scale(ratio * fine["sigma_b"], params.sigma2_scales) >= target) & _fits(fine, rho_max)
     for name, values in diag.items():
-        values[keep] = fine[name][keep]
+        np.put(values, flat[keep], fine[name][keep])
     return diag

@@ -22,7 +22,7 @@ from scipy import ndimage
 from ..registry import Entry, Registry
 
 __all__ = ["GAUSSIAN_STEP_REACH", "PLATEAU_FLATNESS", "PLATEAU_MIN_SIGMA", "STEP_GATES", "gate_step_measures",
-           "plateau_profile"]
+           "gate_step_pixels", "plateau_profile"]
 
 #: Smallest measure σb (px) the tests judge: below it the plateaus lie within 2 px of the edge, where the
 #: pixel filter and the 1-px pre-smoothing shape the profile more than the blur does.
@@ -150,14 +150,36 @@ def gate_step_measures(gray, edge_map, sigma_b, *, params):
     1. ``"plateau"``: rejected where a side's reach is below ``params.fit_plateau_reach``;
     2. ``"plateau_flat"``: 1, and also where a side's flatness exceeds :data:`PLATEAU_FLATNESS`.
     """
-    name = params.fit_step_gate
-    fn = STEP_GATES.resolve(name, what="DefocusParams.fit_step_gate")
-    if name == "none":
+    if params.fit_step_gate == "none":
+        STEP_GATES.resolve("none", what="DefocusParams.fit_step_gate")
         return sigma_b
     sigma_b = np.array(sigma_b, dtype=np.float64, copy=True)
     rows, cols = np.nonzero(np.isfinite(sigma_b))
-    if rows.size:
-        theta = np.asarray(edge_map.theta, dtype=np.float64)[rows, cols]
-        keep = fn(np.asarray(gray, dtype=np.float64), rows, cols, theta, sigma_b[rows, cols], params)
-        sigma_b[rows[~keep], cols[~keep]] = np.nan
+    theta = np.asarray(edge_map.theta, dtype=np.float64)[rows, cols]
+    keep = gate_step_pixels(gray, rows, cols, theta, sigma_b[rows, cols], params=params)
+    sigma_b[rows[~keep], cols[~keep]] = np.nan
     return sigma_b
+
+
+def gate_step_pixels(gray, rows, cols, theta, sigma_b, *, params):
+    """:func:`gate_step_measures` on a list of measures: True where the measure is kept.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (H, W), float
+        Luminance the fit measured, in [0, 1].
+    rows, cols : ndarray of int, shape (n,)
+        The measures' pixels.
+    theta, sigma_b : ndarray, shape (n,), float
+        Their gradient direction (radians) and σb (px, finite).
+    params : DefocusParams, keyword-only
+        As :func:`gate_step_measures`.
+
+    Returns
+    -------
+    ndarray, shape (n,), bool
+    """
+    fn = STEP_GATES.resolve(params.fit_step_gate, what="DefocusParams.fit_step_gate")
+    if not rows.size:
+        return np.ones(0, dtype=bool)
+    return fn(np.asarray(gray, dtype=np.float64), rows, cols, theta, sigma_b, params)

@@ -30,6 +30,7 @@ __all__ = [
     "check_edge_inputs",
     "detect_edges",
     "edge_pixels_by_scale",
+    "pixels_by_scale",
 ]
 
 #: Smallest accepted image side, px (the 2nd-derivative test needs a pixel on both sides).
@@ -333,7 +334,17 @@ def edge_pixels_by_scale(edge_map):
     edges = np.asarray(edge_map.edges, dtype=bool)
     s2 = np.asarray(edge_map.sigma2, dtype=np.float64)
     rows, cols = np.nonzero(edges & np.isfinite(s2))
-    vals = s2[rows, cols]
+    return pixels_by_scale(rows, cols, s2[rows, cols])
+
+
+def pixels_by_scale(rows, cols, vals):
+    """Group pixels (``rows``, ``cols``: int arrays, shape (n,)) by their σ2 ``vals`` (px, shape (n,), finite).
+
+    Returns
+    -------
+    list of (float, ndarray, ndarray)
+        (σ2 in px, rows, cols) per distinct σ2, smallest σ2 first; each group keeps the pixels' order.
+    """
     groups = []
     for v in np.unique(vals):
         sel = vals == v

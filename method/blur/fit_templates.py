@@ -188,6 +188,23 @@ def _score_family(r, a, b, K, table, cum, i, j, disk, sig_p, s_grid, t0_grid, dv
 
 
 @numba.njit(cache=True, nogil=True)
+def _t0_start_index(k0, t0_grid):
+    """Index of the t0 grid value nearest ``k0`` (samples), clipped to the grid: the search's start."""
+    jc = int(round((k0 - t0_grid[0]) / (t0_grid[1] - t0_grid[0])))
+    return max(0, min(t0_grid.shape[0] - 1, jc))
+
+
+@numba.njit(cache=True, nogil=True)
+def _parabola_offset(e_m, e_0, e_p):
+    """Step 5: vertex of the parabola through the squared errors at grid steps −1, 0, +1, clipped to ±0.5
+    (0 where the three points are not convex)."""
+    den = e_m - 2.0 * e_0 + e_p
+    if den > 0.0:
+        return max(-0.5, min(0.5, 0.5 * (e_m - e_p) / den))
+    return 0.0
+
+
+@numba.njit(cache=True, nogil=True)
 def _best_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, coarse_stride, disk, sig_p,
                    dvalues, doffsets, dlengths, dsteps, i_lo, i_hi):
     """Steps 4–5 of the fit: brute-force (s', t0) search and parabolic refinement; (s', best score) or (NaN, 0).
@@ -195,10 +212,7 @@ def _best_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, coarse
     The coarse pass scans s' indices i_lo, i_lo + stride, … < i_hi (the whole grid for Eq. 2c)."""
     n_s = s_grid.shape[0]
     n_t = t0_grid.shape[0]
-    t0_min = t0_grid[0]
-    t0_step = t0_grid[1] - t0_grid[0]
-    jc = int(round((k0 - t0_min) / t0_step))
-    jc = max(0, min(n_t - 1, jc))
+    jc = _t0_start_index(k0, t0_grid)
     best_i, best = -1, 0.0
     for i in range(i_lo, min(n_s, i_hi), coarse_stride):
         sc = _score_family(r, a, b, K, table, cum, i, jc, disk, sig_p, s_grid, t0_grid, dvalues, doffsets,
@@ -234,11 +248,9 @@ def _best_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cum, coarse
         e_0 = energy_r - best
         e_p = energy_r - _score_family(r, a, b, K, table, cum, bi + 1, bj, disk, sig_p, s_grid, t0_grid, dvalues,
                                        doffsets, dlengths, dsteps)
-        den = e_m - 2.0 * e_0 + e_p
-        if den > 0.0:
-            delta = 0.5 * (e_m - e_p) / den
-            pos += max(-0.5, min(0.5, delta))
+        pos += _parabola_offset(e_m, e_0, e_p)
     return s_grid[0] * (s_grid[1] / s_grid[0]) ** pos, best
+
 
 @numba.njit(cache=True, nogil=True)
 def _scores_along_s(r, a, b, K, table_t, cum_t, j, i0, n, out):
@@ -286,10 +298,7 @@ def _best_gaussian_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cu
     """
     n_s = s_grid.shape[0]
     n_t = t0_grid.shape[0]
-    t0_min = t0_grid[0]
-    t0_step = t0_grid[1] - t0_grid[0]
-    jc = int(round((k0 - t0_min) / t0_step))
-    jc = max(0, min(n_t - 1, jc))
+    jc = _t0_start_index(k0, t0_grid)
     best_i, best = -1, 0.0
     n = (n_s + coarse_stride - 1) // coarse_stride
     _scores_along_s(r, a, b, K, table_c, cum_c, jc, 0, n, buf)
@@ -322,10 +331,7 @@ def _best_gaussian_template(r, a, b, K, k0, energy_r, s_grid, t0_grid, table, cu
         e_m = energy_r - _score(r, a, b, K, table, cum, bi - 1, bj)
         e_0 = energy_r - best
         e_p = energy_r - _score(r, a, b, K, table, cum, bi + 1, bj)
-        den = e_m - 2.0 * e_0 + e_p
-        if den > 0.0:
-            delta = 0.5 * (e_m - e_p) / den
-            pos += max(-0.5, min(0.5, delta))
+        pos += _parabola_offset(e_m, e_0, e_p)
     return s_grid[0] * (s_grid[1] / s_grid[0]) ** pos, best
 
 
